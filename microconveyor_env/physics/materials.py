@@ -1,0 +1,214 @@
+"""Validated parameter sets for the contact model (SI units throughout).
+
+Three small frozen dataclasses hold what the Kogut–Etsion (KE) model needs:
+
+* :class:`Materials` -- elastic constants of the two bodies and the hardness of the softer one;
+* :class:`Surface`   -- roughness statistics and adhesion (sigma, psi, beta, dgamma, eps);
+* :class:`Part`      -- the micropart (mass and nominal contact area).
+
+:class:`ContactParams` bundles them with a dimensionless friction calibration scale and derives the
+quantities of physics.md §2 (composite modulus, K, asperity radius, critical interference, ...).
+Every field is checked on construction; an invalid value raises :class:`ParameterError` naming the
+field, its value and the allowed range.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+
+G0 = 9.81
+"""Gravitational acceleration [m/s^2]."""
+
+
+class ParameterError(ValueError):
+    """An invalid physical parameter (message names the field, its value and the allowed range)."""
+
+
+def check_range(owner: str, name: str, value, lo: float = -math.inf, hi: float = math.inf,
+                lo_open: bool = False, hi_open: bool = False, unit: str = "") -> float:
+    """Return ``float(value)`` or raise :class:`ParameterError` if it is not finite and in range."""
+    label = f"{owner}.{name}" if owner else name
+    lb = "(" if lo_open else "["
+    rb = ")" if hi_open else "]"
+    allowed = f"a finite number in {lb}{lo:g}, {hi:g}{rb}" + (f" [{unit}]" if unit else "")
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{label} = {value!r} is invalid: must be {allowed}") from None
+    bad = (not math.isfinite(v) or v < lo or v > hi or (lo_open and v == lo)
+           or (hi_open and v == hi))
+    if bad:
+        raise ParameterError(f"{label} = {value!r} is invalid: must be {allowed}")
+    return v
+
+
+def _validate(obj, specs: dict) -> None:
+    for name, (lo, hi, lo_open, hi_open, unit) in specs.items():
+        v = check_range(type(obj).__name__, name, getattr(obj, name), lo, hi, lo_open, hi_open, unit)
+        object.__setattr__(obj, name, v)
+
+
+@dataclass(frozen=True)
+class Materials:
+    """Elastic properties of the carrier surface (body 1) and the part (body 2).
+
+    Attributes
+    ----------
+    E1, E2 : Young's moduli [Pa], > 0.
+    nu1, nu2 : Poisson ratios [-], in [0, 0.5). ``nu1`` also sets the KE factor ``K = 0.454 + 0.41 nu1``
+        and the Poisson thinning of the stretched carrier (physics.md §4).
+    hardness : hardness of the softer body [Pa], > 0 (200 HB ~ 1.96e9 Pa).
+    """
+
+    E1: float = 2e11
+    nu1: float = 0.33
+    E2: float = 2e11
+    nu2: float = 0.33
+    hardness: float = 1.96e9
+
+    def __post_init__(self):
+        _validate(self, {
+            "E1": (0, math.inf, True, False, "Pa"), "E2": (0, math.inf, True, False, "Pa"),
+            "nu1": (0, 0.5, False, True, "-"), "nu2": (0, 0.5, False, True, "-"),
+            "hardness": (0, math.inf, True, False, "Pa"),
+        })
+
+    @property
+    def E(self) -> float:
+        """Composite modulus ``1/E = (1-nu1^2)/E1 + (1-nu2^2)/E2`` [Pa]."""
+        return 1.0 / ((1 - self.nu1 ** 2) / self.E1 + (1 - self.nu2 ** 2) / self.E2)
+
+    @property
+    def K(self) -> float:
+        """Hardness coefficient ``K = 0.454 + 0.41 nu1`` [-]."""
+        return 0.454 + 0.41 * self.nu1
+
+
+@dataclass(frozen=True)
+class Surface:
+    """Rough-surface statistics and adhesion.
+
+    Attributes
+    ----------
+    sigma : standard deviation of asperity heights [m], > 0.
+    psi : plasticity index [-], > 0; fixes the asperity radius R.
+    beta : ``eta R sigma`` [-], > 0; fixes the asperity density eta.
+    dgamma : surface energy (work of adhesion per area) [J/m^2], >= 0.
+    eps : Lennard-Jones intermolecular distance [m], > 0 (about 0.4 nm).
+    """
+
+    sigma: float = 20e-9
+    psi: float = 2.5
+    beta: float = 0.04
+    dgamma: float = 1.0
+    eps: float = 0.4e-9
+
+    def __post_init__(self):
+        _validate(self, {
+            "sigma": (0, 1e-3, True, False, "m"), "psi": (0, 1e3, True, False, "-"),
+            "beta": (0, 1e3, True, False, "-"), "dgamma": (0, 1e3, False, False, "J/m^2"),
+            "eps": (0, 1e-6, True, False, "m"),
+        })
+
+
+@dataclass(frozen=True)
+class Part:
+    """The micropart.
+
+    Attributes
+    ----------
+    mass : [kg], > 0 (default 2e-9 kg, a ~100 um steel cube).
+    area : nominal contact area A_n [m^2], > 0 (default 100 um x 100 um).
+    """
+
+    mass: float = 2e-9
+    area: float = 1e-8
+
+    def __post_init__(self):
+        _validate(self, {"mass": (0, 1.0, True, False, "kg"), "area": (0, 1.0, True, False, "m^2")})
+
+    @property
+    def weight(self) -> float:
+        """``m g0`` [N]."""
+        return self.mass * G0
+
+
+@dataclass(frozen=True)
+class ContactParams:
+    """Everything the KE contact table depends on.
+
+    ``friction_scale`` [-] (> 0) multiplies the KE static-friction force Q; it is the friction
+    calibration of physics.md §2 (1 = pure KE).
+    """
+
+    materials: Materials = field(default_factory=Materials)
+    surface: Surface = field(default_factory=Surface)
+    part: Part = field(default_factory=Part)
+    friction_scale: float = 1.0
+
+    def __post_init__(self):
+        for name, cls in (("materials", Materials), ("surface", Surface), ("part", Part)):
+            if not isinstance(getattr(self, name), cls):
+                raise ParameterError(f"ContactParams.{name} must be a {cls.__name__}, "
+                                     f"got {type(getattr(self, name)).__name__}")
+        _validate(self, {"friction_scale": (0, math.inf, True, False, "-")})
+
+    # ---- derived quantities (physics.md §2) ----
+    @property
+    def asperity_radius(self) -> float:
+        """R from ``psi = (2E/(pi K H)) sqrt(sigma/R)`` [m]."""
+        m, s = self.materials, self.surface
+        return s.sigma * (2 * m.E / (math.pi * m.K * m.hardness * s.psi)) ** 2
+
+    @property
+    def critical_interference(self) -> float:
+        """``omega_c = (pi K H / (2E))^2 R`` [m] (equals sigma / psi^2)."""
+        m = self.materials
+        return (math.pi * m.K * m.hardness / (2 * m.E)) ** 2 * self.asperity_radius
+
+    @property
+    def omega_c_star(self) -> float:
+        """``omega_c / sigma`` [-]."""
+        return self.critical_interference / self.surface.sigma
+
+    @property
+    def eta(self) -> float:
+        """Asperity areal density ``beta / (R sigma)`` [1/m^2]."""
+        return self.surface.beta / (self.asperity_radius * self.surface.sigma)
+
+    @property
+    def critical_load(self) -> float:
+        """Single-asperity critical load ``P_c = (2/3) pi K H R omega_c`` [N]."""
+        m = self.materials
+        return (2.0 / 3.0) * math.pi * m.K * m.hardness * self.asperity_radius * self.critical_interference
+
+    @property
+    def adhesion_force_scale(self) -> float:
+        """Single-asperity pull-off ``F_s0 = 2 pi dgamma R`` [N]."""
+        return 2 * math.pi * self.surface.dgamma * self.asperity_radius
+
+    @property
+    def asperity_count(self) -> float:
+        """``eta A_n``: number of asperities on the nominal area [-]."""
+        return self.eta * self.part.area
+
+    def replace(self, **changes) -> "ContactParams":
+        """Copy with top-level fields or ``surface__sigma=...``-style nested fields changed."""
+        nested: dict = {}
+        top = {}
+        for k, v in changes.items():
+            if "__" in k:
+                group, name = k.split("__", 1)
+                nested.setdefault(group, {})[name] = v
+            else:
+                top[k] = v
+        for group, kv in nested.items():
+            if group not in ("materials", "surface", "part"):
+                raise ParameterError(f"unknown parameter group {group!r}")
+            top[group] = dataclasses.replace(top.get(group, getattr(self, group)), **kv)
+        return dataclasses.replace(self, **top)
+
+    def as_dict(self) -> dict:
+        """Plain nested dict of the inputs (stable key order; used for cache hashing)."""
+        return dataclasses.asdict(self)

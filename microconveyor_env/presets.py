@@ -1,0 +1,92 @@
+"""Named parameter presets (YAML files in the repository's ``configs/``, shipped with the package).
+
+``load_preset("seed")`` reads ``configs/seed.yaml``, validates it, applies its ``calibration`` block
+(if any) and returns a :class:`Preset`. A path to a YAML file works as well as a name.
+"""
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+import yaml
+
+from .physics.calibration import Calibration, calibrate
+from .physics.materials import ContactParams, Materials, ParameterError, Part, Surface
+
+_TOP_KEYS = {"name", "description", "materials", "surface", "part", "friction_scale",
+             "calibration", "dynamics"}
+
+
+class PresetError(ValueError):
+    """A preset that cannot be found or read."""
+
+
+@dataclass(frozen=True)
+class Preset:
+    name: str
+    description: str
+    contact: ContactParams
+    calibration: dict = field(default_factory=dict)   # what was fitted (empty: none)
+    dynamics: dict = field(default_factory=dict)      # simulator defaults of this preset
+
+
+def available_presets() -> list[str]:
+    files = resources.files("microconveyor_env.configs")
+    return sorted(p.name[:-5] for p in files.iterdir() if p.name.endswith(".yaml"))
+
+
+def _read(name_or_path: str) -> dict:
+    p = Path(name_or_path)
+    if p.suffix in (".yaml", ".yml") and p.exists():
+        text = p.read_text()
+    else:
+        res = resources.files("microconveyor_env.configs") / f"{name_or_path}.yaml"
+        if not res.is_file():
+            raise PresetError(f"unknown preset {name_or_path!r}; available: "
+                              f"{', '.join(available_presets())} (or a path to a .yaml file)")
+        text = res.read_text()
+    data = yaml.safe_load(text)
+    if not isinstance(data, dict):
+        raise PresetError(f"preset {name_or_path!r} is not a YAML mapping")
+    unknown = set(data) - _TOP_KEYS
+    if unknown:
+        raise PresetError(f"preset {name_or_path!r}: unknown keys {sorted(unknown)}; "
+                          f"allowed {sorted(_TOP_KEYS)}")
+    return data
+
+
+def _section(cls, data: dict, key: str):
+    raw = data.get(key) or {}
+    try:
+        return cls(**raw)
+    except TypeError as exc:
+        raise ParameterError(f"{key}: {exc}") from None
+
+
+def params_from_dict(data: dict) -> ContactParams:
+    return ContactParams(materials=_section(Materials, data, "materials"),
+                         surface=_section(Surface, data, "surface"),
+                         part=_section(Part, data, "part"),
+                         friction_scale=data.get("friction_scale", 1.0))
+
+
+@functools.lru_cache(maxsize=32)
+def load_preset(name_or_path: str = "seed") -> Preset:
+    """Load, validate and calibrate a preset by name (``seed``, ``ke``) or YAML path."""
+    data = _read(str(name_or_path))
+    params = params_from_dict(data)
+    report: dict = {}
+    cal = data.get("calibration")
+    if cal:
+        cal = dict(cal)
+        if cal.get("friction_load") == "weight":
+            cal["friction_load"] = None
+        try:
+            target = Calibration(**cal)
+        except TypeError as exc:
+            raise ParameterError(f"calibration: {exc}") from None
+        params, report = calibrate(params, target)
+    return Preset(name=data.get("name", str(name_or_path)), description=data.get("description", ""),
+                  contact=params, calibration=report, dynamics=dict(data.get("dynamics") or {}))

@@ -1,0 +1,57 @@
+"""On-disk cache of contact tables: keyed by inputs, atomic, corrupt files rebuilt."""
+import numpy as np
+
+from microconveyor_env.physics import contact_table as ct
+from microconveyor_env.physics.materials import ContactParams
+
+
+def _fresh(monkeypatch, tmp_path):
+    monkeypatch.setenv("MICROCONVEYOR_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(ct, "_MEMO", {})
+
+
+def test_key_depends_on_shape_inputs_not_on_calibration():
+    p = ContactParams()
+    k = ct.table_key(p, 0.01, 1e4)
+    assert ct.table_key(p.replace(surface__beta=0.1, friction_scale=0.5), 0.01, 1e4) == k
+    assert ct.table_key(p.replace(surface__sigma=21e-9), 0.01, 1e4) != k
+    assert ct.table_key(p, 0.02, 1e4) != k
+
+
+def test_table_written_once_and_reused(monkeypatch, tmp_path):
+    _fresh(monkeypatch, tmp_path)
+    p = ContactParams()
+    t1 = ct.ContactTable(p, spacing=0.02)
+    files = list(tmp_path.glob("ke-table-*.npz"))
+    assert len(files) == 1 and not list(tmp_path.glob("*.tmp"))
+    monkeypatch.setattr(ct, "_MEMO", {})
+    monkeypatch.setattr(ct, "build_base_table", lambda *a, **k: (_ for _ in ()).throw(AssertionError))
+    t2 = ct.ContactTable(p, spacing=0.02)  # must come from disk, not a rebuild
+    np.testing.assert_array_equal(t1.base.q, t2.base.q)
+
+
+def test_corrupt_cache_is_rebuilt_not_trusted(monkeypatch, tmp_path):
+    _fresh(monkeypatch, tmp_path)
+    p = ContactParams()
+    good = ct.ContactTable(p, spacing=0.02).pull_off_force
+    path = next(tmp_path.glob("ke-table-*.npz"))
+    for garbage in (b"not a zip file", path.read_bytes()[:200]):
+        path.write_bytes(garbage)
+        monkeypatch.setattr(ct, "_MEMO", {})
+        assert ct.ContactTable(p, spacing=0.02).pull_off_force == good
+    # a readable file with wrong content (NaN) is rejected too
+    key = ct.table_key(p, 0.02, ct.DEFAULT_LOAD_RATIO)
+    t = ct.build_base_table(p, spacing=0.02)
+    arrays = t.arrays()
+    arrays["q"] = np.full_like(arrays["q"], np.nan)
+    np.savez(path, key=np.array(key), **arrays)
+    assert ct._load_cached(path, key) is None
+    monkeypatch.setattr(ct, "_MEMO", {})
+    assert np.all(np.isfinite(ct.ContactTable(p, spacing=0.02).base.q))
+
+
+def test_unwritable_cache_still_works(monkeypatch, tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    _fresh(monkeypatch, blocker / "sub")  # cannot create a directory under a file
+    assert ct.ContactTable(ContactParams(), spacing=0.02).pull_off_force > 0

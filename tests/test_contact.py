@@ -1,0 +1,146 @@
+"""KE rough-surface integrals, the contact table, calibration and presets."""
+import math
+
+import numpy as np
+import pytest
+from scipy import integrate
+
+from microconveyor_env.physics import asperity
+from microconveyor_env.physics.calibration import Calibration, calibrate
+from microconveyor_env.physics.contact_table import (ContactTable, DetachmentError,
+                                                     TableRangeError, tabulation_error)
+from microconveyor_env.physics.materials import ContactParams
+from microconveyor_env.physics.rough_surface import Normalised, SurfaceIntegrals, surface_forces
+
+PHI = lambda z: math.exp(-0.5 * z * z) / math.sqrt(2 * math.pi)  # noqa: E731
+
+
+def _quad(f, a, b, points=()):
+    edges = [a] + sorted(p for p in points if a < p < b) + [b]
+    return sum(integrate.quad(f, lo, hi, epsabs=0, epsrel=1e-12, limit=400)[0]
+               for lo, hi in zip(edges[:-1], edges[1:]))
+
+
+def _reference_integrals(norm, d):
+    """Independent adaptive quadrature in z* (scipy.integrate.quad) of the four integrals."""
+    oc, e, k = norm.omega_c_star, norm.eps_star, norm.eps_over_omega_c
+    top = max(d, 0) + 14
+    kinks = [d + oc * c for c in asperity.adhesion_floor_crossings(k)]
+    brk = [d + oc, d + 6 * oc, d + 110 * oc]
+    P = _quad(lambda z: float(asperity.load((z - d) / oc, norm.K)) * PHI(z), d, top, brk)
+    C = _quad(lambda z: float(asperity.adhesion_contact((z - d) / oc, k)) * PHI(z), d, top,
+              brk + kinks)
+    Q = _quad(lambda z: float(asperity.friction((z - d) / oc)) * PHI(z), d, d + 6 * oc,
+              [d + oc, d + oc * asperity.friction_mid_root()])
+    G = _quad(lambda z: float(asperity.adhesion_gap((d - z + e) / e)) * PHI(z), min(d, 0) - 14, d,
+              [d - e * m for m in (1, 3, 10, 30, 100, 300)])
+    return {"P": P, "C": C, "Q": Q, "G": G}
+
+
+@pytest.mark.parametrize("d_star", [0.5, 2.0, 3.86, 4.35, 6.0])
+def test_quadrature_matches_adaptive_reference(seed, d_star):
+    norm = Normalised.from_params(seed.contact)
+    got = SurfaceIntegrals(norm).evaluate([d_star])
+    ref = _reference_integrals(norm, d_star)
+    for key in "PCQG":
+        assert got[key][0] == pytest.approx(ref[key], rel=1e-8), key
+
+
+def test_derivatives_match_finite_differences(seed):
+    ints = SurfaceIntegrals(Normalised.from_params(seed.contact))
+    d, h = np.array([1.0, 3.0, 4.3]), 1e-4
+    r = ints.evaluate(d, derivatives=2)
+    rp, rm = ints.evaluate(d + h), ints.evaluate(d - h)
+    for key in "PCQG":
+        fd1 = (rp[key] - rm[key]) / (2 * h)
+        fd2 = (rp[key] - 2 * r[key] + rm[key]) / h ** 2
+        np.testing.assert_allclose(r["d" + key], fd1, rtol=1e-6)
+        np.testing.assert_allclose(r["dd" + key], fd2, rtol=1e-4)
+
+
+@pytest.mark.parametrize("d_star,F32", [(1.0, 7.56682e-2), (2.0, 6.64818e-3)])
+def test_greenwood_williamson_limit(d_star, F32):
+    """All-elastic fits: P = (4/3) eta A_n E R^1/2 sigma^3/2 F_3/2(d*)."""
+    p = ContactParams()
+    f = surface_forces(p, [d_star * p.surface.sigma], load_model="elastic")
+    gw = (4 / 3 * p.asperity_count * p.materials.E * math.sqrt(p.asperity_radius)
+          * p.surface.sigma ** 1.5 * F32)
+    assert f["P_N"][0] == pytest.approx(gw, rel=2e-6)  # F_3/2 quoted to 6 digits
+
+
+def test_table_error_against_quadrature_below_1e4(seed_table):
+    err = tabulation_error(seed_table, samples=3000)
+    assert err["max_rel_error_Q"] <= 1e-4
+    assert err["max_abs_error_d_over_sigma"] <= 1e-6
+
+
+def test_inversion_round_trip(seed_table):
+    loads = np.concatenate([-seed_table.pull_off_force * np.array([1.0, 0.999999, 0.5, 0.0]),
+                            np.geomspace(1e-9, 0.5 * seed_table.max_load, 50)])
+    d = seed_table.separation(loads)
+    back = surface_forces(seed_table.params, d)["N_N"]
+    scale = np.maximum(np.abs(loads), seed_table.pull_off_force)
+    assert np.max(np.abs(back - loads) / scale) < 1e-7
+    assert np.all(np.diff(d[4:]) < 0)  # more load, smaller separation
+
+
+def test_stable_branch_is_monotone(seed_table):
+    b = seed_table.base
+    assert np.all(np.diff(b.n) > 0) and np.all(np.diff(b.u) > 0) and np.all(np.diff(b.d) < 0)
+    assert b.d[0] == pytest.approx(b.d_pull) and b.n[0] == pytest.approx(b.n_min)
+    # the minimum is a minimum: N rises beyond d_A as well
+    f = surface_forces(seed_table.params, np.array([b.d_pull + 0.05]) * seed_table.params.surface.sigma)
+    assert f["N_N"][0] > -seed_table.pull_off_force
+
+
+def test_seed_preset_reference_figures(seed_table):
+    r = seed_table.report()
+    assert 70e-9 <= r["balance_separation_m"] <= 80e-9
+    assert 80e-9 <= r["pull_off_separation_m"] <= 90e-9
+    assert r["pull_off_force_N"] == pytest.approx(6.2e-6, rel=0.05)
+    assert r["friction_at_weight_N"] == pytest.approx(8e-8, rel=0.05)
+    assert r["slip_acceleration_flat_m_s2"] == pytest.approx(40, rel=0.05)  # physics.md §5
+
+
+def test_ke_preset_is_uncalibrated():
+    from microconveyor_env.presets import load_preset
+
+    ke = load_preset("ke")
+    assert ke.calibration == {} and ke.contact.friction_scale == 1.0
+    assert ke.contact.surface.beta == 0.04
+
+
+def test_detachment_is_a_distinct_result_never_nan(seed_table):
+    F = seed_table.pull_off_force
+    with pytest.raises(DetachmentError) as info:
+        seed_table.friction(-1.0001 * F)
+    assert info.value.pull_off == pytest.approx(F)
+    with pytest.raises(DetachmentError):
+        seed_table.separation(np.array([0.0, -2 * F]))
+    assert seed_table.is_detached(-1.01 * F) and not seed_table.is_detached(-0.99 * F)
+    q = seed_table.friction(np.linspace(-F, 1e-3, 10001))
+    assert np.all(np.isfinite(q)) and np.all(q > 0)
+    with pytest.raises(TableRangeError):
+        seed_table.friction(2 * seed_table.max_load)
+    with pytest.raises(ValueError):
+        seed_table.friction(float("nan"))
+
+
+def test_calibration_fits_any_targets(seed):
+    base = ContactParams()
+    target = Calibration(pull_off_force=3e-6, friction_force=2e-7, friction_load=1e-7)
+    fitted, report = calibrate(base, target)
+    t = ContactTable(fitted)
+    assert t.pull_off_force == pytest.approx(3e-6, rel=1e-10)
+    assert float(t.friction(1e-7)) == pytest.approx(2e-7, rel=1e-10)
+    assert report["fitted"] == ["beta", "friction_scale"]
+    assert seed.calibration["fitted"] == ["beta", "friction_scale"]
+    # calibration leaves the separations alone
+    assert t.pull_off_separation == pytest.approx(ContactTable(base).pull_off_separation, rel=1e-12)
+
+
+def test_friction_only_calibration_keeps_beta():
+    base = ContactParams()
+    fitted, report = calibrate(base, Calibration(friction_force=1e-7))
+    assert fitted.surface.beta == base.surface.beta and report["fitted"] == ["friction_scale"]
+    assert float(ContactTable(fitted).friction(base.part.weight)) == pytest.approx(1e-7, rel=1e-10)
