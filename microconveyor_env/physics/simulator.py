@@ -1,0 +1,182 @@
+"""The simulator API: a preset + a scene -> ``simulate(schedule, x0, v0) -> Result``.
+
+The Python layer validates inputs and builds plain arrays; :mod:`.dynamics_kernel` integrates.
+"""
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import dynamics_kernel as K
+from .contact_table import ContactTable, TableRangeError
+from .kinematics import SHAPES
+from .materials import G0, ContactParams, ParameterError, check_range
+from .schedule import Schedule
+
+MODES = {"karnopp": K.KARNOPP, "event": K.EVENT}
+KINEMATICS = ("seed", "exact")
+DEFAULT_MODE = "event"
+DEFAULT_DT = 2e-5          # s; chosen from the accuracy study (docs/accuracy.md)
+MIN_STEPS_PER_STROKE = 20  # default floor on steps per stroke; below it a warning is issued
+PEAK_QUINTIC_ACCEL = 10.0 / math.sqrt(3.0)  # max |p''| in units of h / (T/2)^2
+
+
+class StepSizeWarning(UserWarning):
+    """The time step resolves a stroke with fewer than MIN_STEPS_PER_STROKE steps."""
+
+
+@dataclass
+class Result:
+    """Outcome of one simulation (SI units).
+
+    ``outcome`` is ``rest`` (came to rest; ``rest_time_s`` is when), ``detached`` (left the surface
+    at ``detach_time_s``/``detach_position_m``), ``max_time`` (still moving at ``max_time``),
+    ``moving`` (stopped at the end of the last stroke, ``to_rest=False``) or ``too_many_events``
+    (stick-slip chattering the event mode could not resolve).
+    """
+
+    x0_m: float
+    final_position_m: float
+    final_velocity_m_s: float
+    outcome: str
+    end_time_s: float
+    rest_time_s: float | None
+    detach_time_s: float | None
+    detach_position_m: float | None
+    steps: int
+    events: int
+    wall_time_s: float
+    trajectory: dict | None = field(default=None, repr=False)
+
+    @property
+    def displacement_m(self) -> float:
+        return self.final_position_m - self.x0_m
+
+    def to_dict(self) -> dict:
+        d = {k: v for k, v in self.__dict__.items() if k != "trajectory"}
+        d["displacement_m"] = self.displacement_m
+        return d
+
+
+class Simulator:
+    """Part dynamics on an actuated surface.
+
+    Parameters
+    ----------
+    contact : ContactParams, or a preset name/path (default ``"seed"``).
+    shape : deformation shape, one of ``gaussian``, ``sinusoidal``, ``clamped_beam``.
+    wavelength : deformation wavelength WL [m] (> 0).
+    kinematics : ``seed`` (drops the velocity terms of the normal load, the dissertation's model)
+        or ``exact``.
+    mode : ``event`` (stick/slip and detachment located inside the step) or ``karnopp``.
+    dt : largest RK4 step [s]; each stroke of duration T = 1/f uses the smallest even number of
+        steps n with T/n <= dt and n >= ``min_steps``.
+    min_steps : floor on the number of steps per stroke (default 20, so fast strokes stay
+        resolved whatever dt is); fewer than 20 steps per stroke gives a StepSizeWarning.
+    slope : constant tilt of the carrier, tan(angle) [-] (0: horizontal).
+    max_time : simulated-time limit [s].
+    """
+
+    def __init__(self, contact="seed", shape: str = "gaussian", wavelength: float = 0.6e-3,
+                 kinematics: str | None = None, mode: str = DEFAULT_MODE, dt: float = DEFAULT_DT,
+                 slope: float = 0.0, max_time: float = 10.0,
+                 min_steps: int = MIN_STEPS_PER_STROKE):
+        defaults = {}
+        if not isinstance(contact, ContactParams):
+            from ..presets import load_preset
+
+            preset = load_preset(contact)
+            contact, defaults = preset.contact, preset.dynamics
+        if shape not in SHAPES:
+            raise ParameterError(f"shape = {shape!r} is invalid: must be one of {sorted(SHAPES)}")
+        kinematics = kinematics or defaults.get("kinematics", "seed")
+        if kinematics not in KINEMATICS:
+            raise ParameterError(f"kinematics = {kinematics!r} is invalid: must be one of "
+                                 f"{KINEMATICS}")
+        if mode not in MODES:
+            raise ParameterError(f"mode = {mode!r} is invalid: must be one of {sorted(MODES)}")
+        self.contact = contact
+        self.shape, self.kinematics, self.mode = shape, kinematics, mode
+        self.wavelength = check_range("Simulator", "wavelength", wavelength, 0, 1.0, True, unit="m")
+        self.dt = check_range("Simulator", "dt", dt, 0, 1.0, True, unit="s")
+        self.min_steps = int(check_range("Simulator", "min_steps", min_steps, 2, 1e7))
+        self.slope = check_range("Simulator", "slope", slope, -100, 100)
+        self.max_time = check_range("Simulator", "max_time", max_time, 0, math.inf, True, unit="s")
+        self.table = ContactTable(contact)
+        self.mass = contact.part.mass
+        P = np.zeros(K.N_PARAMS)
+        P[K.I_MASS], P[K.I_G0] = self.mass, G0
+        P[K.I_NMIN] = -self.table.pull_off_force
+        P[K.I_EXACT] = 1.0 if kinematics == "exact" else 0.0
+        P[K.I_SLOPE], P[K.I_WL] = self.slope, self.wavelength
+        P[K.I_SHAPE], P[K.I_MODE] = SHAPES[shape], MODES[mode]
+        self.params = P
+        tu, tq, tqu, _ = self.table.kernel_arrays()
+        self.tables = (np.ascontiguousarray(tu), np.ascontiguousarray(tq), np.ascontiguousarray(tqu))
+
+    # ------------------------------------------------------------------ checks
+    def check_firings(self, f: np.ndarray, h: np.ndarray) -> None:
+        """Warn about under-resolved strokes; refuse loads beyond the contact table."""
+        steps = np.array([K.steps_for(fi, self.dt, self.min_steps) for fi in f])
+        if np.any(steps < MIN_STEPS_PER_STROKE):
+            warnings.warn(f"dt = {self.dt:g} s resolves the fastest stroke (f = {f.max():g} Hz) "
+                          f"with {int(steps.min())} steps (< {MIN_STEPS_PER_STROKE}); results may "
+                          "be inaccurate: reduce dt", StepSizeWarning, stacklevel=3)
+        peak = self.mass * (G0 + PEAK_QUINTIC_ACCEL * h * (2 * f) ** 2)
+        if self.kinematics == "exact":
+            peak = peak * 4.0  # generous room for the velocity terms
+        if np.any(peak > self.table.max_load):
+            raise TableRangeError(f"a stroke (f = {f.max():g} Hz, h = {h.max():g} m) can load the "
+                                  f"part up to {peak.max():.3g} N, beyond the contact table "
+                                  f"({self.table.max_load:.3g} N)")
+
+    # ------------------------------------------------------------------ runs
+    def simulate(self, schedule: Schedule, x0: float, v0: float = 0.0, record: bool = False,
+                 to_rest: bool = True) -> Result:
+        """Run ``schedule`` from position ``x0`` [m] and velocity ``v0`` [m/s] at t = 0."""
+        if not isinstance(schedule, Schedule):
+            raise ParameterError(f"schedule must be a Schedule, got {type(schedule).__name__}")
+        x0 = check_range("simulate", "x0", x0, unit="m")
+        v0 = check_range("simulate", "v0", v0, unit="m/s")
+        xa, f, h, d = schedule.arrays()
+        self.check_firings(f, h)
+        cap = 0
+        if record:
+            cap = int(sum(self.steps_per_stroke(fi) for fi in f)) * 2 + 8 * len(f) + 64
+        rec = np.zeros((cap, K.N_REC))
+        out = np.zeros(K.N_OUT)
+        t0 = time.perf_counter()
+        K.run(xa, f, h, d, x0, v0, 0.0, self.dt, self.min_steps, to_rest, self.max_time, self.params,
+              *self.tables, rec, out)
+        wall = time.perf_counter() - t0
+        return self._result(out, x0, rec, wall, record)
+
+    def _result(self, out, x0, rec, wall, record) -> Result:
+        outcome = K.OUTCOMES[int(out[K.O_OUTCOME])]
+        detached = outcome == "detached"
+        traj = None
+        if record:
+            n = int(out[K.O_NREC])
+            r = rec[:n]
+            traj = {"t_s": r[:, K.R_T], "x_m": r[:, K.R_X], "v_m_s": r[:, K.R_V],
+                    "y_m": r[:, K.R_Y], "N_N": r[:, K.R_N], "Q_N": r[:, K.R_Q],
+                    "F_N": r[:, K.R_F], "stick": r[:, K.R_STICK] > 0.5}
+        return Result(
+            x0_m=x0, final_position_m=float(out[K.O_X]), final_velocity_m_s=float(out[K.O_V]),
+            outcome=outcome, end_time_s=float(out[K.O_T]),
+            rest_time_s=float(out[K.O_T]) if outcome == "rest" else None,
+            detach_time_s=float(out[K.O_EVENT_T]) if detached else None,
+            detach_position_m=float(out[K.O_EVENT_X]) if detached else None,
+            steps=int(out[K.O_STEPS]), events=int(out[K.O_EVENTS]), wall_time_s=wall,
+            trajectory=traj)
+
+    def steps_per_stroke(self, frequency: float) -> int:
+        return int(K.steps_for(float(frequency), self.dt, self.min_steps))
+
+    def flat_deceleration(self) -> float:
+        """Deceleration of a sliding part on the flat, still surface, Q(m g0)/m [m/s^2]."""
+        return float(self.table.friction(self.mass * G0)) / self.mass
