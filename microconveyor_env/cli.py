@@ -97,8 +97,141 @@ def cmd_demo(args):
     summary["summary_json"] = str(out_dir / "summary.json")
     _emit(args, summary, f"wrote {', '.join(summary['charts'])} and {summary['summary_json']}")
 
+# ----------------------------------------------------------------------------- simulation
+def _scene_args(p, sweep=False):
+    num = str if sweep else float
+    p.add_argument("--freq", type=num, default=None if sweep else 950.0,
+                   help="stroke frequency f [Hz] (stroke lasts 1/f)")
+    p.add_argument("--stroke", type=num, default=None if sweep else 200e-6, help="stroke height h [m]")
+    p.add_argument("--x0", type=num, default=None if sweep else 0.125e-3,
+                   help="start position [m] (actuator at 0)")
+    p.add_argument("--wavelength", type=num, default=None if sweep else 0.6e-3,
+                   help="deformation wavelength WL [m]")
+    p.add_argument("--profile", default=None if sweep else "gaussian",
+                   help="shape: gaussian, sinusoidal, clamped_beam")
+    if sweep:
+        for name in ("mass", "sigma", "dgamma"):
+            p.add_argument(f"--{name}", default=None, help=f"sweep {name} (SI units)")
+    p.add_argument("--mode", default="event", choices=("event", "karnopp"))
+    p.add_argument("--kinematics", default="seed", choices=("seed", "exact"))
+    p.add_argument("--dt", type=float, default=None, help="largest RK4 step [s]")
+    p.add_argument("--plot", metavar="FILE.png", help="write a chart")
 
-_ARGS = {"contact": _contact_args, "demo": _demo_args}
+
+def _sim_kw(args) -> dict:
+    kw = {"mode": args.mode, "kinematics": args.kinematics}
+    if args.dt is not None:
+        kw["dt"] = args.dt
+    return kw
+
+
+@command("simulate", "one firing of one actuator: travel, outcome, timing")
+def cmd_simulate(args):
+    from .studies.sweep import Scene
+
+    scene = Scene(preset=args.preset, freq=args.freq, stroke=args.stroke, x0=args.x0,
+                  wavelength=args.wavelength, profile=args.profile, sim_kw=_sim_kw(args))
+    sim = scene.simulator()
+    res = scene.run(record=bool(args.plot))
+    out = {"preset": args.preset, "freq_hz": args.freq, "stroke_m": args.stroke, "x0_m": args.x0,
+           "profile": args.profile, "mode": args.mode, "kinematics": args.kinematics,
+           "dt_s": sim.dt, "steps_per_stroke": sim.steps_per_stroke(args.freq),
+           **res.to_dict(), "rest_time_s": res.rest_time_s}
+    if args.plot:
+        from .plots import plot_firing
+
+        out["plot"] = str(plot_firing(res, args.freq, args.plot))
+    _emit(args, out)
+
+
+@command("sweep", "travel versus one parameter (frequency by default) and the feasible window")
+def cmd_sweep(args):
+    from .studies.sweep import SWEEPABLE, Scene, parse_values, sweep
+
+    given = {k: getattr(args, k) for k in SWEEPABLE if getattr(args, k, None) is not None}
+    swept = [k for k, v in given.items() if k != "profile" and (":" in v or "," in v)]
+    if "profile" in given and "," in given["profile"]:
+        swept.append("profile")
+    if len(swept) != 1:
+        raise ValueError(f"give exactly one swept parameter as start:stop:step or a list "
+                         f"(got {swept or 'none'}); e.g. --freq 200:1500:25")
+    param = swept[0]
+    base = {}
+    for k, v in given.items():
+        if k != param:
+            base[k] = v if k == "profile" else float(v)
+    scene = Scene(preset=args.preset, sim_kw=_sim_kw(args), **base)
+    values = parse_values(given[param], param)
+    res = sweep(scene, param, values, progress=not args.no_progress)
+    out = {"preset": args.preset, **{k: getattr(scene, k) for k in SWEEPABLE if k != param}, **res}
+    if args.plot:
+        from .plots import plot_sweep
+
+        out["plot"] = str(plot_sweep(res, args.plot))
+    _emit(args, out, _sweep_text(res))
+
+
+def _sweep_text(res) -> str:
+    lines = [f"{res['param']:>12s}  travel [um]  outcome"]
+    for v, d, o in zip(res["values"], res["displacement_m"], res["outcome"]):
+        lines.append(f"{v!s:>12s}  {d * 1e6:11.2f}  {o}")
+    if res.get("window") is not None:
+        lines.append(f"feasible window: {res['window']} {res['unit']}")
+    return "\n".join(lines)
+
+
+def _sweep_args(p):
+    _scene_args(p, sweep=True)
+    p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+
+
+@command("accuracy", "speed versus accuracy of the integrator settings (chart + default choice)")
+def cmd_accuracy(args):
+    from .studies.accuracy import accuracy_study
+
+    study = accuracy_study(args.preset, repeats=args.repeats, progress=True)
+    if args.plot:
+        from .plots import plot_accuracy
+
+        study["plot"] = str(plot_accuracy(study, args.plot))
+    d = study["default"]
+    _emit(args, study, f"default: {d}" if d else "no setting within tolerance")
+
+
+def _accuracy_args(p):
+    p.add_argument("--plot", metavar="FILE.png", help="write the chart")
+    p.add_argument("--repeats", type=int, default=30, help="timed repeats per setting")
+
+
+@command("bench", "kernel speed on the seed firing, against the dissertation-style loop")
+def cmd_bench(args):
+    from .studies.bench import bench_modes, load_reference
+
+    out = {"modes": bench_modes(args.preset, repeats=args.repeats)}
+    ref_mod = load_reference()
+    if ref_mod is None or args.skip_reference:
+        out["reference"] = None
+        out["reference_note"] = ("benchmarks/dissertation_reference.py not found (run from a "
+                                 "checkout)" if ref_mod is None else "skipped")
+    else:
+        from .presets import load_preset
+
+        contact = load_preset(args.preset).contact
+        ref = ref_mod.converged_dt(contact)
+        out["reference"] = ref
+        default = out["modes"]["event"]["median_wall_time_s"]
+        out["speedup_vs_reference"] = ref["wall_time_s"] / default
+    _emit(args, out)
+
+
+def _bench_args(p):
+    p.add_argument("--repeats", type=int, default=500, help="timed repeats per mode")
+    p.add_argument("--skip-reference", action="store_true",
+                   help="do not run the (slow) plain-Python reference")
+
+
+_ARGS = {"contact": _contact_args, "demo": _demo_args, "simulate": _scene_args,
+         "sweep": _sweep_args, "accuracy": _accuracy_args, "bench": _bench_args}
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -54,8 +54,95 @@ def plot_contact(table, path: str | Path, title: str = "") -> Path:
     ax2.legend(fontsize=8)
     if title:
         fig.suptitle(title)
+    return _save(fig, path)
+
+
+def _save(fig, path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
-    plt.close(fig)
+    _plt().close(fig)
     return path
+
+
+def plot_firing(result, freq: float, path, delay: float = 0.0, title: str = "") -> Path:
+    """Seed Fig. 3.16 analogue: friction force and horizontal velocity versus time, with the
+    stroke's up and down phases shaded and stick intervals marked."""
+    plt = _plt()
+    tr = result.trajectory
+    t_ms = tr["t_s"] * 1e3
+    fig, (ax1, ax2, ax3) = plt.subplots(3, 1, figsize=(9, 7.5), sharex=True, constrained_layout=True)
+    T = 1.0 / freq
+    for ax in (ax1, ax2, ax3):
+        ax.axvspan(delay * 1e3, (delay + T / 2) * 1e3, color="tab:orange", alpha=0.12)
+        ax.axvspan((delay + T / 2) * 1e3, (delay + T) * 1e3, color="tab:blue", alpha=0.10)
+    ax1.plot(t_ms, tr["F_N"] * 1e9, "k", lw=1.2, label="friction force F")
+    ax1.plot(t_ms, tr["Q_N"] * 1e9, color="tab:purple", lw=0.8, ls="--", label="max static friction Q")
+    ax1.plot(t_ms, -tr["Q_N"] * 1e9, color="tab:purple", lw=0.8, ls="--")
+    ax1.set_ylabel("force [nN]")
+    ax1.legend(fontsize=8, loc="upper right")
+    ax2.plot(t_ms, tr["v_m_s"] * 1e3, "tab:green", lw=1.2)
+    stick = tr["stick"]
+    ax2.plot(t_ms[stick], tr["v_m_s"][stick] * 1e3, "k.", ms=2, label="sticking")
+    ax2.set_ylabel("velocity dx/dt [mm/s]")
+    ax2.legend(fontsize=8, loc="upper right")
+    ax3.plot(t_ms, tr["x_m"] * 1e6, "tab:red", lw=1.2, label="part position x")
+    ax3.plot(t_ms, tr["N_N"] * 1e6, color="0.4", lw=0.8, label="normal load N [uN]")
+    ax3.set_ylabel("x [um]  /  N [uN]")
+    ax3.set_xlabel("time [ms]  (orange: stroke up, blue: stroke down)")
+    ax3.legend(fontsize=8, loc="lower right")
+    ax1.set_title(title or f"one firing at {freq:g} Hz (cf. Fig. 3.16): outcome {result.outcome}")
+    return _save(fig, path)
+
+
+def plot_sweep(sweep: dict, path, title: str = "") -> Path:
+    """Seed Fig. 3.17 analogue: travel versus the swept parameter, detachment and window marked."""
+    plt = _plt()
+    vals = np.asarray(sweep["values"], dtype=object)
+    fig, ax = plt.subplots(figsize=(8, 4.5), constrained_layout=True)
+    numeric = sweep["param"] != "profile"
+    x = np.asarray(vals, float) if numeric else np.arange(len(vals))
+    d = np.abs(np.asarray(sweep["displacement_m"])) * 1e6
+    det = np.array([o == "detached" for o in sweep["outcome"]])
+    ax.plot(x[~det], d[~det], "o-", ms=3, label="travel |x_final - x0|")
+    if det.any():
+        ax.plot(x[det], d[det], "rx", label="detached (travel until detachment)")
+    win = sweep.get("window")
+    if win:
+        ax.axvspan(win[0], win[1], color="tab:green", alpha=0.1,
+                   label=f"feasible window {win[0]:g} .. {win[1]:g} {sweep['unit']}")
+    if not numeric:
+        ax.set_xticks(x, list(vals))
+    ax.set_xlabel(f"{sweep['param']} [{sweep['unit']}]")
+    ax.set_ylabel("travel [um]")
+    ax.set_title(title or f"travel versus {sweep['param']} (cf. Fig. 3.17)")
+    ax.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def plot_accuracy(study: dict, path) -> Path:
+    """Error of the final position versus wall time per firing, per mode and kinematics level."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(8, 5), constrained_layout=True)
+    styles = {("event", "seed"): "o-", ("karnopp", "seed"): "s-",
+              ("event", "exact"): "o--", ("karnopp", "exact"): "s--"}
+    floor = 1e-12
+    for (mode, kin), st in styles.items():
+        rows = [r for r in study["rows"] if r["mode"] == mode and r["kinematics"] == kin]
+        if not rows:
+            continue
+        w = [r["wall_time_s"] * 1e6 for r in rows]
+        e = [max(r["error_m"], floor) * 1e6 for r in rows]
+        ax.loglog(w, e, st, label=f"{mode}, {kin} kinematics")
+        for r, wi, ei in zip(rows, w, e):
+            ax.annotate(f"{r['dt_s']:.2g}", (wi, ei), fontsize=6, alpha=0.7)
+    ax.axhline(study["tolerance_m"] * 1e6, color="r", lw=0.8, ls=":", label="1 um tolerance")
+    d = study.get("default")
+    if d:
+        ax.plot([d["wall_time_s"] * 1e6], [max(d["error_m"], floor) * 1e6], "r*", ms=16,
+                label=f"default: {d['mode']}, dt = {d['dt_s']:g} s")
+    ax.set_xlabel("wall time per firing [us]  (labels: dt [s])")
+    ax.set_ylabel("|final position - converged| [um]")
+    ax.set_title(f"speed versus accuracy, seed firing {study['freq_hz']:g} Hz")
+    ax.legend(fontsize=8)
+    return _save(fig, path)

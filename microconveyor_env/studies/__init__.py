@@ -1,0 +1,1 @@
+"""Studies built on the simulator: parameter sweeps, feasible windows, accuracy versus cost."""

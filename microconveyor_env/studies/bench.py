@@ -1,0 +1,47 @@
+"""Kernel benchmark: median wall time of the seed firing per mode, and kernel steps per second.
+
+The dissertation-style plain-Python baseline lives in the repository's ``benchmarks/`` folder (not in
+the package); :func:`load_reference` finds it when running from a checkout.
+"""
+from __future__ import annotations
+
+import importlib.util
+import statistics
+import time
+from pathlib import Path
+
+from ..physics.schedule import Schedule
+from ..physics.simulator import Simulator
+
+SEED_FIRING = {"freq": 950.0, "stroke": 200e-6, "x0": 0.125e-3}
+
+
+def bench_modes(preset: str = "seed", repeats: int = 500) -> dict:
+    sched = Schedule.single(SEED_FIRING["freq"], SEED_FIRING["stroke"])
+    out = {}
+    for mode in ("event", "karnopp"):
+        sim = Simulator(preset, mode=mode)
+        res = sim.simulate(sched, x0=SEED_FIRING["x0"])  # warm-up (compile/load)
+        walls = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            sim.simulate(sched, x0=SEED_FIRING["x0"])
+            walls.append(time.perf_counter() - t0)
+        med = statistics.median(walls)
+        out[mode] = {"median_wall_time_s": med, "min_wall_time_s": min(walls),
+                     "dt_s": sim.dt, "steps": res.steps, "events": res.events,
+                     "steps_per_s": res.steps / med, "displacement_m": res.displacement_m,
+                     "outcome": res.outcome}
+    return out
+
+
+def load_reference():
+    """The ``benchmarks/dissertation_reference.py`` module of a checkout, or None."""
+    for root in (Path.cwd(), Path(__file__).resolve().parents[2]):
+        path = root / "benchmarks" / "dissertation_reference.py"
+        if path.is_file():
+            spec = importlib.util.spec_from_file_location("dissertation_reference", path)
+            mod = importlib.util.module_from_spec(spec)
+            spec.loader.exec_module(mod)
+            return mod
+    return None

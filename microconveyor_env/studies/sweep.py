@@ -1,0 +1,116 @@
+"""Sweeps of a single firing over one parameter, and the feasible frequency window.
+
+The scene is the seed's single-actuator experiment (physics.md §5): one actuator at x = 0, the part
+starting at ``x0`` beside it, one stroke, then coasting to rest. Any of :data:`SWEEPABLE` can be
+swept; the others keep their base values.
+"""
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..physics.materials import ParameterError
+from ..physics.schedule import Schedule
+from ..physics.simulator import Simulator
+
+# parameter -> (unit, where it goes)
+SWEEPABLE = {
+    "freq": ("Hz", "firing"), "stroke": ("m", "firing"), "x0": ("m", "start"),
+    "wavelength": ("m", "scene"), "profile": ("-", "scene"),
+    "mass": ("kg", "contact"), "sigma": ("m", "contact"), "dgamma": ("J/m^2", "contact"),
+}
+_CONTACT_FIELD = {"mass": "part__mass", "sigma": "surface__sigma", "dgamma": "surface__dgamma"}
+MIN_TRAVEL_M = 10e-6  # lower bound of the feasible window: at least this much travel
+
+
+@dataclass
+class Scene:
+    """Base values of a single-firing experiment (SI units)."""
+
+    preset: str = "seed"
+    freq: float = 950.0          # Hz
+    stroke: float = 200e-6       # m
+    x0: float = 0.125e-3         # m, start position (actuator at 0)
+    wavelength: float = 0.6e-3   # m
+    profile: str = "gaussian"
+    mass: float | None = None    # kg (None: the preset's)
+    sigma: float | None = None   # m
+    dgamma: float | None = None  # J/m^2
+    sim_kw: dict = field(default_factory=dict)  # mode, kinematics, dt, ...
+
+    def simulator(self) -> Simulator:
+        from ..presets import load_preset
+
+        contact = load_preset(self.preset).contact
+        changes = {_CONTACT_FIELD[k]: getattr(self, k) for k in _CONTACT_FIELD
+                   if getattr(self, k) is not None}
+        if changes:
+            contact = contact.replace(**changes)
+        return Simulator(contact, shape=self.profile, wavelength=self.wavelength, **self.sim_kw)
+
+    def run(self, record: bool = False):
+        sim = self.simulator()
+        return sim.simulate(Schedule.single(self.freq, self.stroke), x0=self.x0, record=record)
+
+
+def parse_values(spec: str, param: str) -> list:
+    """``"200:1500:25"`` (start:stop:step, stop included) or ``"a,b,c"``."""
+    if param == "profile":
+        return [s.strip() for s in spec.split(",") if s.strip()]
+    try:
+        if ":" in spec:
+            a, b, c = (float(v) for v in spec.split(":"))
+            if not c > 0 or b < a:
+                raise ValueError
+            n = int(np.floor((b - a) / c + 1e-9)) + 1
+            return [a + i * c for i in range(n)]
+        return [float(v) for v in spec.split(",") if v.strip()]
+    except ValueError:
+        raise ParameterError(f"--{param} {spec!r} is invalid: use start:stop:step (step > 0, "
+                             "stop >= start) or a comma-separated list") from None
+
+
+def feasible_window(values, travel, outcomes) -> list | None:
+    """[lo, hi]: lowest value with >= 10 um travel, highest value below the first detachment."""
+    lo = hi = None
+    for v, d, o in zip(values, travel, outcomes):
+        if o == "detached":
+            break
+        if lo is None and abs(d) >= MIN_TRAVEL_M:
+            lo = v
+        if lo is not None:
+            hi = v
+    return None if lo is None else [lo, hi]
+
+
+def sweep(scene: Scene, param: str, values, progress: bool = True) -> dict:
+    """Run the scene for each value of ``param``; travel, outcomes and (for freq) the window."""
+    if param not in SWEEPABLE:
+        raise ParameterError(f"cannot sweep {param!r}; sweepable: {sorted(SWEEPABLE)}")
+    from tqdm import tqdm
+
+    rows = []
+    it = tqdm(values, desc=f"sweep {param}", file=sys.stderr, disable=not progress, leave=False)
+    for v in it:
+        s = Scene(**{**scene.__dict__, param: v})
+        r = s.run()
+        rows.append(r)
+    travel = [r.displacement_m for r in rows]
+    outcomes = [r.outcome for r in rows]
+    out = {"param": param, "unit": SWEEPABLE[param][0], "values": list(values),
+           "displacement_m": travel, "outcome": outcomes,
+           "rest_time_s": [r.rest_time_s for r in rows],
+           "detach_time_s": [r.detach_time_s for r in rows],
+           "wall_time_s": float(sum(r.wall_time_s for r in rows))}
+    if param != "profile":
+        out["window"] = feasible_window(values, travel, outcomes)
+        if param == "freq":
+            out["window_hz"] = out["window"]
+        ok = [i for i, o in enumerate(outcomes) if o != "detached"]
+        if ok:
+            best = max(ok, key=lambda i: abs(travel[i]))
+            out["max_travel_m"] = abs(travel[best])
+            out["max_travel_at"] = values[best]
+    return out
