@@ -25,3 +25,49 @@ def test_error_is_json_with_nonzero_status():
     r = run("contact", "--preset", "nope", "--json")
     assert r.returncode == 2
     assert "unknown preset" in json.loads(r.stdout)["error"]
+
+
+def test_simulate_json_keys_and_plot(tmp_path):
+    png = tmp_path / "firing.png"
+    r = run("simulate", "--preset", "seed", "--freq", "950", "--stroke", "200e-6", "--x0",
+            "0.125e-3", "--json", "--plot", str(png))
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    for key in ("displacement_m", "final_position_m", "final_velocity_m_s", "outcome",
+                "rest_time_s", "wall_time_s"):
+        assert key in out
+    assert out["outcome"] == "rest" and out["final_velocity_m_s"] == 0.0
+    assert png.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_sweep_reports_window_and_progress_on_stderr(tmp_path):
+    png = tmp_path / "sweep.png"
+    r = run("sweep", "--freq", "200:1500:100", "--stroke", "200e-6", "--json", "--plot", str(png))
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)  # stdout holds only the JSON object
+    lo, hi = out["window_hz"]
+    assert 200 <= lo < hi < 1500
+    assert len(out["displacement_m"]) == 14 and "detached" in out["outcome"]
+    assert png.stat().st_size > 5_000
+
+
+def test_sweep_other_parameter_and_bad_spec():
+    r = run("sweep", "--freq", "700", "--stroke", "150e-6,200e-6", "--json", "--no-progress")
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)["displacement_m"]
+    assert abs(d[1]) > abs(d[0])  # larger stroke, more travel
+    r = run("sweep", "--freq", "1500:200:25", "--json")
+    assert r.returncode == 2 and "start:stop:step" in json.loads(r.stdout)["error"]
+
+
+def test_simulate_bad_input_is_a_clear_error():
+    r = run("simulate", "--freq", "-5", "--json")
+    assert r.returncode == 2 and "Firing.frequency" in json.loads(r.stdout)["error"]
+
+
+def test_bench_without_reference_runs():
+    r = run("bench", "--json", "--repeats", "5", "--skip-reference")
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    for mode in ("event", "karnopp"):
+        assert out["modes"][mode]["median_wall_time_s"] > 0 and out["modes"][mode]["steps_per_s"] > 0
