@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from .kinematics import surface_eval
 
@@ -394,3 +394,18 @@ def run(xa, freq, stroke_h, delay, x0, v0, t0, dt, min_steps, to_rest, t_max, P,
     out[O_OUTCOME] = outcome
     out[O_STICK] = 1.0 if v == 0.0 else 0.0
 
+
+
+@njit(cache=True, parallel=True)
+def run_batch(xa, freq, stroke_h, delay, x, v, t, active, to_rest, dt, min_steps, t_max, P,
+              tu, tq, tqu, out):
+    """One firing for each of N parts at once (numba prange); row i of ``out`` as in :func:`run`.
+
+    Arrays over parts: xa, freq, stroke_h, delay, x, v, t [SI], ``active`` (bool: parts whose row
+    is skipped keep ``out[i]`` untouched) and ``to_rest`` (bool: coast to rest after the stroke).
+    """
+    rec = np.zeros((0, N_REC))
+    for i in prange(x.shape[0]):
+        if active[i]:
+            run(xa[i:i + 1], freq[i:i + 1], stroke_h[i:i + 1], delay[i:i + 1], x[i], v[i], t[i],
+                dt, min_steps, to_rest[i], t_max, P, tu, tq, tqu, rec, out[i])

@@ -1,0 +1,100 @@
+"""Validated configuration of MicroConveyor-v0 (defaults in ``configs/env.yaml``)."""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from importlib import resources
+
+import yaml
+
+from ..physics.kinematics import SHAPES
+from ..physics.materials import ParameterError, check_range
+
+_RANGES = {  # field -> (lo, hi, lo_open, unit)
+    "spacing": (0.0, 1.0, True, "m"), "wavelength": (0.0, 1.0, True, "m"),
+    "start_offset": (0.0, 1.0, False, "m"), "start_jitter": (0.0, 1.0, False, "m"),
+    "tolerance": (0.0, 1.0, True, "m"), "progress_scale": (0.0, 1.0, True, "m"),
+    "time_cost": (0.0, 1e6, False, "1/s"), "success_bonus": (0.0, 1e6, False, "-"),
+    "detach_penalty": (0.0, 1e6, False, "-"), "max_time": (0.0, 1e6, True, "s"),
+    "dt": (0.0, 1.0, True, "s"),
+}
+_PAIRS = {"target_range": (0.0, 1.0, "m"), "freq_range": (0.0, 1e6, "Hz"),
+          "stroke_range": (0.0, 1e-2, "m"), "delay_range": (0.0, 1e4, "s")}
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """All settings of the environment; see ``configs/env.yaml`` for meanings and units."""
+
+    preset: str = "seed"
+    n_actuators: int = 5
+    spacing: float = 0.5e-3
+    shape: str = "gaussian"
+    wavelength: float = 0.6e-3
+    start_offset: float = 0.15e-3
+    start_jitter: float = 0.0
+    target_range: tuple = (1e-3, 10e-3)
+    tolerance: float = 50e-6
+    freq_range: tuple = (200.0, 10000.0)
+    stroke_range: tuple = (100e-6, 200e-6)
+    delay_range: tuple = (0.0, 0.1)
+    progress_scale: float = 1e-3
+    time_cost: float = 1.0
+    success_bonus: float = 10.0
+    detach_penalty: float = 10.0
+    max_time: float = 1.0
+    mode: str = "event"
+    kinematics: str = "seed"
+    dt: float = 5e-5
+
+    def __post_init__(self):
+        for name, (lo, hi, lo_open, unit) in _RANGES.items():
+            object.__setattr__(self, name, check_range("EnvConfig", name, getattr(self, name),
+                                                       lo, hi, lo_open, unit=unit))
+        n = self.n_actuators
+        if isinstance(n, bool) or not isinstance(n, (int, float)) or n != int(n) or not 1 <= n <= 1000:
+            raise ParameterError(f"EnvConfig.n_actuators = {n!r} is invalid: must be an integer "
+                                 "in [1, 1000]")
+        object.__setattr__(self, "n_actuators", int(n))
+        for name, (lo, hi, unit) in _PAIRS.items():
+            pair = getattr(self, name)
+            if not isinstance(pair, (list, tuple)) or len(pair) != 2:
+                raise ParameterError(f"EnvConfig.{name} = {pair!r} is invalid: must be [low, high]")
+            a = check_range("EnvConfig", f"{name}[0]", pair[0], lo, hi, unit=unit)
+            b = check_range("EnvConfig", f"{name}[1]", pair[1], lo, hi, unit=unit)
+            if b < a:
+                raise ParameterError(f"EnvConfig.{name} = {pair!r} is invalid: low > high")
+            object.__setattr__(self, name, (a, b))
+        if self.freq_range[0] <= 0:
+            raise ParameterError(f"EnvConfig.freq_range = {self.freq_range!r} is invalid: "
+                                 "frequencies must be > 0 Hz")
+        for name, allowed in (("shape", tuple(SHAPES)), ("mode", ("event", "karnopp")),
+                              ("kinematics", ("seed", "exact"))):
+            if getattr(self, name) not in allowed:
+                raise ParameterError(f"EnvConfig.{name} = {getattr(self, name)!r} is invalid: "
+                                     f"must be one of {allowed}")
+
+    @classmethod
+    def from_yaml(cls, path: str | None = None, **overrides) -> "EnvConfig":
+        """Defaults from ``configs/env.yaml`` (or ``path``), then ``overrides``."""
+        if path is None:
+            text = (resources.files("microconveyor_env.configs") / "env.yaml").read_text()
+        else:
+            with open(path) as fh:
+                text = fh.read()
+        data = yaml.safe_load(text) or {}
+        data.update(overrides)
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise ParameterError(f"EnvConfig: unknown keys {unknown}; known: {sorted(known)}")
+        return cls(**data)
+
+    @property
+    def actuator_positions(self) -> tuple:
+        return tuple(i * self.spacing for i in range(self.n_actuators))
+
+    @property
+    def log_freq_span(self) -> float:
+        return math.log(self.freq_range[1] / self.freq_range[0])

@@ -1,0 +1,151 @@
+"""MicroConveyor-v0: carry a micropart to a target with a linear array of micro-actuators."""
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from ..physics import dynamics_kernel as K
+from ..physics.simulator import Simulator
+from . import task
+from .config import EnvConfig
+
+
+def make_simulator(cfg: EnvConfig) -> Simulator:
+    return Simulator(cfg.preset, shape=cfg.shape, wavelength=cfg.wavelength,
+                     kinematics=cfg.kinematics, mode=cfg.mode, dt=cfg.dt, max_time=cfg.max_time)
+
+
+class MicroConveyorEnv(gym.Env):
+    """Goal-conditioned micropart conveyor (physics: Kogut–Etsion contact, stick–slip dynamics).
+
+    A part starts ``start_offset`` upstream of actuator 1 (at x = 0) of a linear array of
+    ``n_actuators`` actuators ``spacing`` apart and must come to rest within ``tolerance`` of a
+    target downstream (+x). Each ``step`` fires the **next** actuator with the action's frequency,
+    stroke and delay: the part coasts during the delay, the stroke runs, and the step returns when
+    the stroke ends; the last step also runs the part to rest. An episode therefore has at most
+    ``n_actuators`` steps.
+
+    ## Action space: ``Box(-1, 1, (3,), float32)``
+
+    | index | meaning | mapping |
+    |---|---|---|
+    | 0 | stroke frequency f [Hz] (the stroke lasts 1/f) | log-uniform onto ``freq_range`` (200–10000 Hz) |
+    | 1 | stroke height h [m] | linear onto ``stroke_range`` (100–200 µm) |
+    | 2 | delay before the stroke [s] | linear onto ``delay_range`` (0–0.1 s) |
+
+    Out-of-range actions are **clipped** to [-1, 1]; NaN or inf raise ``ValueError``.
+
+    ## Observation space: ``Box(-10, 10, (6,), float32)`` (values clipped to the bounds)
+
+    | index | observation | scaling |
+    |---|---|---|
+    | 0 | position error x − target | / 10 mm |
+    | 1 | velocity dx/dt | / 0.5 m/s |
+    | 2 | distance from the part to the next actuator (0 once all fired) | / spacing |
+    | 3 | elapsed simulated time | / max_time |
+    | 4 | fraction of actuators fired | – |
+    | 5 | target (distance beyond actuator 1) | / 10 mm |
+
+    ## Reward
+    ``Phi(s') - Phi(s) - time_cost * (t' - t) + success_bonus * [success] - detach_penalty *
+    [detached]`` with the potential ``Phi = -|x - target| / progress_scale``.
+
+    ## Episode end
+    ``terminated``: at rest after the last firing, or detachment. ``truncated``: the simulated
+    time limit ``max_time`` (or an unresolved stick–slip chatter, reported in ``info["outcome"]``).
+    ``info``: ``is_success``, ``final_error_m`` (signed x − target), ``outcome``
+    (``moving``/``rest``/``detached``/``max_time``/``too_many_events``), ``sim_time_s``,
+    ``frequency_hz``, ``stroke_m``, ``delay_s`` (the decoded action).
+
+    ## Arguments
+    Any field of :class:`EnvConfig` (defaults in ``configs/env.yaml``), e.g.
+    ``gym.make("MicroConveyor-v0", n_actuators=3, tolerance=100e-6)``; ``render_mode`` ``"rgb_array"``
+    (for a window, wrap with ``gymnasium.wrappers.HumanRendering``, which needs pygame).
+    ``reset(options={"target": d})`` sets the target distance d [m] beyond actuator 1.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
+
+    def __init__(self, render_mode: str | None = None, config: EnvConfig | None = None, **kwargs):
+        if config is not None and kwargs:
+            raise ValueError("give either config= or keyword overrides, not both")
+        self.config = config or EnvConfig.from_yaml(**kwargs)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode {render_mode!r} not supported; use one of "
+                             f"{self.metadata['render_modes']}")
+        self.render_mode = render_mode
+        self.sim = make_simulator(self.config)
+        self.positions = np.asarray(self.config.actuator_positions, dtype=np.float64)
+        self.action_space = spaces.Box(-1.0, 1.0, (3,), np.float32)
+        self.observation_space = spaces.Box(-task.OBS_BOUND, task.OBS_BOUND, (task.OBS_DIM,),
+                                            np.float32)
+        self._C = task.constants(self.config, self.sim.dt, self.sim.min_steps)
+        self._kout = np.zeros((1, K.N_OUT))
+        self._res = np.zeros((1, task.N_S))
+        self._obs_buf = np.zeros((1, task.OBS_DIM), dtype=np.float32)
+        self._active = np.ones(1, dtype=np.bool_)
+        self._x, self._v, self._t = np.zeros(1), np.zeros(1), np.zeros(1)
+        self._fired = np.zeros(1, dtype=np.int64)
+        self._target = np.full(1, np.nan)
+        self._done = True
+        self._last_firing = None
+
+    # state accessors (SI units)
+    x = property(lambda self: float(self._x[0]), doc="part position [m]")
+    v = property(lambda self: float(self._v[0]), doc="part velocity [m/s]")
+    t = property(lambda self: float(self._t[0]), doc="simulated time [s]")
+    fired = property(lambda self: int(self._fired[0]), doc="actuators fired so far")
+    target = property(lambda self: float(self._target[0]), doc="target position [m]")
+
+    # ------------------------------------------------------------------ API
+    def reset(self, *, seed=None, options=None):
+        super().reset(seed=seed)
+        cfg = self.config
+        jitter = self.np_random.uniform(-1.0, 1.0) * cfg.start_jitter if cfg.start_jitter else 0.0
+        target = self.np_random.uniform(*cfg.target_range)
+        if options and "target" in options:
+            target = float(options["target"])
+            if not np.isfinite(target):
+                raise ValueError(f"options['target'] = {options['target']!r} must be finite [m]")
+        self._x[0], self._v[0], self._t[0] = -cfg.start_offset + jitter, 0.0, 0.0
+        self._fired[0] = 0
+        self._target[0] = target
+        self._done = False
+        self._last_firing = None
+        task.observe_all(self._x, self._v, self._t, self._fired, self._target, self._C,
+                         self.positions, self._obs_buf)
+        return self._obs_buf[0].copy(), self._info("moving")
+
+    def step(self, action):
+        if self._done:
+            raise RuntimeError("step() called on a finished episode: call reset() first")
+        a = task.check_actions(action, 1)
+        xa = float(self.positions[self.fired])
+        task.step_serial(a, self._x, self._v, self._t, self._fired, self._target, self._active,
+                         self._C, self.positions, self.sim.params, *self.sim.tables, self._kout,
+                         self._res, self._obs_buf)
+        res = self._res[0]
+        outcome = K.OUTCOMES[int(res[task.S_OUTCOME])]
+        terminated = outcome in ("rest", "detached")
+        truncated = outcome in ("max_time", "too_many_events")
+        self._done = terminated or truncated
+        f, h, d = float(res[task.S_F]), float(res[task.S_H]), float(res[task.S_D])
+        self._last_firing = (xa, f, h, d)
+        info = self._info(outcome)
+        info["frequency_hz"], info["stroke_m"], info["delay_s"] = f, h, d
+        return (self._obs_buf[0].copy(), float(res[task.S_REWARD]), terminated, truncated, info)
+
+    def render(self):
+        if self.render_mode != "rgb_array":
+            return None
+        from .render import render_frame
+
+        return render_frame(self.config, self.x, self.target, self.fired, self._last_firing,
+                            self.t)
+
+    # ------------------------------------------------------------------ helpers
+    def _info(self, outcome: str) -> dict:
+        success = (outcome == "rest" and abs(self.x - self.target) <= self.config.tolerance)
+        return {"is_success": bool(success), "final_error_m": float(self.x - self.target),
+                "outcome": outcome, "sim_time_s": float(self.t)}

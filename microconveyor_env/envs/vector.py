@@ -1,0 +1,159 @@
+"""Batched MicroConveyor-v0: N parts stepped together by one compiled call (numba prange)."""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from ..physics import dynamics_kernel as K
+from . import task
+from .config import EnvConfig
+from .conveyor import make_simulator
+
+
+class MicroConveyorVectorEnv(VectorEnv):
+    """``num_envs`` independent copies of :class:`~microconveyor_env.envs.MicroConveyorEnv`.
+
+    Same spaces, rewards and info keys as the single env (batched). Sub-env ``i`` reset with
+    ``seed`` uses ``seed + i``, as ``SyncVectorEnv`` does, so both give identical rollouts.
+    ``autoreset_mode``: ``NEXT_STEP`` (default, the gymnasium default: the step after a finished
+    episode resets that sub-env, ignoring its action, with reward 0) or ``SAME_STEP`` (reset at
+    once; the last observation and info are in ``info["final_obs"]`` / ``info["final_info"]``).
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 4,
+                "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(self, num_envs: int = 1, render_mode: str | None = None,
+                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+                 config: EnvConfig | None = None, **kwargs):
+        if int(num_envs) < 1:
+            raise ValueError(f"num_envs = {num_envs!r} must be >= 1")
+        self.autoreset_mode = AutoresetMode(autoreset_mode)
+        if self.autoreset_mode == AutoresetMode.DISABLED:
+            raise ValueError("autoreset_mode DISABLED is not supported; use NEXT_STEP or SAME_STEP")
+        self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
+        if config is not None and kwargs:
+            raise ValueError("give either config= or keyword overrides, not both")
+        self.config = config or EnvConfig.from_yaml(**kwargs)
+        self.num_envs = n = int(num_envs)
+        self.render_mode = render_mode
+        self.sim = make_simulator(self.config)
+        self.positions = np.asarray(self.config.actuator_positions, dtype=np.float64)
+        self.single_action_space = spaces.Box(-1.0, 1.0, (3,), np.float32)
+        self.single_observation_space = spaces.Box(-task.OBS_BOUND, task.OBS_BOUND,
+                                                   (task.OBS_DIM,), np.float32)
+        self.action_space = batch_space(self.single_action_space, n)
+        self.observation_space = batch_space(self.single_observation_space, n)
+        self.x, self.v, self.t = np.zeros(n), np.zeros(n), np.zeros(n)
+        self.target = np.zeros(n)
+        self.fired = np.zeros(n, dtype=np.int64)
+        self.done = np.zeros(n, dtype=bool)
+        self.rngs = [seeding.np_random(None)[0] for _ in range(n)]
+        self._C = task.constants(self.config, self.sim.dt, self.sim.min_steps)
+        self._kout = np.zeros((n, K.N_OUT))
+        self._res = np.zeros((n, task.N_S))
+        self._obs_buf = np.zeros((n, task.OBS_DIM), dtype=np.float32)
+        self._started = False
+
+    # ------------------------------------------------------------------ resets
+    def _reset_one(self, i: int, options: dict | None) -> None:
+        cfg = self.config
+        rng = self.rngs[i]
+        jitter = rng.uniform(-1.0, 1.0) * cfg.start_jitter if cfg.start_jitter else 0.0
+        target = rng.uniform(*cfg.target_range)
+        if options and "target" in options:
+            tv = np.broadcast_to(np.asarray(options["target"], dtype=float), (self.num_envs,))
+            if not np.all(np.isfinite(tv)):
+                raise ValueError(f"options['target'] = {options['target']!r} must be finite [m]")
+            target = float(tv[i])
+        self.x[i], self.v[i], self.t[i] = -cfg.start_offset + jitter, 0.0, 0.0
+        self.fired[i] = 0
+        self.target[i] = target
+        self.done[i] = False
+
+    def reset(self, *, seed: int | list | None = None, options: dict | None = None):
+        if seed is not None:
+            seeds = ([seed + i for i in range(self.num_envs)] if isinstance(seed, int)
+                     else list(seed))
+            if len(seeds) != self.num_envs:
+                raise ValueError(f"{len(seeds)} seeds for {self.num_envs} envs")
+            self.rngs = [seeding.np_random(s)[0] for s in seeds]
+        for i in range(self.num_envs):
+            self._reset_one(i, options)
+        self._started = True
+        return self._obs(), self._infos(np.full(self.num_envs, "moving", dtype=object))
+
+    # ------------------------------------------------------------------ step
+    def step(self, actions):
+        if not self._started:
+            raise RuntimeError("call reset() before step()")
+        a = task.check_actions(actions, self.num_envs)
+        n, cfg = self.num_envs, self.config
+        resetting = self.done.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP else \
+            np.zeros(n, dtype=bool)
+        for i in np.flatnonzero(resetting):
+            self._reset_one(i, None)
+        active = ~resetting
+        self._res[resetting] = 0.0
+        self._res[resetting, task.S_OUTCOME] = K.MOVING
+        task.step_parallel(a, self.x, self.v, self.t, self.fired, self.target, active, self._C,
+                           self.positions, self.sim.params, *self.sim.tables, self._kout,
+                           self._res, self._obs_buf)
+        res = self._res
+        codes = res[:, task.S_OUTCOME].astype(np.int64)
+        terminated = active & ((codes == K.REST) | (codes == K.DETACHED))
+        truncated = active & ((codes == K.MAX_TIME) | (codes == K.TOO_MANY_EVENTS))
+        rew = np.where(active, res[:, task.S_REWARD], 0.0)
+        self.done = terminated | truncated
+        obs = self._obs_buf.copy()
+        infos = self._infos(np.array(K.OUTCOMES, dtype=object)[codes])
+        for key, col in (("frequency_hz", task.S_F), ("stroke_m", task.S_H), ("delay_s", task.S_D)):
+            infos[key], infos["_" + key] = res[:, col].copy(), active.copy()
+        if self.autoreset_mode == AutoresetMode.SAME_STEP and self.done.any():
+            infos = self._same_step_reset(obs, infos)
+            obs = self._obs()
+        return obs, rew, terminated, truncated, infos
+
+    def _same_step_reset(self, obs, infos) -> dict:
+        idx = np.flatnonzero(self.done)
+        final_obs = np.full(self.num_envs, None, dtype=object)
+        final_info: dict[str, Any] = {}
+        for i in idx:
+            final_obs[i] = obs[i].copy()
+            for key, val in infos.items():
+                if not key.startswith("_"):
+                    final_info.setdefault(key, np.zeros_like(val))[i] = val[i]
+                    final_info.setdefault("_" + key, np.zeros(self.num_envs, bool))[i] = True
+            self._reset_one(i, None)
+        infos = dict(infos)
+        infos["final_obs"], infos["_final_obs"] = final_obs, self.done.copy()
+        infos["final_info"], infos["_final_info"] = final_info, self.done.copy()
+        return infos
+
+    # ------------------------------------------------------------------ helpers
+    def _obs(self):
+        task.observe_all(self.x, self.v, self.t, self.fired, self.target, self._C, self.positions,
+                         self._obs_buf)
+        return self._obs_buf.copy()
+
+    def _infos(self, outcome) -> dict:
+        ok = np.ones(self.num_envs, dtype=bool)
+        success = (outcome == "rest") & (np.abs(self.x - self.target) <= self.config.tolerance)
+        infos = {"is_success": success.astype(bool), "final_error_m": self.x - self.target,
+                 "outcome": outcome, "sim_time_s": self.t.copy()}
+        for key in list(infos):
+            infos["_" + key] = ok
+        return infos
+
+    def render(self):
+        if self.render_mode != "rgb_array":
+            return None
+        from .render import render_frame
+
+        return tuple(render_frame(self.config, self.x[i], self.target[i], int(self.fired[i]),
+                                  None, self.t[i]) for i in range(self.num_envs))
