@@ -40,7 +40,7 @@ from microconveyor_env.physics.materials import G0
 
 DEFAULT_DT_START = 2e-5      # s, first (coarsest) step of the convergence search
 DEFAULT_TIME_BUDGET = 150.0  # s, wall-clock budget of the whole search (incl. the reference run)
-DEFAULT_DT_MIN = 2e-8        # s, hard floor on the step of the search
+DEFAULT_DT_MIN = 5e-9        # s, hard floor on the step (worst-case search ~15 s here)
 MAX_TIME = 10.0              # s, simulated-time limit (as the package Simulator's default)
 
 

@@ -1,4 +1,4 @@
-"""Validated configuration of MicroConveyor-v0 (defaults in ``configs/env.yaml``)."""
+"""Validated configuration of MicroConveyor-v0 (defaults in ``configs/envs/MicroConveyor-v0.yaml``)."""
 from __future__ import annotations
 
 import dataclasses
@@ -25,7 +25,7 @@ _PAIRS = {"target_range": (0.0, 1.0, "m"), "freq_range": (0.0, 1e6, "Hz"),
 
 @dataclass(frozen=True)
 class EnvConfig:
-    """All settings of the environment; see ``configs/env.yaml`` for meanings and units."""
+    """All settings of the environment; see ``configs/envs/MicroConveyor-v0.yaml`` for meanings and units."""
 
     preset: str = "seed"
     n_actuators: int = 5
@@ -77,9 +77,9 @@ class EnvConfig:
 
     @classmethod
     def from_yaml(cls, path: str | None = None, **overrides) -> "EnvConfig":
-        """Defaults from ``configs/env.yaml`` (or ``path``), then ``overrides``."""
+        """Defaults from ``configs/envs/MicroConveyor-v0.yaml`` (or ``path``), then ``overrides``."""
         if path is None:
-            text = (resources.files("microconveyor_env.configs") / "env.yaml").read_text()
+            text = (resources.files("microconveyor_env.configs") / "envs" / "MicroConveyor-v0.yaml").read_text()
         else:
             with open(path) as fh:
                 text = fh.read()

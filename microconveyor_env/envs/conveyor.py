@@ -59,7 +59,7 @@ class MicroConveyorEnv(gym.Env):
     ``frequency_hz``, ``stroke_m``, ``delay_s`` (the decoded action).
 
     ## Arguments
-    Any field of :class:`EnvConfig` (defaults in ``configs/env.yaml``), e.g.
+    Any field of :class:`EnvConfig` (defaults in ``configs/envs/MicroConveyor-v0.yaml``), e.g.
     ``gym.make("MicroConveyor-v0", n_actuators=3, tolerance=100e-6)``; ``render_mode`` ``"rgb_array"``
     (for a window, wrap with ``gymnasium.wrappers.HumanRendering``, which needs pygame).
     ``reset(options={"target": d})`` sets the target distance d [m] beyond actuator 1.

@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from .kinematics import surface_eval
 
@@ -365,11 +365,15 @@ def run(xa, freq, stroke_h, delay, x0, v0, t0, dt, min_steps, to_rest, t_max, P,
         if delay[k] > 0.0:
             if recording:
                 _record(rec, out, t, x, v, v == 0.0, 0.0, 1.0, 0.0, -1.0, P, tu, tq, tqu)
-            x, v, used, rest, t_stop = coast(x, v, delay[k], P, tu, tq, tqu)
+            span = min(delay[k], max(t_max - t, 0.0))  # never coast past the time limit
+            x, v, used, rest, t_stop = coast(x, v, span, P, tu, tq, tqu)
             if recording and t_stop > 0.0:
                 _record(rec, out, t + t_stop, x, 0.0, True, 0.0, 1.0, 0.0, -1.0, P, tu, tq, tqu)
-            t += delay[k]
-        if t > t_max:
+            t += span
+            if span < delay[k]:
+                outcome = MAX_TIME
+                break
+        if t >= t_max:
             outcome = MAX_TIME
             break
         x, v, outcome = stroke(x, v, t, xa[k], freq[k], stroke_h[k], steps_for(freq[k], dt, min_steps),
@@ -395,17 +399,3 @@ def run(xa, freq, stroke_h, delay, x0, v0, t0, dt, min_steps, to_rest, t_max, P,
     out[O_STICK] = 1.0 if v == 0.0 else 0.0
 
 
-
-@njit(cache=True, parallel=True)
-def run_batch(xa, freq, stroke_h, delay, x, v, t, active, to_rest, dt, min_steps, t_max, P,
-              tu, tq, tqu, out):
-    """One firing for each of N parts at once (numba prange); row i of ``out`` as in :func:`run`.
-
-    Arrays over parts: xa, freq, stroke_h, delay, x, v, t [SI], ``active`` (bool: parts whose row
-    is skipped keep ``out[i]`` untouched) and ``to_rest`` (bool: coast to rest after the stroke).
-    """
-    rec = np.zeros((0, N_REC))
-    for i in prange(x.shape[0]):
-        if active[i]:
-            run(xa[i:i + 1], freq[i:i + 1], stroke_h[i:i + 1], delay[i:i + 1], x[i], v[i], t[i],
-                dt, min_steps, to_rest[i], t_max, P, tu, tq, tqu, rec, out[i])

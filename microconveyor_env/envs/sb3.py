@@ -1,0 +1,91 @@
+"""Adapter from the batched gymnasium env to stable-baselines3's ``VecEnv`` interface.
+
+SB3 cannot take a gymnasium ``VectorEnv``; this wraps :class:`MicroConveyorVectorEnv` (in
+``SAME_STEP`` autoreset mode) so ``PPO("MlpPolicy", MicroConveyorSB3VecEnv(64))`` trains on the
+compiled batch. Finished sub-envs are reset in the same step; their last observation is in
+``infos[i]["terminal_observation"]`` and ``infos[i]["TimeLimit.truncated"]`` flags truncation, as
+SB3 expects. Requires the ``train`` extra (stable-baselines3).
+"""
+from __future__ import annotations
+
+import numpy as np
+from gymnasium.vector import AutoresetMode
+from stable_baselines3.common.vec_env.base_vec_env import VecEnv
+
+from .vector import MicroConveyorVectorEnv
+
+_SCALAR_INFO = ("is_success", "final_error_m", "outcome", "sim_time_s", "frequency_hz",
+                "stroke_m", "delay_s")
+
+
+class MicroConveyorSB3VecEnv(VecEnv):
+    """``num_envs`` parts in one compiled batch, with SB3's VecEnv semantics.
+
+    Keyword arguments are :class:`~microconveyor_env.envs.EnvConfig` fields (or ``config=``).
+    """
+
+    def __init__(self, num_envs: int = 8, **kwargs):
+        self.venv = MicroConveyorVectorEnv(num_envs, autoreset_mode=AutoresetMode.SAME_STEP,
+                                           **kwargs)
+        self._actions = None
+        super().__init__(num_envs, self.venv.single_observation_space,
+                         self.venv.single_action_space)
+
+    def reset(self):
+        seeds = self._seeds
+        seed = None if all(s is None for s in seeds) else [
+            s if s is not None else int(np.random.SeedSequence().generate_state(1)[0])
+            for s in seeds]
+        options = self._options[0] if self._options and self._options[0] else None
+        obs, infos = self.venv.reset(seed=seed, options=options)
+        self.reset_infos = self._split(infos)
+        self._reset_seeds()
+        self._reset_options()
+        return obs
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self._actions = actions
+
+    def step_wait(self):
+        obs, rew, term, trunc, infos = self.venv.step(self._actions)
+        dones = term | trunc
+        src = infos.get("final_info", infos) if dones.any() else infos
+        out = self._split(infos)
+        for i in np.flatnonzero(dones):
+            out[i] = {k: _py(src[k][i]) for k in _SCALAR_INFO if k in src}
+            out[i]["terminal_observation"] = infos["final_obs"][i]
+            out[i]["TimeLimit.truncated"] = bool(trunc[i] and not term[i])
+        return obs, rew.astype(np.float32), dones, out
+
+    def _split(self, infos) -> list:
+        return [{k: _py(infos[k][i]) for k in _SCALAR_INFO if k in infos}
+                for i in range(self.num_envs)]
+
+    def close(self) -> None:
+        self.venv.close()
+
+    def _indices(self, indices):
+        if indices is None:
+            return range(self.num_envs)
+        return [indices] if isinstance(indices, int) else indices
+
+    def get_attr(self, attr_name, indices=None):
+        return [getattr(self.venv, attr_name) for _ in self._indices(indices)]
+
+    def set_attr(self, attr_name, value, indices=None):
+        raise AttributeError("the batched env shares one configuration; create a new env instead")
+
+    def env_method(self, method_name, *method_args, indices=None, **method_kwargs):
+        raise AttributeError(f"{method_name}: per-sub-env methods are not available on the "
+                             "compiled batch")
+
+    def env_is_wrapped(self, wrapper_class, indices=None):
+        return [False for _ in self._indices(indices)]
+
+    def get_images(self):
+        frames = self.venv.render()
+        return list(frames) if frames is not None else [None] * self.num_envs
+
+
+def _py(v):
+    return v.item() if isinstance(v, np.generic) else v
