@@ -78,24 +78,56 @@ def _demo_args(p):
     p.add_argument("--out", default="out", help="output folder for charts and the summary JSON")
 
 
-@command("demo", "the main job: contact report and charts of a preset, written to --out")
+@command("demo", "the main job: contact report, a firing, a frequency sweep and an env episode, "
+                 "charts written to --out")
 def cmd_demo(args):
     from pathlib import Path
 
     from .physics.contact_table import ContactTable
-    from .plots import plot_contact
+    from .plots import plot_contact, plot_firing, plot_sweep
     from .presets import load_preset
+    from .studies.sweep import Scene, parse_values, sweep
 
     out_dir = Path(args.out)
     out_dir.mkdir(parents=True, exist_ok=True)
     preset = load_preset(args.preset)
     table = ContactTable(preset.contact)
-    summary = {"preset": preset.name, "contact": table.report(),
-               "calibration": preset.calibration,
-               "charts": [str(plot_contact(table, out_dir / "contact.png", f"preset {preset.name}"))]}
+    charts = [plot_contact(table, out_dir / "contact.png", f"preset {preset.name}")]
+    scene = Scene(preset=args.preset)
+    firing = scene.run(record=True)
+    charts.append(plot_firing(firing, scene.freq, out_dir / "firing.png"))
+    freq = sweep(scene, "freq", parse_values("200:1500:25", "freq"), progress=True)
+    charts.append(plot_sweep(freq, out_dir / "sweep.png"))
+    episode = _demo_episode(out_dir / "episode.png")
+    charts.append(episode.pop("chart"))
+    summary = {"preset": preset.name, "contact": table.report(), "calibration": preset.calibration,
+               "seed_firing": firing.to_dict(), "window_hz": freq["window_hz"],
+               "max_travel_m": freq.get("max_travel_m"), "episode": episode,
+               "charts": [str(c) for c in charts]}
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2, default=_json_default))
     summary["summary_json"] = str(out_dir / "summary.json")
-    _emit(args, summary, f"wrote {', '.join(summary['charts'])} and {summary['summary_json']}")
+    _emit(args, summary, "\n".join(f"wrote {c}" for c in summary["charts"] + [summary["summary_json"]]))
+
+
+def _demo_episode(path):
+    """One MicroConveyor-v0 episode with a constant action (950 Hz, 200 um, no delay), rendered."""
+    import gymnasium as gym
+
+    from .envs import task
+    from .plots import save_frames
+
+    env = gym.make("MicroConveyor-v0", render_mode="rgb_array")
+    env.reset(seed=0, options={"target": 1e-3})
+    action = task.encode_actions(950.0, 200e-6, 0.0, env.unwrapped.config)
+    frames, total = [env.render()], 0.0
+    while True:
+        _, r, term, trunc, info = env.step(action)
+        total += r
+        frames.append(env.render())
+        if term or trunc:
+            break
+    return {"chart": save_frames(frames, path), "return": total, **info}
+
 
 # ----------------------------------------------------------------------------- simulation
 def _scene_args(p, sweep=False):

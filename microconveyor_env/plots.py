@@ -146,3 +146,18 @@ def plot_accuracy(study: dict, path) -> Path:
     ax.set_title(f"speed versus accuracy, seed firing {study['freq_hz']:g} Hz")
     ax.legend(fontsize=8)
     return _save(fig, path)
+
+
+def save_frames(frames, path, cols: int = 2) -> Path:
+    """Tile rendered env frames (uint8 H x W x 3) into one PNG."""
+    plt = _plt()
+    n = len(frames)
+    rows = (n + cols - 1) // cols
+    h, w = frames[0].shape[:2]
+    fig, axes = plt.subplots(rows, cols, figsize=(cols * w / 100, rows * h / 100),
+                             constrained_layout=True, squeeze=False)
+    for ax in axes.ravel():
+        ax.axis("off")
+    for ax, fr in zip(axes.ravel(), frames):
+        ax.imshow(fr)
+    return _save(fig, path)

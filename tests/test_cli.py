@@ -70,4 +70,14 @@ def test_bench_without_reference_runs():
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     for mode in ("event", "karnopp"):
-        assert out["modes"][mode]["median_wall_time_s"] > 0 and out["modes"][mode]["steps_per_s"] > 0
+        assert out["modes"][mode]["median_wall_time_s"] > 0 and out["modes"][mode]["kernel_steps_per_s"] > 0
+
+
+def test_demo_writes_charts_and_summary(tmp_path):
+    r = run("demo", "--out", str(tmp_path), "--json")
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    for name in ("contact.png", "firing.png", "sweep.png", "episode.png", "summary.json"):
+        assert (tmp_path / name).stat().st_size > 1000, name
+    assert out["window_hz"][0] < out["window_hz"][1]
+    assert out["episode"]["outcome"] in ("rest", "detached", "max_time")
