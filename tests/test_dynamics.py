@@ -467,7 +467,6 @@ def test_convergence_of_detachment_instant(kinematics, freq, min_order):
     assert order >= min_order
 
 
-@pytest.mark.slow
 def test_convergence_study_across_frequencies_and_shapes():
     """Event-mode order of the final position / detachment place, 300-1250 Hz, three shapes, both
     kinematics (printed table). Asserted: order >= 3 for the smooth Gaussian and the sinusoid in
