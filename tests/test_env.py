@@ -10,7 +10,6 @@ import pytest
 import microconveyor_env
 from microconveyor_env.envs import EnvConfig, MicroConveyorEnv, MicroConveyorVectorEnv
 from microconveyor_env.envs import task
-from microconveyor_env.physics.materials import ParameterError
 
 # Warnings the checkers may legitimately raise for this env (none are expected today).
 WARNING_WHITELIST: tuple = ()

@@ -93,7 +93,7 @@ class MicroConveyorVectorEnv(VectorEnv):
         if not self._started:
             raise RuntimeError("call reset() before step()")
         a = task.check_actions(actions, self.num_envs)
-        n, cfg = self.num_envs, self.config
+        n = self.num_envs
         resetting = self.done.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP else \
             np.zeros(n, dtype=bool)
         for i in np.flatnonzero(resetting):

@@ -21,92 +21,21 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
-from .kinematics import surface_eval
+from .forces import EVENT, I_MASS, I_MODE, I_NMIN, accel, friction_of_load, normal_load, rk4, \
+    stick_state
 
-# ---- model constants array P ----
-I_MASS, I_G0, I_NMIN, I_EXACT, I_SLOPE, I_WL, I_SHAPE, I_MODE = range(8)
-N_PARAMS = 8
-KARNOPP, EVENT = 0, 1
 # ---- outcome codes ----
 REST, DETACHED, MAX_TIME, MOVING, TOO_MANY_EVENTS = 0, 1, 2, 3, 4
 OUTCOMES = ("rest", "detached", "max_time", "moving", "too_many_events")
 # ---- out array slots ----
-O_X, O_V, O_T, O_OUTCOME, O_EVENT_T, O_EVENT_X, O_STEPS, O_EVENTS, O_NREC, O_STICK, O_TABLE = range(11)
-N_OUT = 11
+O_X, O_V, O_T, O_OUTCOME, O_EVENT_T, O_EVENT_X, O_STEPS, O_EVENTS, O_NREC, O_STICK = range(10)
+N_OUT = 10
 # ---- record columns ----
 R_T, R_X, R_V, R_Y, R_N, R_Q, R_F, R_STICK = range(8)
 N_REC = 8
 MAX_EVENTS_PER_STEP = 32
-
-
-@njit(cache=True)
-def friction_of_load(N, tu, tq, tqu, n_min):
-    """Q(N) from the table (N below the pull-off point is clamped to it)."""
-    du = N - n_min
-    u = math.sqrt(du) if du > 0.0 else 0.0
-    n = tu.shape[0]
-    lo = 0
-    if u >= tu[n - 2]:
-        lo = n - 2
-    else:
-        hi = n - 1
-        while hi - lo > 1:
-            mid = (lo + hi) >> 1
-            if tu[mid] <= u:
-                lo = mid
-            else:
-                hi = mid
-    h = tu[lo + 1] - tu[lo]
-    t = (u - tu[lo]) / h
-    t2 = t * t
-    t3 = t2 * t
-    return ((2 * t3 - 3 * t2 + 1) * tq[lo] + (t3 - 2 * t2 + t) * h * tqu[lo]
-            + (-2 * t3 + 3 * t2) * tq[lo + 1] + (t3 - t2) * h * tqu[lo + 1])
-
-
-@njit(cache=True)
-def normal_load(x, v, tl, xa, f, h, P):
-    """(N, Y_x, cos(theta), Y) at position x, velocity v, time tl into the stroke."""
-    Y, Yx, Yt, Ytt, Yxt, Yxx = surface_eval(x, tl, xa, f, h, int(P[I_SHAPE]), P[I_WL])
-    Yx += P[I_SLOPE]
-    Y += P[I_SLOPE] * x
-    c = 1.0 / math.sqrt(1.0 + Yx * Yx)
-    acc = P[I_G0] + Ytt
-    if P[I_EXACT] != 0.0:
-        acc += 2.0 * Yxt * v + Yxx * v * v
-    return P[I_MASS] * c * acc, Yx, c, Y
-
-
-@njit(cache=True)
-def _accel(x, v, tl, s, xa, f, h, P, tu, tq, tqu):
-    N, Yx, c, _ = normal_load(x, v, tl, xa, f, h, P)
-    Q = friction_of_load(N, tu, tq, tqu, P[I_NMIN])
-    return (-s * Q * c - N * Yx * c) / P[I_MASS]
-
-
-@njit(cache=True)
-def _rk4(x, v, tl, dt, s, xa, f, h, P, tu, tq, tqu):
-    a1 = _accel(x, v, tl, s, xa, f, h, P, tu, tq, tqu)
-    x2, v2 = x + 0.5 * dt * v, v + 0.5 * dt * a1
-    a2 = _accel(x2, v2, tl + 0.5 * dt, s, xa, f, h, P, tu, tq, tqu)
-    x3, v3 = x + 0.5 * dt * v2, v + 0.5 * dt * a2
-    a3 = _accel(x3, v3, tl + 0.5 * dt, s, xa, f, h, P, tu, tq, tqu)
-    x4, v4 = x + dt * v3, v + dt * a3
-    a4 = _accel(x4, v4, tl + dt, s, xa, f, h, P, tu, tq, tqu)
-    return (x + dt / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4),
-            v + dt / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4))
-
-
-@njit(cache=True)
-def _stick_state(x, tl, xa, f, h, P, tu, tq, tqu):
-    """(margin Q - |N tan|, N - N_min, break-away direction) of a part at rest at x."""
-    N, Yx, c, _ = normal_load(x, 0.0, tl, xa, f, h, P)
-    Q = friction_of_load(N, tu, tq, tqu, P[I_NMIN])
-    drive = -N * Yx
-    return Q - abs(drive), N - P[I_NMIN], 1.0 if drive > 0.0 else -1.0
 
 
 @njit(cache=True)
@@ -164,20 +93,43 @@ def coast(x, v, duration, P, tu, tq, tqu):
 
 
 @njit(cache=True)
+def _illinois(a, b, fa, fb, c, fc, side):
+    """One Illinois (modified regula falsi) bracket update with the new point (c, fc)."""
+    if fc > 0.0:
+        if side == 1:
+            fb *= 0.5
+        return c, b, fc, fb, 1
+    if side == -1:
+        fa *= 0.5
+    return a, c, fa, fc, -1
+
+
+@njit(cache=True)
+def _secant(a, b, fa, fb):
+    c = (a * fb - b * fa) / (fb - fa)
+    return c if a < c < b else 0.5 * (a + b)
+
+
+@njit(cache=True)
+def _slip_event(x0, v0, tl, tau, s, vscale, xa, f, h, P, tu, tq, tqu):
+    """min(s v / vscale, (N - N_min) / F_pull) after an RK4 sub-step tau: > 0 while sliding on."""
+    x, v = rk4(x0, v0, tl, tau, s, xa, f, h, P, tu, tq, tqu)
+    N = normal_load(x, v, tl + tau, xa, f, h, P)[0]
+    return min(s * v / vscale, (N - P[I_NMIN]) / -P[I_NMIN])
+
+
+@njit(cache=True)
 def _illinois_slip(x0, v0, tl, hmax, s, xa, f, h, P, tu, tq, tqu):
-    """First tau in (0, hmax] where min(s v, N - N_min) reaches 0 along the RK4 sub-step."""
+    """First tau in (0, hmax] where the slip ends (v = 0) or the load reaches pull-off."""
+    vscale = max(abs(v0), abs(accel(x0, v0, tl, s, xa, f, h, P, tu, tq, tqu)) * hmax, 1e-300)
     a, b = 0.0, hmax
-    fa = 1.0  # positive by construction (s v > 0 or just starting from rest)
-    xb, vb = _rk4(x0, v0, tl, b, s, xa, f, h, P, tu, tq, tqu)
-    Nb = normal_load(xb, vb, tl + b, xa, f, h, P)[0]
-    fb = min(s * vb, (Nb - P[I_NMIN]))
-    if v0 == 0.0:  # starting from rest: find a positive lower point
+    fb = _slip_event(x0, v0, tl, b, s, vscale, xa, f, h, P, tu, tq, tqu)
+    fa = _slip_event(x0, v0, tl, 0.0, s, vscale, xa, f, h, P, tu, tq, tqu)
+    if not fa > 0.0:  # starting from rest (s v = 0): find a positive lower point
         lo = hmax
         for _ in range(60):
             lo *= 0.5
-            xl, vl = _rk4(x0, v0, tl, lo, s, xa, f, h, P, tu, tq, tqu)
-            Nl = normal_load(xl, vl, tl + lo, xa, f, h, P)[0]
-            fl = min(s * vl, (Nl - P[I_NMIN]))
+            fl = _slip_event(x0, v0, tl, lo, s, vscale, xa, f, h, P, tu, tq, tqu)
             if fl > 0.0:
                 a, fa = lo, fl
                 break
@@ -185,55 +137,34 @@ def _illinois_slip(x0, v0, tl, hmax, s, xa, f, h, P, tu, tq, tqu):
             return 0.0
     side = 0
     for _ in range(100):
-        c = (a * fb - b * fa) / (fb - fa)
-        if not (a < c < b):
-            c = 0.5 * (a + b)
-        xc, vc = _rk4(x0, v0, tl, c, s, xa, f, h, P, tu, tq, tqu)
-        Nc = normal_load(xc, vc, tl + c, xa, f, h, P)[0]
-        fc = min(s * vc, (Nc - P[I_NMIN]))
-        if fc > 0.0:
-            a, fa = c, fc
-            if side == 1:
-                fb *= 0.5
-            side = 1
-        else:
-            b, fb = c, fc
-            if side == -1:
-                fa *= 0.5
-            side = -1
-        if b - a <= 1e-15 * hmax + 1e-300:
+        c = _secant(a, b, fa, fb)
+        fc = _slip_event(x0, v0, tl, c, s, vscale, xa, f, h, P, tu, tq, tqu)
+        a, b, fa, fb, side = _illinois(a, b, fa, fb, c, fc, side)
+        if b - a <= 1e-15 * hmax:
             break
     return b
+
+
+@njit(cache=True)
+def _stick_event(x, t, xa, f, h, P, tu, tq, tqu):
+    m, d, _ = stick_state(x, t, xa, f, h, P, tu, tq, tqu)
+    return min(m, d)
 
 
 @njit(cache=True)
 def _illinois_stick(x, t0, t1, xa, f, h, P, tu, tq, tqu):
     """First t in (t0, t1] where min(margin, N - N_min) of a resting part reaches 0."""
     a, b = t0, t1
-    m0, d0, _ = _stick_state(x, a, xa, f, h, P, tu, tq, tqu)
-    fa = min(m0, d0)
-    m1, d1, _ = _stick_state(x, b, xa, f, h, P, tu, tq, tqu)
-    fb = min(m1, d1)
+    fa = _stick_event(x, a, xa, f, h, P, tu, tq, tqu)
+    fb = _stick_event(x, b, xa, f, h, P, tu, tq, tqu)
     if fa <= 0.0:
         return a
     side = 0
     for _ in range(100):
-        c = (a * fb - b * fa) / (fb - fa)
-        if not (a < c < b):
-            c = 0.5 * (a + b)
-        mc, dc, _ = _stick_state(x, c, xa, f, h, P, tu, tq, tqu)
-        fc = min(mc, dc)
-        if fc > 0.0:
-            a, fa = c, fc
-            if side == 1:
-                fb *= 0.5
-            side = 1
-        else:
-            b, fb = c, fc
-            if side == -1:
-                fa *= 0.5
-            side = -1
-        if b - a <= 1e-15 * (t1 - t0) + 1e-300:
+        c = _secant(a, b, fa, fb)
+        fc = _stick_event(x, c, xa, f, h, P, tu, tq, tqu)
+        a, b, fa, fb, side = _illinois(a, b, fa, fb, c, fc, side)
+        if b - a <= 1e-15 * (t1 - t0):
             break
     return b
 
@@ -268,7 +199,7 @@ def stroke(x, v, t0, xa, f, h, n_steps, P, tu, tq, tqu, rec, out):
             Q = friction_of_load(N, tu, tq, tqu, n_min)
             if abs(v) < Q * dt / m:
                 sv = 1.0 if v > 0.0 else -1.0
-                decreasing = v != 0.0 and v * _accel(x, v, tl, sv, xa, f, h, P, tu, tq, tqu) < 0.0
+                decreasing = v != 0.0 and v * accel(x, v, tl, sv, xa, f, h, P, tu, tq, tqu) < 0.0
                 if decreasing or Q >= abs(N * Yx):
                     v = 0.0
                     stuck = True
@@ -280,7 +211,7 @@ def stroke(x, v, t0, xa, f, h, n_steps, P, tu, tq, tqu, rec, out):
             else:
                 s = 1.0 if v > 0.0 else -1.0
             stuck = False
-            x, v = _rk4(x, v, tl, t_end - tl, s, xa, f, h, P, tu, tq, tqu)
+            x, v = rk4(x, v, tl, t_end - tl, s, xa, f, h, P, tu, tq, tqu)
             tl = t_end
             if recording:
                 _record(rec, out, t0 + tl, x, v, False, xa, f, h, tl, P, tu, tq, tqu)
@@ -292,12 +223,12 @@ def stroke(x, v, t0, xa, f, h, n_steps, P, tu, tq, tqu, rec, out):
                 out[O_EVENT_X] = x
                 return x, v, TOO_MANY_EVENTS
             if stuck:
-                m1, d1, _ = _stick_state(x, t_end, xa, f, h, P, tu, tq, tqu)
+                m1, d1, _ = stick_state(x, t_end, xa, f, h, P, tu, tq, tqu)
                 if m1 > 0.0 and d1 > 0.0:
                     tl = t_end
                     break
                 tc = _illinois_stick(x, tl, t_end, xa, f, h, P, tu, tq, tqu)
-                mc, dc, sc = _stick_state(x, tc, xa, f, h, P, tu, tq, tqu)
+                mc, dc, sc = stick_state(x, tc, xa, f, h, P, tu, tq, tqu)
                 n_ev += 1
                 out[O_EVENTS] += 1
                 tl = tc
@@ -311,7 +242,7 @@ def stroke(x, v, t0, xa, f, h, n_steps, P, tu, tq, tqu, rec, out):
                     _record(rec, out, t0 + tl, x, v, True, xa, f, h, tl, P, tu, tq, tqu)
             else:
                 hs = t_end - tl
-                xn, vn = _rk4(x, v, tl, hs, s, xa, f, h, P, tu, tq, tqu)
+                xn, vn = rk4(x, v, tl, hs, s, xa, f, h, P, tu, tq, tqu)
                 Nn = normal_load(xn, vn, t_end, xa, f, h, P)[0]
                 if s * vn > 0.0 and Nn >= n_min:
                     x, v, tl = xn, vn, t_end
@@ -320,7 +251,7 @@ def stroke(x, v, t0, xa, f, h, n_steps, P, tu, tq, tqu, rec, out):
                 n_ev += 1
                 out[O_EVENTS] += 1
                 if tau > 0.0:
-                    x, v = _rk4(x, v, tl, tau, s, xa, f, h, P, tu, tq, tqu)
+                    x, v = rk4(x, v, tl, tau, s, xa, f, h, P, tu, tq, tqu)
                     tl = tl + tau
                 Nc = normal_load(x, v, tl, xa, f, h, P)[0]
                 if Nc <= n_min:  # the load reached pull-off (before the velocity reached 0)
@@ -328,7 +259,7 @@ def stroke(x, v, t0, xa, f, h, n_steps, P, tu, tq, tqu, rec, out):
                     out[O_EVENT_X] = x
                     return x, v, DETACHED
                 v = 0.0
-                mc, dc, sc = _stick_state(x, tl, xa, f, h, P, tu, tq, tqu)
+                mc, dc, sc = stick_state(x, tl, xa, f, h, P, tu, tq, tqu)
                 if mc >= 0.0:
                     stuck = True
                 else:

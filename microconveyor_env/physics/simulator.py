@@ -12,12 +12,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import dynamics_kernel as K
+from . import forces as F
 from .contact_table import ContactTable, TableRangeError
 from .kinematics import SHAPES
 from .materials import G0, ContactParams, ParameterError, check_range
 from .schedule import Schedule
 
-MODES = {"karnopp": K.KARNOPP, "event": K.EVENT}
+MODES = {"karnopp": F.KARNOPP, "event": F.EVENT}
 KINEMATICS = ("seed", "exact")
 DEFAULT_MODE = "event"
 DEFAULT_DT = 5e-5          # s; the accuracy study's pick (event mode, within 1 um; docs/accuracy.md)
@@ -108,12 +109,12 @@ class Simulator:
         self.max_time = check_range("Simulator", "max_time", max_time, 0, math.inf, True, unit="s")
         self.table = ContactTable(contact)
         self.mass = contact.part.mass
-        P = np.zeros(K.N_PARAMS)
-        P[K.I_MASS], P[K.I_G0] = self.mass, G0
-        P[K.I_NMIN] = -self.table.pull_off_force
-        P[K.I_EXACT] = 1.0 if kinematics == "exact" else 0.0
-        P[K.I_SLOPE], P[K.I_WL] = self.slope, self.wavelength
-        P[K.I_SHAPE], P[K.I_MODE] = SHAPES[shape], MODES[mode]
+        P = np.zeros(F.N_PARAMS)
+        P[F.I_MASS], P[F.I_G0] = self.mass, G0
+        P[F.I_NMIN] = -self.table.pull_off_force
+        P[F.I_EXACT] = 1.0 if kinematics == "exact" else 0.0
+        P[F.I_SLOPE], P[F.I_WL] = self.slope, self.wavelength
+        P[F.I_SHAPE], P[F.I_MODE] = SHAPES[shape], MODES[mode]
         self.params = P
         tu, tq, tqu, _ = self.table.kernel_arrays()
         self.tables = (np.ascontiguousarray(tu), np.ascontiguousarray(tq), np.ascontiguousarray(tqu))
