@@ -10,7 +10,6 @@ import math
 
 import numpy as np
 import pytest
-
 from scipy.optimize import brentq
 
 from microconveyor_env.physics.schedule import ActuatorArray, Schedule
