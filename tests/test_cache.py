@@ -55,3 +55,12 @@ def test_unwritable_cache_still_works(monkeypatch, tmp_path):
     blocker.write_text("x")
     _fresh(monkeypatch, blocker / "sub")  # cannot create a directory under a file
     assert ct.ContactTable(ContactParams(), spacing=0.02).pull_off_force > 0
+
+
+def test_key_depends_on_quadrature_settings(monkeypatch):
+    from microconveyor_env.physics import rough_surface
+
+    p = ContactParams()
+    k = ct.table_key(p, 0.01, 1e4)
+    monkeypatch.setattr(rough_surface, "GL_ORDER", rough_surface.GL_ORDER + 2)
+    assert ct.table_key(p, 0.01, 1e4) != k

@@ -232,3 +232,27 @@ def test_exact_vs_seed_kinematics():
     # at low frequency, where the part barely moves, both levels agree
     lo_s, lo_e = run(freq=150.0, kinematics="seed"), run(freq=150.0, kinematics="exact")
     assert abs(lo_s.displacement_m - lo_e.displacement_m) < 1e-6
+
+
+def test_recorded_friction_opposes_the_motion_that_follows():
+    """Every slipping record has F = -s Q with s the direction of the next motion (also right
+    after a reversal, where v = 0 at the record)."""
+    for freq, x0 in ((350.0, -0.1e-3), (600.0, 0.05e-3), (F_SEED, X0)):
+        tr = sim().simulate(Schedule.single(freq, H), x0=x0, record=True).trajectory
+        v, F, stick = tr["v_m_s"], tr["F_N"], tr["stick"]
+        for k in range(len(v) - 1):
+            if not stick[k] and v[k + 1] != 0.0 and tr["t_s"][k + 1] > tr["t_s"][k]:
+                assert F[k] * v[k + 1] <= 0.0, (freq, x0, k, F[k], v[k + 1])
+
+
+def test_load_beyond_table_raises_never_extrapolates():
+    """The kernel checks the load against the table's range at every step: shrink the range
+    below the loads of an ordinary firing and the run must stop with TableRangeError."""
+    from microconveyor_env.physics import forces
+    from microconveyor_env.physics.contact_table import TableRangeError
+
+    s = Simulator("seed")
+    s.params = s.params.copy()
+    s.params[forces.I_NMAX] = 2 * s.mass * 9.81  # ordinary strokes load the part far beyond
+    with pytest.raises(TableRangeError, match="exceeded the contact table"):
+        s.simulate(Schedule.single(F_SEED, H), x0=X0)

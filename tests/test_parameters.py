@@ -13,7 +13,7 @@ BAD = {
                 "nu1": [-0.1, 0.5, 0.7, math.nan], "nu2": [0.5, -1],
                 "hardness": [0, -1e9, math.inf]},
     Surface: {"sigma": [0, -20e-9, math.nan], "psi": [0, -2.5, math.nan],
-              "beta": [0, -0.04, math.inf], "dgamma": [-1.0, math.nan], "eps": [0, -4e-10]},
+              "beta": [0, -0.04, math.inf], "dgamma": [0, -1.0, math.nan], "eps": [0, -4e-10]},
     Part: {"mass": [0, -2e-9, math.nan], "area": [0, -1e-8]},
 }
 CASES = [(cls, field, v) for cls, fields in BAD.items() for field, vals in fields.items()

@@ -12,6 +12,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..physics import dynamics_kernel as K
+from ..physics.jit_cache import refresh as refresh_jit_cache
 
 OBS_DIM = 6
 OBS_BOUND = 10.0          # observations are clipped to [-OBS_BOUND, OBS_BOUND]
@@ -144,3 +145,6 @@ def encode_actions(f, h, delay, cfg):
     uf = 2 * np.log(np.asarray(f, float) / cfg.freq_range[0]) / cfg.log_freq_span - 1
     return np.stack([uf, lin(h, *cfg.stroke_range), lin(delay, *cfg.delay_range)],
                     -1).astype(np.float32)
+
+
+refresh_jit_cache(globals())

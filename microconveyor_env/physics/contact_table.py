@@ -29,6 +29,7 @@ from scipy.optimize import brentq, minimize_scalar
 
 from . import asperity
 from .materials import ContactParams
+from . import rough_surface
 from .rough_surface import Normalised, SurfaceIntegrals
 
 TABLE_FORMAT = 3                # bump when the stored layout or the quadrature changes
@@ -162,8 +163,11 @@ def table_key(params: ContactParams, spacing: float, load_ratio: float) -> str:
     inputs.pop("friction_scale")
     inputs["part"].pop("mass")
     inputs["part"].pop("area")
+    quadrature = {k: getattr(rough_surface, k)
+                  for k in ("H_MAX", "GL_ORDER", "JACOBI_ORDER", "GAP_DS", "TAIL")}
     blob = json.dumps({"inputs": inputs, "spacing": spacing, "load_ratio": load_ratio,
-                       "format": TABLE_FORMAT, "fits": repr(asperity.KE_FITS)},
+                       "format": TABLE_FORMAT, "fits": repr(asperity.KE_FITS),
+                       "quadrature": quadrature},
                       sort_keys=True, default=repr)
     return hashlib.sha256(blob.encode()).hexdigest()[:32]
 

@@ -23,12 +23,13 @@ import math
 
 from numba import njit
 
-from .forces import EVENT, I_MASS, I_MODE, I_NMIN, accel, friction_of_load, normal_load, rk4, \
+from .forces import EVENT, I_MASS, I_MODE, I_NMAX, I_NMIN, accel, friction_of_load, normal_load, rk4, \
     stick_state
+from .jit_cache import refresh as refresh_jit_cache
 
 # ---- outcome codes ----
-REST, DETACHED, MAX_TIME, MOVING, TOO_MANY_EVENTS = 0, 1, 2, 3, 4
-OUTCOMES = ("rest", "detached", "max_time", "moving", "too_many_events")
+REST, DETACHED, MAX_TIME, MOVING, TOO_MANY_EVENTS, BEYOND_TABLE = 0, 1, 2, 3, 4, 5
+OUTCOMES = ("rest", "detached", "max_time", "moving", "too_many_events", "load_beyond_table")
 # ---- out array slots ----
 O_X, O_V, O_T, O_OUTCOME, O_EVENT_T, O_EVENT_X, O_STEPS, O_EVENTS, O_NREC, O_STICK = range(10)
 N_OUT = 10
@@ -39,7 +40,8 @@ MAX_EVENTS_PER_STEP = 32
 
 
 @njit(cache=True)
-def _record(rec, out, t, x, v, stick, xa, f, h, tl, P, tu, tq, tqu):
+def _record(rec, out, t, x, v, s, xa, f, h, tl, P, tu, tq, tqu):
+    """Append a trajectory row; ``s`` is the slip direction (+-1) or 0 while sticking."""
     k = int(out[O_NREC])
     if k >= rec.shape[0]:
         return
@@ -51,8 +53,8 @@ def _record(rec, out, t, x, v, stick, xa, f, h, tl, P, tu, tq, tqu):
     rec[k, R_Y] = Y
     rec[k, R_N] = N
     rec[k, R_Q] = Q
-    rec[k, R_F] = N * Yx if stick else (-Q if v > 0 else Q)
-    rec[k, R_STICK] = 1.0 if stick else 0.0
+    rec[k, R_F] = N * Yx if s == 0.0 else -s * Q
+    rec[k, R_STICK] = 1.0 if s == 0.0 else 0.0
     out[O_NREC] = k + 1
 
 
@@ -79,7 +81,7 @@ def coast(x, v, duration, P, tu, tq, tqu):
         remaining = duration - t_used
         if s * a < 0.0:
             t_stop = -v / a
-            if t_stop < remaining:
+            if t_stop <= remaining:
                 x += v * t_stop + 0.5 * a * t_stop * t_stop
                 v = 0.0
                 t_used += t_stop
@@ -173,8 +175,8 @@ def _illinois_stick(x, t0, t1, xa, f, h, P, tu, tq, tqu):
 def stroke(x, v, t0, xa, f, h, n_steps, P, tu, tq, tqu, rec, out):
     """Integrate one stroke (duration 1/f, ``n_steps`` RK4 steps) from state (x, v) at time t0.
 
-    Returns (x, v, outcome) with outcome MOVING (stroke finished), DETACHED or TOO_MANY_EVENTS;
-    the detachment time/place go to ``out``.
+    Returns (x, v, outcome) with outcome MOVING (stroke finished), DETACHED, TOO_MANY_EVENTS or
+    BEYOND_TABLE (the load left the contact table); the event time/place go to ``out``.
     """
     T = 1.0 / f
     dt = T / n_steps
@@ -186,8 +188,14 @@ def stroke(x, v, t0, xa, f, h, n_steps, P, tu, tq, tqu, rec, out):
     s = 1.0 if v >= 0.0 else -1.0
     tl = 0.0
     if recording:
-        _record(rec, out, t0, x, v, stuck, xa, f, h, tl, P, tu, tq, tqu)
-    for k in range(n_steps):
+        _record(rec, out, t0, x, v, 0.0 if stuck else s, xa, f, h, tl, P, tu, tq, tqu)
+    for k in range(n_steps + 1):
+        if normal_load(x, v, tl, xa, f, h, P)[0] > P[I_NMAX]:  # Q(N) would extrapolate
+            out[O_EVENT_T] = t0 + tl
+            out[O_EVENT_X] = x
+            return x, v, BEYOND_TABLE
+        if k == n_steps:
+            break
         t_end = T if k == n_steps - 1 else (k + 1) * dt
         out[O_STEPS] += 1
         if not event:  # ---------------------------------------------- Karnopp threshold
@@ -205,7 +213,7 @@ def stroke(x, v, t0, xa, f, h, n_steps, P, tu, tq, tqu, rec, out):
                     stuck = True
                     tl = t_end
                     if recording:
-                        _record(rec, out, t0 + tl, x, v, True, xa, f, h, tl, P, tu, tq, tqu)
+                        _record(rec, out, t0 + tl, x, v, 0.0, xa, f, h, tl, P, tu, tq, tqu)
                     continue
                 s = 1.0 if -N * Yx > 0.0 else -1.0
             else:
@@ -214,7 +222,7 @@ def stroke(x, v, t0, xa, f, h, n_steps, P, tu, tq, tqu, rec, out):
             x, v = rk4(x, v, tl, t_end - tl, s, xa, f, h, P, tu, tq, tqu)
             tl = t_end
             if recording:
-                _record(rec, out, t0 + tl, x, v, False, xa, f, h, tl, P, tu, tq, tqu)
+                _record(rec, out, t0 + tl, x, v, s, xa, f, h, tl, P, tu, tq, tqu)
             continue
         n_ev = 0  # ------------------------------------------------------ event location
         while tl < t_end:
@@ -239,7 +247,7 @@ def stroke(x, v, t0, xa, f, h, n_steps, P, tu, tq, tqu, rec, out):
                 stuck = False
                 s = sc
                 if recording:
-                    _record(rec, out, t0 + tl, x, v, True, xa, f, h, tl, P, tu, tq, tqu)
+                    _record(rec, out, t0 + tl, x, v, 0.0, xa, f, h, tl, P, tu, tq, tqu)
             else:
                 hs = t_end - tl
                 xn, vn = rk4(x, v, tl, hs, s, xa, f, h, P, tu, tq, tqu)
@@ -265,9 +273,11 @@ def stroke(x, v, t0, xa, f, h, n_steps, P, tu, tq, tqu, rec, out):
                 else:
                     s = sc
                 if recording:
-                    _record(rec, out, t0 + tl, x, v, stuck, xa, f, h, tl, P, tu, tq, tqu)
+                    _record(rec, out, t0 + tl, x, v, 0.0 if stuck else s, xa, f, h, tl, P, tu, tq,
+                            tqu)
         if recording:
-            _record(rec, out, t0 + t_end, x, v, stuck, xa, f, h, t_end, P, tu, tq, tqu)
+            _record(rec, out, t0 + t_end, x, v, 0.0 if stuck else s, xa, f, h, t_end, P, tu, tq,
+                    tqu)
     if stuck:
         v = 0.0
     return x, v, MOVING
@@ -295,11 +305,12 @@ def run(xa, freq, stroke_h, delay, x0, v0, t0, dt, min_steps, to_rest, t_max, P,
     for k in range(xa.shape[0]):
         if delay[k] > 0.0:
             if recording:
-                _record(rec, out, t, x, v, v == 0.0, 0.0, 1.0, 0.0, -1.0, P, tu, tq, tqu)
+                _record(rec, out, t, x, v, math.copysign(1.0, v) if v != 0.0 else 0.0, 0.0, 1.0,
+                        0.0, -1.0, P, tu, tq, tqu)
             span = min(delay[k], max(t_max - t, 0.0))  # never coast past the time limit
             x, v, used, rest, t_stop = coast(x, v, span, P, tu, tq, tqu)
             if recording and t_stop > 0.0:
-                _record(rec, out, t + t_stop, x, 0.0, True, 0.0, 1.0, 0.0, -1.0, P, tu, tq, tqu)
+                _record(rec, out, t + t_stop, x, 0.0, 0.0, 0.0, 1.0, 0.0, -1.0, P, tu, tq, tqu)
             t += span
             if span < delay[k]:
                 outcome = MAX_TIME
@@ -322,7 +333,8 @@ def run(xa, freq, stroke_h, delay, x0, v0, t0, dt, min_steps, to_rest, t_max, P,
             t = max(t, t_max)
             outcome = MAX_TIME
         if recording:
-            _record(rec, out, t, x, v, rest, 0.0, 1.0, 0.0, -1.0, P, tu, tq, tqu)
+            _record(rec, out, t, x, v, 0.0 if rest else math.copysign(1.0, v), 0.0, 1.0, 0.0,
+                    -1.0, P, tu, tq, tqu)
     out[O_X] = x
     out[O_V] = v
     out[O_T] = t
@@ -330,3 +342,6 @@ def run(xa, freq, stroke_h, delay, x0, v0, t0, dt, min_steps, to_rest, t_max, P,
     out[O_STICK] = 1.0 if v == 0.0 else 0.0
 
 
+
+
+refresh_jit_cache(globals())

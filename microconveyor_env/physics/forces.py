@@ -10,17 +10,19 @@ import math
 
 from numba import njit
 
+from .jit_cache import refresh as refresh_jit_cache
 from .kinematics import surface_eval
 
 # ---- model constants array P ----
-I_MASS, I_G0, I_NMIN, I_EXACT, I_SLOPE, I_WL, I_SHAPE, I_MODE = range(8)
-N_PARAMS = 8
+I_MASS, I_G0, I_NMIN, I_EXACT, I_SLOPE, I_WL, I_SHAPE, I_MODE, I_NMAX = range(9)
+N_PARAMS = 9  # I_NMIN: -F_pull [N]; I_NMAX: largest tabulated load [N]
 KARNOPP, EVENT = 0, 1  # integration modes (used by the kernel)
 
 
 @njit(cache=True)
 def friction_of_load(N, tu, tq, tqu, n_min):
-    """Q(N) from the table (N below the pull-off point is clamped to it)."""
+    """Q(N) from the table. N below the pull-off point is clamped to it; above the last node the
+    last cubic extrapolates, so callers must keep N <= P[I_NMAX] (the kernel checks every step)."""
     du = N - n_min
     u = math.sqrt(du) if du > 0.0 else 0.0
     n = tu.shape[0]
@@ -83,3 +85,6 @@ def stick_state(x, tl, xa, f, h, P, tu, tq, tqu):
     Q = friction_of_load(N, tu, tq, tqu, P[I_NMIN])
     drive = -N * Yx
     return Q - abs(drive), N - P[I_NMIN], 1.0 if drive > 0.0 else -1.0
+
+
+refresh_jit_cache(globals())

@@ -48,6 +48,8 @@ import math
 import numpy as np
 from numba import njit
 
+from .jit_cache import refresh as refresh_jit_cache
+
 GAUSSIAN = 0
 SINUSOIDAL = 1
 CLAMPED_BEAM = 2
@@ -157,3 +159,6 @@ def surface_profile(x_array, amplitude, kind, wl, x_act=0.0):
         v = np.where(inside, 0.5 * wl - np.abs(u), 0.0)
         g = 4.0 * v * v * (3.0 * wl - 4.0 * v) / wl ** 3
     return amplitude * g
+
+
+refresh_jit_cache(globals())

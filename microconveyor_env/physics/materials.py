@@ -94,7 +94,8 @@ class Surface:
     sigma : standard deviation of asperity heights [m], > 0.
     psi : plasticity index [-], > 0; fixes the asperity radius R.
     beta : ``eta R sigma`` [-], > 0; fixes the asperity density eta.
-    dgamma : surface energy (work of adhesion per area) [J/m^2], >= 0.
+    dgamma : surface energy (work of adhesion per area) [J/m^2], > 0 (the model needs adhesion:
+        without it there is no pull-off point and no stable branch to tabulate).
     eps : Lennard-Jones intermolecular distance [m], > 0 (about 0.4 nm).
     """
 
@@ -107,7 +108,7 @@ class Surface:
     def __post_init__(self):
         _validate(self, {
             "sigma": (0, 1e-3, True, False, "m"), "psi": (0, 1e3, True, False, "-"),
-            "beta": (0, 1e3, True, False, "-"), "dgamma": (0, 1e3, False, False, "J/m^2"),
+            "beta": (0, 1e3, True, False, "-"), "dgamma": (0, 1e3, True, False, "J/m^2"),
             "eps": (0, 1e-6, True, False, "m"),
         })
 

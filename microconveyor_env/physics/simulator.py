@@ -21,7 +21,7 @@ from .schedule import Schedule
 MODES = {"karnopp": F.KARNOPP, "event": F.EVENT}
 KINEMATICS = ("seed", "exact")
 DEFAULT_MODE = "event"
-DEFAULT_DT = 5e-5          # s; the accuracy study's pick (event mode, within 1 um; docs/accuracy.md)
+DEFAULT_DT = 5e-5          # s; the accuracy study's pick (event mode, within 1 um; docs/validation.md)
 MIN_STEPS_PER_STROKE = 20  # default floor on steps per stroke; below it a warning is issued
 PEAK_QUINTIC_ACCEL = 10.0 / math.sqrt(3.0)  # max |p''| in units of h / (T/2)^2
 
@@ -36,8 +36,9 @@ class Result:
 
     ``outcome`` is ``rest`` (came to rest; ``rest_time_s`` is when), ``detached`` (left the surface
     at ``detach_time_s``/``detach_position_m``), ``max_time`` (still moving at ``max_time``),
-    ``moving`` (stopped at the end of the last stroke, ``to_rest=False``) or ``too_many_events``
-    (stick-slip chattering the event mode could not resolve).
+    ``moving`` (the state at the end of the last stroke, ``to_rest=False``) or
+    ``too_many_events`` (stick-slip chattering the event mode could not resolve). A load beyond the
+    contact table raises :class:`TableRangeError` instead of returning a result.
     """
 
     x0_m: float
@@ -115,6 +116,7 @@ class Simulator:
         P[F.I_EXACT] = 1.0 if kinematics == "exact" else 0.0
         P[F.I_SLOPE], P[F.I_WL] = self.slope, self.wavelength
         P[F.I_SHAPE], P[F.I_MODE] = SHAPES[shape], MODES[mode]
+        P[F.I_NMAX] = self.table.max_load
         self.params = P
         tu, tq, tqu, _ = self.table.kernel_arrays()
         self.tables = (np.ascontiguousarray(tu), np.ascontiguousarray(tq), np.ascontiguousarray(tqu))
@@ -158,6 +160,10 @@ class Simulator:
 
     def _result(self, out, x0, rec, wall, record) -> Result:
         outcome = K.OUTCOMES[int(out[K.O_OUTCOME])]
+        if outcome == "load_beyond_table":
+            raise TableRangeError(f"the normal load exceeded the contact table "
+                                  f"({self.table.max_load:.3g} N) at t = {out[K.O_EVENT_T]:.6g} s, "
+                                  f"x = {out[K.O_EVENT_X]:.6g} m; rebuild it with a larger load_ratio")
         detached = outcome == "detached"
         traj = None
         if record:
