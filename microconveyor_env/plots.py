@@ -6,27 +6,25 @@ from pathlib import Path
 import numpy as np
 
 
-def _plt():
-    import matplotlib
+def _subplots(nrows: int = 1, ncols: int = 1, **kw):
+    """A stand-alone Agg figure (no pyplot, so the caller's matplotlib backend is untouched)."""
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    return plt
+    fig = Figure(figsize=kw.pop("figsize", None), layout="constrained")
+    return fig, fig.subplots(nrows, ncols, **kw)
 
 
 def plot_contact(table, path: str | Path, title: str = "") -> Path:
     """Seed Fig. 3.11 / 3.15 analogues: P, F_s, N versus separation (pull-off marked), and Q."""
     from .physics.rough_surface import surface_forces
 
-    plt = _plt()
     p = table.params
     sig = p.surface.sigma
     d = np.linspace(max(table.base.d[-1], table.base.d_balance - 1.5) * sig,
                     table.pull_off_separation + 1.5 * sig, 600)
     f = surface_forces(p, d)
     dn = d * 1e9
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
+    fig, (ax1, ax2) = _subplots(1, 2, figsize=(11, 4.2))
     uN = 1e6
     ax1.plot(dn, f["P_N"] * uN, label="contact load P")
     ax1.plot(dn, f["Fs_N"] * uN, label="adhesion F_s")
@@ -61,17 +59,15 @@ def _save(fig, path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
-    _plt().close(fig)
     return path
 
 
 def plot_firing(result, freq: float, path, delay: float = 0.0, title: str = "") -> Path:
     """Seed Fig. 3.16 analogue: friction force and horizontal velocity versus time, with the
     stroke's up and down phases shaded and stick intervals marked."""
-    plt = _plt()
     tr = result.trajectory
     t_ms = tr["t_s"] * 1e3
-    fig, (ax1, ax2, ax3) = plt.subplots(3, 1, figsize=(9, 7.5), sharex=True, constrained_layout=True)
+    fig, (ax1, ax2, ax3) = _subplots(3, 1, figsize=(9, 7.5), sharex=True)
     T = 1.0 / freq
     for ax in (ax1, ax2, ax3):
         ax.axvspan(delay * 1e3, (delay + T / 2) * 1e3, color="tab:orange", alpha=0.12)
@@ -86,20 +82,20 @@ def plot_firing(result, freq: float, path, delay: float = 0.0, title: str = "") 
     ax2.plot(t_ms[stick], tr["v_m_s"][stick] * 1e3, "k.", ms=2, label="sticking")
     ax2.set_ylabel("velocity dx/dt [mm/s]")
     ax2.legend(fontsize=8, loc="upper right")
-    ax3.plot(t_ms, tr["x_m"] * 1e6, "tab:red", lw=1.2, label="part position x")
-    ax3.plot(t_ms, tr["N_N"] * 1e6, color="0.4", lw=0.8, label="normal load N [uN]")
-    ax3.set_ylabel("x [um]  /  N [uN]")
+    ax3.plot(t_ms, tr["x_m"] * 1e6, "tab:red", lw=1.2)
+    ax3.set_ylabel("part position x [um]", color="tab:red")
     ax3.set_xlabel("time [ms]  (orange: stroke up, blue: stroke down)")
-    ax3.legend(fontsize=8, loc="lower right")
+    ax4 = ax3.twinx()
+    ax4.plot(t_ms, tr["N_N"] * 1e6, color="0.35", lw=0.9)
+    ax4.set_ylabel("normal load N [uN]", color="0.35")
     ax1.set_title(title or f"one firing at {freq:g} Hz (cf. Fig. 3.16): outcome {result.outcome}")
     return _save(fig, path)
 
 
 def plot_sweep(sweep: dict, path, title: str = "") -> Path:
     """Seed Fig. 3.17 analogue: travel versus the swept parameter, detachment and window marked."""
-    plt = _plt()
     vals = np.asarray(sweep["values"], dtype=object)
-    fig, ax = plt.subplots(figsize=(8, 4.5), constrained_layout=True)
+    fig, ax = _subplots(figsize=(8, 4.5))
     numeric = sweep["param"] != "profile"
     x = np.asarray(vals, float) if numeric else np.arange(len(vals))
     d = np.abs(np.asarray(sweep["displacement_m"])) * 1e6
@@ -122,8 +118,7 @@ def plot_sweep(sweep: dict, path, title: str = "") -> Path:
 
 def plot_accuracy(study: dict, path) -> Path:
     """Error of the final position versus wall time per firing, per mode and kinematics level."""
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(8, 5), constrained_layout=True)
+    fig, ax = _subplots(figsize=(8, 5))
     styles = {("event", "seed"): "o-", ("karnopp", "seed"): "s-",
               ("event", "exact"): "o--", ("karnopp", "exact"): "s--"}
     floor = 1e-12
@@ -150,12 +145,10 @@ def plot_accuracy(study: dict, path) -> Path:
 
 def save_frames(frames, path, cols: int = 2) -> Path:
     """Tile rendered env frames (uint8 H x W x 3) into one PNG."""
-    plt = _plt()
     n = len(frames)
     rows = (n + cols - 1) // cols
     h, w = frames[0].shape[:2]
-    fig, axes = plt.subplots(rows, cols, figsize=(cols * w / 100, rows * h / 100),
-                             constrained_layout=True, squeeze=False)
+    fig, axes = _subplots(rows, cols, figsize=(cols * w / 100, rows * h / 100), squeeze=False)
     for ax in axes.ravel():
         ax.axis("off")
     for ax, fr in zip(axes.ravel(), frames):

@@ -5,19 +5,22 @@ from microconveyor_env.physics import dynamics_kernel as K
 from microconveyor_env.physics.jit_cache import refresh, sources_digest
 
 
-def test_stale_stamp_flushes_and_is_rewritten():
-    assert refresh(vars(K)) is False  # imported already: stamp current
-    stamp = Path(K.run._cache.cache_path) / f"{K.__name__}.sources.sha256"
-    stamp.write_text("stale")
-    assert refresh(vars(K)) is True
-    assert stamp.read_text() == sources_digest()
-    assert refresh(vars(K)) is False
-    # the flushed kernel still runs (recompiles or reloads) and gives the same answer
-    from microconveyor_env.physics.schedule import Schedule
-    from microconveyor_env.physics.simulator import Simulator
+def test_stale_stamp_flushes_and_is_rewritten(tmp_path, monkeypatch):
+    """On a throw-away cached module (the package's own caches are left alone)."""
+    (tmp_path / "tmp_jit_mod.py").write_text(
+        "from numba import njit\n\n@njit(cache=True)\ndef twice(x):\n    return 2 * x\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    import tmp_jit_mod
 
-    r = Simulator("seed").simulate(Schedule.single(950.0, 200e-6), x0=0.125e-3)
-    assert r.outcome == "rest" and abs(r.displacement_m + 1.1642e-3) < 2e-6
+    assert tmp_jit_mod.twice(3) == 6  # compiled and cached
+    g = vars(tmp_jit_mod)
+    assert refresh(g) is True          # no stamp yet: flushed once
+    stamp = Path(tmp_jit_mod.twice._cache.cache_path) / "tmp_jit_mod.sources.sha256"
+    assert stamp.read_text() == sources_digest()
+    assert refresh(g) is False         # up to date
+    stamp.write_text("stale")          # a compiled source changed
+    assert refresh(g) is True and stamp.read_text() == sources_digest()
+    assert tmp_jit_mod.twice(4) == 8
 
 
 def test_digest_covers_every_compiled_module():

@@ -14,7 +14,7 @@ from ..physics.materials import ParameterError, check_range
 _RANGES = {  # field -> (lo, hi, lo_open, unit)
     "spacing": (0.0, 1.0, True, "m"), "wavelength": (0.0, 1.0, True, "m"),
     "start_offset": (0.0, 1.0, False, "m"), "start_jitter": (0.0, 1.0, False, "m"),
-    "tolerance": (0.0, 1.0, True, "m"), "progress_scale": (0.0, 1.0, True, "m"),
+    "tolerance": (0.0, 1.0, True, "m"),
     "time_cost": (0.0, 1e6, False, "1/s"), "success_bonus": (0.0, 1e6, False, "-"),
     "detach_penalty": (0.0, 1e6, False, "-"), "max_time": (0.0, 1e6, True, "s"),
     "dt": (0.0, 1.0, True, "s"),
@@ -39,7 +39,7 @@ class EnvConfig:
     freq_range: tuple = (200.0, 10000.0)
     stroke_range: tuple = (100e-6, 200e-6)
     delay_range: tuple = (0.0, 0.1)
-    progress_scale: float = 1e-3
+    progress_scale: float | None = None  # None: the tolerance
     time_cost: float = 1.0
     success_bonus: float = 10.0
     detach_penalty: float = 10.0
@@ -52,6 +52,14 @@ class EnvConfig:
         for name, (lo, hi, lo_open, unit) in _RANGES.items():
             object.__setattr__(self, name, check_range("EnvConfig", name, getattr(self, name),
                                                        lo, hi, lo_open, unit=unit))
+        if self.progress_scale is None:
+            object.__setattr__(self, "progress_scale", self.tolerance)
+        object.__setattr__(self, "progress_scale", check_range(
+            "EnvConfig", "progress_scale", self.progress_scale, 0.0, 1.0, True, unit="m"))
+        if self.start_jitter > self.start_offset:
+            raise ParameterError(f"EnvConfig.start_jitter = {self.start_jitter!r} is invalid: must "
+                                 f"be <= start_offset ({self.start_offset!r} m) so the part starts "
+                                 "upstream of actuator 1")
         n = self.n_actuators
         if isinstance(n, bool) or not isinstance(n, (int, float)) or n != int(n) or not 1 <= n <= 1000:
             raise ParameterError(f"EnvConfig.n_actuators = {n!r} is invalid: must be an integer "

@@ -6,14 +6,39 @@ import numpy as np
 from gymnasium import spaces
 
 from ..physics import dynamics_kernel as K
+from ..physics.contact_table import TableRangeError
+from ..physics.materials import ParameterError
 from ..physics.simulator import Simulator
 from . import task
 from .config import EnvConfig
 
 
 def make_simulator(cfg: EnvConfig) -> Simulator:
-    return Simulator(cfg.preset, shape=cfg.shape, wavelength=cfg.wavelength,
-                     kinematics=cfg.kinematics, mode=cfg.mode, dt=cfg.dt, max_time=cfg.max_time)
+    """The env's simulator; refuses action ranges whose strongest stroke would load the part
+    beyond the contact table (checked once here, so steps never need to)."""
+    sim = Simulator(cfg.preset, shape=cfg.shape, wavelength=cfg.wavelength,
+                    kinematics=cfg.kinematics, mode=cfg.mode, dt=cfg.dt, max_time=cfg.max_time)
+    try:
+        sim.check_firings(np.array([cfg.freq_range[1]]), np.array([cfg.stroke_range[1]]))
+    except TableRangeError as exc:
+        raise ParameterError(f"EnvConfig.freq_range / stroke_range: {exc}") from None
+    return sim
+
+
+def check_target(target) -> float:
+    """A target from ``reset(options=...)`` [m]: finite and where the observation can show it."""
+    t = float(target)
+    limit = task.OBS_BOUND * task.LENGTH_SCALE
+    if not (np.isfinite(t) and abs(t) <= limit):
+        raise ValueError(f"options['target'] = {target!r} is invalid: must be a finite distance "
+                         f"beyond actuator 1 within +-{limit:g} m")
+    return t
+
+
+def raise_if_beyond_table(outcome: str, sim: Simulator) -> None:
+    if outcome == "load_beyond_table":
+        raise TableRangeError(f"the normal load left the contact table ({sim.table.max_load:.3g} "
+                              "N) during a stroke; rebuild the table with a larger load_ratio")
 
 
 class MicroConveyorEnv(gym.Env):
@@ -105,9 +130,7 @@ class MicroConveyorEnv(gym.Env):
         jitter = self.np_random.uniform(-1.0, 1.0) * cfg.start_jitter if cfg.start_jitter else 0.0
         target = self.np_random.uniform(*cfg.target_range)
         if options and "target" in options:
-            target = float(options["target"])
-            if not np.isfinite(target):
-                raise ValueError(f"options['target'] = {options['target']!r} must be finite [m]")
+            target = check_target(options["target"])
         self._x[0], self._v[0], self._t[0] = -cfg.start_offset + jitter, 0.0, 0.0
         self._fired[0] = 0
         self._target[0] = target
@@ -127,6 +150,7 @@ class MicroConveyorEnv(gym.Env):
                          self._res, self._obs_buf)
         res = self._res[0]
         outcome = K.OUTCOMES[int(res[task.S_OUTCOME])]
+        raise_if_beyond_table(outcome, self.sim)
         terminated = outcome in ("rest", "detached")
         truncated = outcome in ("max_time", "too_many_events")
         self._done = terminated or truncated

@@ -36,8 +36,7 @@ class MicroConveyorSB3VecEnv(VecEnv):
         seed = None if all(s is None for s in seeds) else [
             s if s is not None else int(np.random.SeedSequence().generate_state(1)[0])
             for s in seeds]
-        options = self._options[0] if self._options and self._options[0] else None
-        obs, infos = self.venv.reset(seed=seed, options=options)
+        obs, infos = self.venv.reset(seed=seed, options=self._merged_options())
         self.reset_infos = self._split(infos)
         self._reset_seeds()
         self._reset_options()
@@ -52,10 +51,23 @@ class MicroConveyorSB3VecEnv(VecEnv):
         src = infos.get("final_info", infos) if dones.any() else infos
         out = self._split(infos)
         for i in np.flatnonzero(dones):
+            self.reset_infos[i] = out[i]  # top-level rows of finished envs hold the reset info
             out[i] = {k: _py(src[k][i]) for k in _SCALAR_INFO if k in src}
             out[i]["terminal_observation"] = infos["final_obs"][i]
             out[i]["TimeLimit.truncated"] = bool(trunc[i] and not term[i])
         return obs, rew.astype(np.float32), dones, out
+
+    def _merged_options(self):
+        """Per-env options ({"target": d} each, see ``set_options``) as one batched dict."""
+        opts = self._options or []
+        if not any(opts):
+            return None
+        unknown = {k for o in opts for k in o} - {"target"}
+        if unknown:
+            raise ValueError(f"unsupported reset options {sorted(unknown)}; only 'target'")
+        if not all("target" in o for o in opts):
+            raise ValueError("set a 'target' option for every sub-env (or for none)")
+        return {"target": np.array([o["target"] for o in opts], dtype=float)}
 
     def _split(self, infos) -> list:
         return [{k: _py(infos[k][i]) for k in _SCALAR_INFO if k in infos}
@@ -70,6 +82,7 @@ class MicroConveyorSB3VecEnv(VecEnv):
         return [indices] if isinstance(indices, int) else indices
 
     def get_attr(self, attr_name, indices=None):
+        """The batched env's attribute, repeated per index (its sub-envs share one config)."""
         return [getattr(self.venv, attr_name) for _ in self._indices(indices)]
 
     def set_attr(self, attr_name, value, indices=None):

@@ -1,6 +1,7 @@
 """Batched MicroConveyor-v0: N parts stepped together by one compiled call (numba prange)."""
 from __future__ import annotations
 
+import numbers
 from typing import Any
 
 import numpy as np
@@ -12,7 +13,7 @@ from gymnasium.vector.utils import batch_space
 from ..physics import dynamics_kernel as K
 from . import task
 from .config import EnvConfig
-from .conveyor import make_simulator
+from .conveyor import check_target, make_simulator, raise_if_beyond_table
 
 
 class MicroConveyorVectorEnv(VectorEnv):
@@ -68,9 +69,7 @@ class MicroConveyorVectorEnv(VectorEnv):
         target = rng.uniform(*cfg.target_range)
         if options and "target" in options:
             tv = np.broadcast_to(np.asarray(options["target"], dtype=float), (self.num_envs,))
-            if not np.all(np.isfinite(tv)):
-                raise ValueError(f"options['target'] = {options['target']!r} must be finite [m]")
-            target = float(tv[i])
+            target = check_target(tv[i])
         self.x[i], self.v[i], self.t[i] = -cfg.start_offset + jitter, 0.0, 0.0
         self.fired[i] = 0
         self.target[i] = target
@@ -78,8 +77,8 @@ class MicroConveyorVectorEnv(VectorEnv):
 
     def reset(self, *, seed: int | list | None = None, options: dict | None = None):
         if seed is not None:
-            seeds = ([seed + i for i in range(self.num_envs)] if isinstance(seed, int)
-                     else list(seed))
+            seeds = ([int(seed) + i for i in range(self.num_envs)]
+                     if isinstance(seed, numbers.Integral) else [int(s) for s in seed])
             if len(seeds) != self.num_envs:
                 raise ValueError(f"{len(seeds)} seeds for {self.num_envs} envs")
             self.rngs = [seeding.np_random(s)[0] for s in seeds]
@@ -106,6 +105,8 @@ class MicroConveyorVectorEnv(VectorEnv):
                            self._res, self._obs_buf)
         res = self._res
         codes = res[:, task.S_OUTCOME].astype(np.int64)
+        if (codes == K.BEYOND_TABLE).any():
+            raise_if_beyond_table("load_beyond_table", self.sim)
         terminated = active & ((codes == K.REST) | (codes == K.DETACHED))
         truncated = active & ((codes == K.MAX_TIME) | (codes == K.TOO_MANY_EVENTS))
         rew = np.where(active, res[:, task.S_REWARD], 0.0)
@@ -120,19 +121,34 @@ class MicroConveyorVectorEnv(VectorEnv):
         return obs, rew, terminated, truncated, infos
 
     def _same_step_reset(self, obs, infos) -> dict:
-        idx = np.flatnonzero(self.done)
+        """Reset finished sub-envs now; as SyncVectorEnv does, their last observation and info go
+        to ``final_obs`` / ``final_info`` and the top-level info rows become the reset info."""
+        finished = self.done.copy()
+        idx = np.flatnonzero(finished)
         final_obs = np.full(self.num_envs, None, dtype=object)
         final_info: dict[str, Any] = {}
+        for key, val in infos.items():
+            if not key.startswith("_"):
+                mask = np.zeros(self.num_envs, bool)
+                mask[idx] = infos["_" + key][idx]
+                blank = (np.full(self.num_envs, None, dtype=object) if val.dtype == object
+                         else np.zeros_like(val))
+                final_info[key] = np.where(mask, val, blank)
+                final_info["_" + key] = mask
         for i in idx:
             final_obs[i] = obs[i].copy()
-            for key, val in infos.items():
-                if not key.startswith("_"):
-                    final_info.setdefault(key, np.zeros_like(val))[i] = val[i]
-                    final_info.setdefault("_" + key, np.zeros(self.num_envs, bool))[i] = True
             self._reset_one(i, None)
+        reset = self._infos(np.full(self.num_envs, "moving", dtype=object))
         infos = dict(infos)
-        infos["final_obs"], infos["_final_obs"] = final_obs, self.done.copy()
-        infos["final_info"], infos["_final_info"] = final_info, self.done.copy()
+        for key, val in reset.items():
+            if not key.startswith("_"):
+                infos[key] = infos[key].copy()
+                infos[key][idx] = val[idx]
+        for key in ("frequency_hz", "stroke_m", "delay_s"):  # step-only keys: absent after reset
+            infos[key] = np.where(finished, 0.0, infos[key])
+            infos["_" + key] = infos["_" + key] & ~finished
+        infos["final_obs"], infos["_final_obs"] = final_obs, finished
+        infos["final_info"], infos["_final_info"] = final_info, finished.copy()
         return infos
 
     # ------------------------------------------------------------------ helpers
@@ -147,7 +163,7 @@ class MicroConveyorVectorEnv(VectorEnv):
         infos = {"is_success": success.astype(bool), "final_error_m": self.x - self.target,
                  "outcome": outcome, "sim_time_s": self.t.copy()}
         for key in list(infos):
-            infos["_" + key] = ok
+            infos["_" + key] = ok.copy()
         return infos
 
     def render(self):
