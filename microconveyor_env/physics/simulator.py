@@ -34,7 +34,8 @@ class StepSizeWarning(UserWarning):
 class Result:
     """Outcome of one simulation (SI units).
 
-    ``outcome`` is ``rest`` (came to rest; ``rest_time_s`` is when), ``detached`` (left the surface
+    ``outcome`` is ``rest`` (at rest on the still surface from ``rest_time_s`` on; a part that is
+    stuck when the last stroke ends rests from that moment), ``detached`` (left the surface
     at ``detach_time_s``/``detach_position_m``), ``max_time`` (still moving at ``max_time``),
     ``moving`` (the state at the end of the last stroke, ``to_rest=False``) or
     ``too_many_events`` (stick-slip chattering the event mode could not resolve). A load beyond the
