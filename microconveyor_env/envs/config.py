@@ -10,16 +10,23 @@ import yaml
 
 from ..physics.kinematics import SHAPES
 from ..physics.materials import ParameterError, check_range
+from ..physics.simulator import MAX_STEPS, MIN_DT, MIN_STEPS_PER_STROKE, MIN_WAVELENGTH, \
+    check_max_steps, check_step_budget
+from .task import LENGTH_SCALE, OBS_BOUND
 
+# Position error and target are observed / LENGTH_SCALE, clipped to +-OBS_BOUND: targets beyond
+# this distance could not be seen.
+MAX_TARGET = OBS_BOUND * LENGTH_SCALE  # m
+MIN_LENGTH = 1e-9  # m: below it, |x - target| / tolerance overflows (NaN rewards)
 _RANGES = {  # field -> (lo, hi, lo_open, unit)
-    "spacing": (0.0, 1.0, True, "m"), "wavelength": (0.0, 1.0, True, "m"),
+    "spacing": (1e-6, 1.0, False, "m"), "wavelength": (MIN_WAVELENGTH, 1.0, False, "m"),
     "start_offset": (0.0, 1.0, False, "m"), "start_jitter": (0.0, 1.0, False, "m"),
-    "tolerance": (0.0, 1.0, True, "m"),
+    "tolerance": (MIN_LENGTH, 1.0, False, "m"),
     "time_cost": (0.0, 1e6, False, "1/s"), "success_bonus": (0.0, 1e6, False, "-"),
-    "detach_penalty": (0.0, 1e6, False, "-"), "max_time": (0.0, 1e6, True, "s"),
-    "dt": (0.0, 1.0, True, "s"),
+    "detach_penalty": (0.0, 1e6, False, "-"), "max_time": (1e-6, 1e6, False, "s"),
+    "dt": (MIN_DT, 1.0, False, "s"),
 }
-_PAIRS = {"target_range": (0.0, 1.0, "m"), "freq_range": (0.0, 1e6, "Hz"),
+_PAIRS = {"target_range": (0.0, MAX_TARGET, "m"), "freq_range": (0.0, 1e6, "Hz"),
           "stroke_range": (0.0, 1e-2, "m"), "delay_range": (0.0, 1e4, "s")}
 
 
@@ -47,6 +54,7 @@ class EnvConfig:
     mode: str = "event"
     kinematics: str = "seed"
     dt: float = 5e-5
+    max_steps: int = MAX_STEPS
 
     def __post_init__(self):
         for name, (lo, hi, lo_open, unit) in _RANGES.items():
@@ -55,7 +63,7 @@ class EnvConfig:
         if self.progress_scale is None:
             object.__setattr__(self, "progress_scale", self.tolerance)
         object.__setattr__(self, "progress_scale", check_range(
-            "EnvConfig", "progress_scale", self.progress_scale, 0.0, 1.0, True, unit="m"))
+            "EnvConfig", "progress_scale", self.progress_scale, MIN_LENGTH, 1.0, unit="m"))
         if self.start_jitter > self.start_offset:
             raise ParameterError(f"EnvConfig.start_jitter = {self.start_jitter!r} is invalid: must "
                                  f"be <= start_offset ({self.start_offset!r} m) so the part starts "
@@ -77,6 +85,11 @@ class EnvConfig:
         if self.freq_range[0] <= 0:
             raise ParameterError(f"EnvConfig.freq_range = {self.freq_range!r} is invalid: "
                                  "frequencies must be > 0 Hz")
+        object.__setattr__(self, "max_steps", check_max_steps("EnvConfig", self.max_steps))
+        # the slowest strokes of a whole episode must fit the step budget
+        check_step_budget("EnvConfig (dt, freq_range, n_actuators)",
+                          [self.freq_range[0]] * self.n_actuators, self.dt,
+                          MIN_STEPS_PER_STROKE, self.max_steps)
         for name, allowed in (("shape", tuple(SHAPES)), ("mode", ("event", "karnopp")),
                               ("kinematics", ("seed", "exact"))):
             if getattr(self, name) not in allowed:

@@ -20,7 +20,8 @@ def make_simulator(cfg: EnvConfig) -> Simulator:
     """The env's simulator; refuses action ranges whose strongest stroke would load the part
     beyond the contact table (checked once here, so steps never need to)."""
     sim = Simulator(cfg.preset, shape=cfg.shape, wavelength=cfg.wavelength,
-                    kinematics=cfg.kinematics, mode=cfg.mode, dt=cfg.dt, max_time=cfg.max_time)
+                    kinematics=cfg.kinematics, mode=cfg.mode, dt=cfg.dt, max_time=cfg.max_time,
+                    max_steps=cfg.max_steps)
     try:
         sim.check_firings(np.array([cfg.freq_range[1]]), np.array([cfg.stroke_range[1]]))
     except TableRangeError as exc:

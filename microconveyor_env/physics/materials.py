@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 from dataclasses import dataclass, field
 
 G0 = 9.81
@@ -27,14 +28,21 @@ class ParameterError(ValueError):
 
 def check_range(owner: str, name: str, value, lo: float = -math.inf, hi: float = math.inf,
                 lo_open: bool = False, hi_open: bool = False, unit: str = "") -> float:
-    """Return ``float(value)`` or raise :class:`ParameterError` if it is not finite and in range."""
+    """Return ``float(value)`` or raise :class:`ParameterError` if it is not a finite real number
+    in range (bools and numeric strings are refused, not converted)."""
     label = f"{owner}.{name}" if owner else name
     lb = "(" if lo_open else "["
     rb = ")" if hi_open else "]"
     allowed = f"a finite number in {lb}{lo:g}, {hi:g}{rb}" + (f" [{unit}]" if unit else "")
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        hint = ""
+        if isinstance(value, str):
+            hint = (" (a number, not text; note that YAML reads 1e-3 without a decimal point as "
+                    "text: write 1.0e-3)")
+        raise ParameterError(f"{label} = {value!r} is invalid: must be {allowed}{hint}")
     try:
         v = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ParameterError(f"{label} = {value!r} is invalid: must be {allowed}") from None
     bad = (not math.isfinite(v) or v < lo or v > hi or (lo_open and v == lo)
            or (hi_open and v == hi))
