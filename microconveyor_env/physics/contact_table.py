@@ -181,13 +181,29 @@ def _load_cached(path: Path, key: str) -> BaseTable | None:
         for k in ("n_min", "d_pull", "d_balance", "build_seconds"):
             fields[k] = float(fields[k])
         t = BaseTable(**fields)
-        arrays = (t.u, t.d, t.d_u, t.q, t.q_u, t.n)
-        if (not all(np.all(np.isfinite(a)) for a in arrays) or t.u.size < 16
-                or len({a.size for a in arrays}) != 1 or np.any(np.diff(t.u) <= 0)):
-            return None
-        return t
+        return t if consistent(t) else None
     except Exception:  # corrupt, truncated, wrong layout: rebuild, never trust
         return None
+
+
+def consistent(t: BaseTable) -> bool:
+    """Whether a (cached) table is one :func:`build_base_table` could have made: finite 1-d arrays
+    of one size, the stable branch from pull-off (u = 0, d = d_A, n = n_min < 0) with n rising,
+    d falling, u = sqrt(n - n_min), friction q >= 0, and the balance point inside the branch."""
+    arrays = (t.u, t.d, t.d_u, t.q, t.q_u, t.n)
+    scalars = (t.n_min, t.d_pull, t.d_balance, t.build_seconds)
+    if (any(a.ndim != 1 for a in arrays) or len({a.size for a in arrays}) != 1 or t.u.size < 16
+            or not all(np.all(np.isfinite(a)) for a in arrays)
+            or not all(math.isfinite(x) for x in scalars)):
+        return False
+    with np.errstate(all="ignore"):
+        return bool(
+            t.n_min < 0 and t.u[0] == 0 and t.n[0] == t.n_min and t.d[0] == t.d_pull
+            and np.all(np.diff(t.u) > 0) and np.all(np.diff(t.n) > 0) and np.all(np.diff(t.d) < 0)
+            and np.all(t.d_u < 0) and np.all(t.q >= 0)
+            and t.d[-1] <= t.d_balance <= t.d_pull
+            and np.allclose(t.u, np.sqrt(np.maximum(t.n - t.n_min, 0.0)), rtol=1e-9,
+                            atol=1e-12 * math.sqrt(abs(t.n_min))))
 
 
 def _store(path: Path, key: str, table: BaseTable) -> None:
