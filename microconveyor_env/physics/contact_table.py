@@ -28,7 +28,7 @@ import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
 from . import asperity
-from .materials import ContactParams
+from .materials import ContactParams, ParameterError
 from . import rough_surface
 from .rough_surface import Normalised, SurfaceIntegrals
 
@@ -227,7 +227,13 @@ def base_table(params: ContactParams, spacing: float = DEFAULT_SPACING,
     path = cache_dir() / f"ke-table-{key}.npz"
     table = _load_cached(path, key) if use_cache else None
     if table is None:
-        table = build_base_table(params, spacing, load_ratio)
+        try:
+            table = build_base_table(params, spacing, load_ratio)
+        except (RuntimeError, ArithmeticError, ValueError, MemoryError) as exc:
+            raise ParameterError(
+                f"no contact table for these contact parameters ({exc}); each is within its own "
+                f"range but together they are outside what the model supports: "
+                f"{_describe(params)}") from None
         if use_cache:
             try:
                 _store(path, key, table)
@@ -238,6 +244,12 @@ def base_table(params: ContactParams, spacing: float = DEFAULT_SPACING,
 
 
 _MEMO: dict[str, BaseTable] = {}
+
+
+def _describe(params: ContactParams) -> str:
+    d = params.as_dict()
+    return ", ".join(f"{group}.{k} = {v:g}" for group in ("materials", "surface")
+                     for k, v in d[group].items())
 
 
 # ----------------------------------------------------------------------------- public table
@@ -282,6 +294,16 @@ class ContactTable:
         """Largest tabulated compressive load [N]."""
         return self.n_asp * float(self.base.n[-1])
 
+    def check_weight(self) -> None:
+        """ParameterError (naming Part.mass) if the part's weight is beyond the table."""
+        part = self.params.part
+        if part.weight > self.max_load:
+            raise ParameterError(
+                f"Part.mass = {part.mass!r} is invalid for this contact: its weight "
+                f"{part.weight:.3g} N is beyond the contact table ({self.max_load:.3g} N); use a "
+                "lighter part, or more adhesion or contact (Part.area, Surface.beta, "
+                "Surface.dgamma)")
+
     # ---- lookups ----
     def _u(self, load) -> np.ndarray:
         N = np.asarray(load, dtype=float)
@@ -323,6 +345,7 @@ class ContactTable:
         """The contact characteristics in SI units (keys carry unit suffixes)."""
         p = self.params
         w = p.part.weight
+        self.check_weight()
         return {
             "pull_off_force_N": self.pull_off_force,
             "pull_off_separation_m": self.pull_off_separation,

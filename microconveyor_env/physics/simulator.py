@@ -154,6 +154,7 @@ class Simulator:
         self.slope = check_range("Simulator", "slope", slope, -100, 100)
         self.max_time = check_range("Simulator", "max_time", max_time, 0, math.inf, True, unit="s")
         self.table = ContactTable(contact)
+        self.table.check_weight()
         self.mass = contact.part.mass
         P = np.zeros(F.N_PARAMS)
         P[F.I_MASS], P[F.I_G0] = self.mass, G0
