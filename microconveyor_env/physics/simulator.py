@@ -191,8 +191,8 @@ class Simulator:
         """Run ``schedule`` from position ``x0`` [m] and velocity ``v0`` [m/s] at t = 0."""
         if not isinstance(schedule, Schedule):
             raise ParameterError(f"schedule must be a Schedule, got {type(schedule).__name__}")
-        x0 = check_range("simulate", "x0", x0, unit="m")
-        v0 = check_range("simulate", "v0", v0, unit="m/s")
+        x0 = check_range("simulate", "x0", x0, -1.0, 1.0, unit="m")
+        v0 = check_range("simulate", "v0", v0, -100.0, 100.0, unit="m/s")
         xa, f, h, d = schedule.arrays()
         self.check_firings(f, h)
         cap = 0
