@@ -28,7 +28,7 @@ import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
 from . import asperity
-from .materials import ContactParams, ParameterError
+from .materials import ContactParams, ParameterError, check_range
 from . import rough_surface
 from .rough_surface import Normalised, SurfaceIntegrals
 
@@ -221,6 +221,8 @@ def _store(path: Path, key: str, table: BaseTable) -> None:
 def base_table(params: ContactParams, spacing: float = DEFAULT_SPACING,
                load_ratio: float = DEFAULT_LOAD_RATIO, use_cache: bool = True) -> BaseTable:
     """Cached :func:`build_base_table` (memory, then disk, then build)."""
+    spacing = check_range("ContactTable", "spacing", spacing, 1e-4, 0.5)  # <= ~1e5 nodes
+    load_ratio = check_range("ContactTable", "load_ratio", load_ratio, 10.0, 1e8)
     key = table_key(params, spacing, load_ratio)
     if key in _MEMO:
         return _MEMO[key]
