@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 from dataclasses import dataclass
 from importlib import resources
 
@@ -69,7 +70,8 @@ class EnvConfig:
                                  f"be <= start_offset ({self.start_offset!r} m) so the part starts "
                                  "upstream of actuator 1")
         n = self.n_actuators
-        if isinstance(n, bool) or not isinstance(n, (int, float)) or n != int(n) or not 1 <= n <= 1000:
+        if (isinstance(n, bool) or not isinstance(n, numbers.Real) or not math.isfinite(n)
+                or n != int(n) or not 1 <= n <= 1000):
             raise ParameterError(f"EnvConfig.n_actuators = {n!r} is invalid: must be an integer "
                                  "in [1, 1000]")
         object.__setattr__(self, "n_actuators", int(n))

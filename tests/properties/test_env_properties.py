@@ -45,6 +45,7 @@ def _check_info(info, n=None):
 @example(overrides={"target_range": (0.5, 0.9)}, seed=0, actions=[(0.0, 0.0, 0.0)] * 8)
 @example(overrides={"tolerance": "1e-3"}, seed=0, actions=[(0.0, 0.0, 0.0)] * 8)
 @example(overrides={"time_cost": True}, seed=0, actions=[(0.0, 0.0, 0.0)] * 8)
+@example(overrides={"n_actuators": float("nan")}, seed=0, actions=[(0.0, 0.0, 0.0)] * 8)
 def test_single_env_configs_give_clear_errors_or_finite_episodes(overrides, seed, actions):
     env = _make(MicroConveyorEnv, overrides)
     if env is None:
