@@ -7,8 +7,6 @@ import numbers
 from dataclasses import dataclass
 from importlib import resources
 
-import yaml
-
 from ..physics.kinematics import SHAPES
 from ..physics.materials import ParameterError, check_range
 from ..physics.simulator import MAX_STEPS, MIN_DT, MIN_STEPS_PER_STROKE, MIN_WAVELENGTH, \
@@ -101,12 +99,17 @@ class EnvConfig:
     @classmethod
     def from_yaml(cls, path: str | None = None, **overrides) -> "EnvConfig":
         """Defaults from ``configs/envs/MicroConveyor-v0.yaml`` (or ``path``), then ``overrides``."""
+        from ..presets import parse_yaml
+
         if path is None:
             text = (resources.files("microconveyor_env.configs") / "envs" / "MicroConveyor-v0.yaml").read_text()
         else:
             with open(path) as fh:
                 text = fh.read()
-        data = yaml.safe_load(text) or {}
+        data = parse_yaml(text, f"env config {path or 'defaults'}") or {}
+        if not isinstance(data, dict):
+            raise ParameterError(f"env config {path!r} is not a YAML mapping")
+        data = dict(data)
         data.update(overrides)
         known = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(data) - known)

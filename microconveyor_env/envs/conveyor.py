@@ -109,6 +109,8 @@ class MicroConveyorEnv(gym.Env):
     def __init__(self, render_mode: str | None = None, config: EnvConfig | None = None, **kwargs):
         if config is not None and kwargs:
             raise ValueError("give either config= or keyword overrides, not both")
+        if config is not None and not isinstance(config, EnvConfig):
+            raise ValueError(f"config must be an EnvConfig, got {type(config).__name__}")
         self.config = config or EnvConfig.from_yaml(**kwargs)
         check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode

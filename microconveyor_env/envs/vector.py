@@ -45,6 +45,8 @@ class MicroConveyorVectorEnv(VectorEnv):
         self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
         if config is not None and kwargs:
             raise ValueError("give either config= or keyword overrides, not both")
+        if config is not None and not isinstance(config, EnvConfig):
+            raise ValueError(f"config must be an EnvConfig, got {type(config).__name__}")
         self.config = config or EnvConfig.from_yaml(**kwargs)
         self.num_envs = n = int(num_envs)
         self.render_mode = render_mode
