@@ -48,10 +48,41 @@ def tmpdir_(tmp_path_factory):
     return d
 
 
-options = st.lists(st.one_of(
+@pytest.fixture(scope="module")
+def tmpdir_(tmp_path_factory):
+    d = tmp_path_factory.mktemp("cli")
+    for name, text in PRESETS.items():
+        (d / name).write_text(text)
+    return d
+
+
+def _opts(pool, **kw):
+    return st.lists(st.sampled_from(sorted(pool)).flatmap(
+        lambda k: st.tuples(st.just(k), st.sampled_from(pool[k]))), unique_by=lambda o: o[0], **kw)
+
+
+SIM_OK = {"--freq": ["950", "700", "300"], "--stroke": ["200e-6", "150e-6"],
+          "--x0": ["0.125e-3", "0.1e-3"], "--mode": ["event", "karnopp"],
+          "--kinematics": ["seed", "exact"], "--dt": ["5e-5", "2e-5"],
+          "--profile": ["gaussian", "sinusoidal", "clamped_beam"], "--max-steps": ["100000"]}
+SWEEP_OK = {"--stroke": ["200e-6"], "--x0": ["0.125e-3"], "--mode": ["event", "karnopp"],
+            "--dt": ["5e-5"], "--max-points": ["50"]}
+hostile_options = st.lists(st.one_of(
     st.sampled_from(sorted(VALUES)).flatmap(lambda k: st.tuples(st.just(k),
                                                                 st.sampled_from(VALUES[k]))),
     st.sampled_from(FLAGS).map(lambda f: (f,))), max_size=5)
+# (command, options): mostly valid lines with one hostile option at most, or anything at all
+lines = st.one_of(
+    st.tuples(st.just("simulate"), _opts(SIM_OK, max_size=4)),
+    st.tuples(st.just("sweep"), st.tuples(
+        st.sampled_from(["--freq", "--stroke", "--x0", "--mass", "--profile"]).map(
+            lambda k: (k, {"--freq": "200:1500:325", "--stroke": "100e-6,200e-6",
+                           "--x0": "0.1e-3:0.15e-3:0.025e-3", "--mass": "2e-9,3e-9",
+                           "--profile": "gaussian,sinusoidal"}[k])),
+        _opts(SWEEP_OK, max_size=3)).map(lambda t: [t[0]] + [o for o in t[1] if o[0] != t[0][0]])),
+    st.tuples(st.sampled_from(COMMANDS + [""]), hostile_options),
+).flatmap(lambda line: st.tuples(st.just(line[0]), st.one_of(
+    st.just(line[1]), hostile_options.map(lambda h: line[1] + h[:1]))))
 
 
 def _argv(command, opts, json_flag, tmp):
@@ -71,16 +102,17 @@ def _refused_by_parser(argv) -> bool:
         return True
 
 
-@given(command=st.sampled_from(COMMANDS + [""]), opts=options, json_flag=st.booleans())
-@example(command="simulate", opts=[("--freq", "abc")], json_flag=True)          # argparse error
-@example(command="sweep", opts=[("--freq", "0:1e308:1e-300")], json_flag=True)  # overflow
-@example(command="contact", opts=[("--preset", "{tmp}/bad.yaml")], json_flag=True)
-@example(command="contact", opts=[("--preset", "{tmp}/alias.yaml")], json_flag=True)
-@example(command="contact", opts=[("--preset", "{tmp}/types.yaml")], json_flag=False)
-@example(command="sweep", opts=[("--freq", ",")], json_flag=True)               # empty list
-@example(command="simulate", opts=[("--plot", "")], json_flag=True)
-@example(command="simulate", opts=[("--dt", "1e-12")], json_flag=True)          # 1e9 steps
-def test_cli_errors_follow_the_contract(tmpdir_, capsys, command, opts, json_flag):
+@given(line=lines, json_flag=st.booleans())
+@example(line=("simulate", [("--freq", "abc")]), json_flag=True)          # argparse error
+@example(line=("sweep", [("--freq", "0:1e308:1e-300")]), json_flag=True)  # overflow
+@example(line=("contact", [("--preset", "{tmp}/bad.yaml")]), json_flag=True)
+@example(line=("contact", [("--preset", "{tmp}/alias.yaml")]), json_flag=True)
+@example(line=("contact", [("--preset", "{tmp}/types.yaml")]), json_flag=False)
+@example(line=("sweep", [("--freq", ",")]), json_flag=True)               # empty list
+@example(line=("simulate", [("--plot", "")]), json_flag=True)
+@example(line=("simulate", [("--dt", "1e-12")]), json_flag=True)          # 1e9 steps
+def test_cli_errors_follow_the_contract(tmpdir_, capsys, line, json_flag):
+    command, opts = line
     argv = _argv(command, opts, json_flag, tmpdir_)
     if "-h" in argv and not _refused_by_parser([a for a in argv if a != "-h"]):
         assume(False)  # help on a valid line: prints usage and exits 0, not an error
