@@ -1,15 +1,18 @@
 """The ``microconveyor`` command line.
 
 Every subcommand accepts ``--json`` and then prints exactly one JSON object on stdout (SI units, keys
-with unit suffixes); human-readable text and progress bars go to stderr. Errors exit with status 2
-and, under ``--json``, print ``{"error": ...}``.
+with unit suffixes); human-readable text and progress bars go to stderr. Every error (a bad
+argument included) exits with status 2 and one line on stderr and, under ``--json``, prints one
+``{"error": ..., "error_type": ...}`` object on stdout; never a traceback.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
+import traceback
 
 from .physics.materials import ParameterError
 
@@ -25,7 +28,7 @@ def command(name, help_):
 
 def _emit(args, result: dict, human: str = "") -> None:
     if args.json:
-        print(json.dumps(result, indent=None, default=_json_default))
+        print(json.dumps(result, indent=None, default=_json_default, allow_nan=False))
     else:
         print(human or "\n".join(f"{k:32s} {v}" for k, v in result.items()))
 
@@ -40,6 +43,46 @@ def _json_default(o):
     raise TypeError(type(o))
 
 
+# ----------------------------------------------------------------------------- value parsing
+def _plot_path(text: str) -> str:
+    """``--plot`` value: a non-empty file name; without an extension ``.png`` is added (the
+    reported path is the one written); the extension must be a format matplotlib writes."""
+    from pathlib import Path
+
+    if not text.strip():
+        raise argparse.ArgumentTypeError("empty file name")
+    path = Path(text)
+    if text.endswith(("/", "\\")) or path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text!r} is a folder; give a file name")
+    if not path.suffix:
+        path = path.with_name(path.name + ".png")
+    fmt = path.suffix[1:].lower()
+    if fmt not in _plot_formats():
+        raise argparse.ArgumentTypeError(f"unsupported chart format {fmt!r}; use one of "
+                                         f"{', '.join(sorted(_plot_formats()))}")
+    return str(path)
+
+
+def _plot_formats() -> set:
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    return set(FigureCanvasBase.get_supported_filetypes())
+
+
+def _count(lo: int, hi: int | None = None):
+    """An integer option in [lo, hi] (hi None: the library checks the upper bound)."""
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if v < lo or (hi is not None and v > hi):
+            raise argparse.ArgumentTypeError(f"must be an integer in [{lo}, "
+                                             f"{'...' if hi is None else f'{hi:g}'}], got {v}")
+        return v
+    return parse
+
+
 def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--preset", default="seed", help="preset name (seed, ke) or YAML path")
@@ -47,7 +90,8 @@ def _common(p: argparse.ArgumentParser) -> None:
 
 # ----------------------------------------------------------------------------- contact
 def _contact_args(p):
-    p.add_argument("--plot", metavar="FILE.png", help="draw P, F_s, N and Q versus separation")
+    p.add_argument("--plot", metavar="FILE.png", type=_plot_path,
+                   help="draw P, F_s, N and Q versus separation")
     p.add_argument("--check-table", action="store_true",
                    help="also measure the table against direct quadrature")
 
@@ -148,13 +192,18 @@ def _scene_args(p, sweep=False):
     p.add_argument("--mode", default="event", choices=("event", "karnopp"))
     p.add_argument("--kinematics", default="seed", choices=("seed", "exact"))
     p.add_argument("--dt", type=float, default=None, help="largest RK4 step [s]")
-    p.add_argument("--plot", metavar="FILE.png", help="write a chart")
+    p.add_argument("--max-steps", type=_count(1), default=None,
+                   help="refuse a firing needing more RK4 steps (default 1e7; raise it if you "
+                        "mean it)")
+    p.add_argument("--plot", metavar="FILE.png", type=_plot_path, help="write a chart")
 
 
 def _sim_kw(args) -> dict:
     kw = {"mode": args.mode, "kinematics": args.kinematics}
     if args.dt is not None:
         kw["dt"] = args.dt
+    if args.max_steps is not None:
+        kw["max_steps"] = args.max_steps
     return kw
 
 
@@ -193,10 +242,11 @@ def cmd_sweep(args):
     base = {}
     for k, v in given.items():
         if k != param:
-            base[k] = v if k == "profile" else float(v)
+            base[k] = v if k == "profile" else parse_values(v, k, 1)[0]
     scene = Scene(preset=args.preset, sim_kw=_sim_kw(args), **base)
-    values = parse_values(given[param], param)
-    res = sweep(scene, param, values, progress=not args.no_progress)
+    limit = {} if args.max_points is None else {"max_points": args.max_points}
+    values = parse_values(given[param], param, **limit)
+    res = sweep(scene, param, values, progress=not args.no_progress, **limit)
     keyed = {"freq": "freq_hz", "stroke": "stroke_m", "x0": "x0_m", "wavelength": "wavelength_m",
              "mass": "mass_kg", "sigma": "sigma_m", "dgamma": "dgamma_J_m2", "profile": "profile"}
     out = {"preset": args.preset,
@@ -220,6 +270,8 @@ def _sweep_text(res) -> str:
 def _sweep_args(p):
     _scene_args(p, sweep=True)
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    p.add_argument("--max-points", type=_count(1, 10 ** 9), default=None,
+                   help="refuse sweeps of more points (default 10000; raise it if you mean it)")
 
 
 @command("accuracy", "speed versus accuracy of the integrator settings (chart + default choice)")
@@ -270,12 +322,13 @@ def _episode_text(study) -> str:
 
 
 def _accuracy_args(p):
-    p.add_argument("--plot", metavar="FILE.png", help="write the chart")
-    p.add_argument("--repeats", type=int, default=30, help="timed repeats per setting")
+    p.add_argument("--plot", metavar="FILE.png", type=_plot_path, help="write the chart")
+    p.add_argument("--repeats", type=_count(1, 10_000), default=30,
+                   help="timed repeats per setting")
     p.add_argument("--episode", action="store_true",
                    help="whole MicroConveyor-v0 episodes (final position and outcome) instead of "
                         "the single seed firing")
-    p.add_argument("--per-category", type=int, default=60,
+    p.add_argument("--per-category", type=_count(1, 10_000), default=60,
                    help="--episode: episodes per category (4 categories)")
     p.add_argument("--seed", type=int, default=0, help="--episode: seed of the episode set")
 
@@ -302,7 +355,8 @@ def cmd_bench(args):
 
 
 def _bench_args(p):
-    p.add_argument("--repeats", type=int, default=500, help="timed repeats per mode")
+    p.add_argument("--repeats", type=_count(1, 1_000_000), default=500,
+                   help="timed repeats per mode")
     p.add_argument("--skip-reference", action="store_true",
                    help="do not run the (slow) plain-Python reference")
 
@@ -311,9 +365,18 @@ _ARGS = {"contact": _contact_args, "demo": _demo_args, "simulate": _scene_args,
          "sweep": _sweep_args, "accuracy": _accuracy_args, "bench": _bench_args}
 
 
+class UsageError(ValueError):
+    """A command line argparse refused (raised instead of printing usage and exiting)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):
+        raise UsageError(f"{self.prog}: {message} (see --help)")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="microconveyor", description=__doc__.splitlines()[0])
-    sub = parser.add_subparsers(dest="command", required=True)
+    parser = _Parser(prog="microconveyor", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     for name, (fn, help_) in COMMANDS.items():
         p = sub.add_parser(name, help=help_, description=help_)
         _common(p)
@@ -322,16 +385,38 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+# Errors that user input can cause: reported in one line, never with a traceback.
+USER_ERRORS = (ParameterError, ValueError, RuntimeError, OSError, OverflowError, MemoryError,
+               RecursionError)
+
+
+def _fail(argv, command: str, exc: BaseException) -> int:
+    """The error contract: ``--json``: one ``{"error": ...}`` object on stdout; always one line on
+    stderr; exit status 2."""
+    expected = isinstance(exc, USER_ERRORS)
+    text = " ".join(str(exc).split()) or type(exc).__name__  # one line
+    if not expected:
+        text += " (internal error: please report it; MICROCONVEYOR_DEBUG=1 shows the traceback)"
+    msg = f"{type(exc).__name__}: {text}"
+    if any(a.startswith("--j") and "--json".startswith(a) for a in argv):  # argparse abbrevs
+        print(json.dumps({"error": msg, "error_type": type(exc).__name__}), flush=True)
+    print(f"microconveyor{' ' + command if command else ''}: {msg}", file=sys.stderr)
+    if not expected and os.environ.get("MICROCONVEYOR_DEBUG"):
+        traceback.print_exception(exc)
+    return 2
+
+
 def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    command = ""
     try:
+        args = build_parser().parse_args(argv)
+        command = args.command
         args.func(args)
-    except (ParameterError, ValueError, RuntimeError, OSError) as exc:
-        msg = f"{type(exc).__name__}: {exc}"
-        if getattr(args, "json", False):
-            print(json.dumps({"error": msg, "error_type": type(exc).__name__}))
-        print(f"microconveyor {args.command}: {msg}", file=sys.stderr)
-        return 2
+    except KeyboardInterrupt:
+        raise
+    except Exception as exc:  # noqa: BLE001 - the error contract covers every failure
+        return _fail(argv, command, exc)
     return 0
 
 

@@ -56,7 +56,12 @@ def plot_contact(table, path: str | Path, title: str = "") -> Path:
 
 
 def _save(fig, path) -> Path:
+    """Write ``fig``; a name without an extension gets ``.png``. Returns the path written."""
     path = Path(path)
+    if not str(path).strip() or path.name in ("", ".", ".."):
+        raise ValueError(f"chart path {str(path)!r} is not a file name")
+    if not path.suffix:
+        path = path.with_name(path.name + ".png")
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
     return path

@@ -1,6 +1,9 @@
 """MicroConveyor-v0: carry a micropart to a target with a linear array of micro-actuators."""
 from __future__ import annotations
 
+import math
+import numbers
+
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
@@ -18,7 +21,7 @@ def make_simulator(cfg: EnvConfig) -> Simulator:
     beyond the contact table (checked once here, so steps never need to)."""
     sim = Simulator(cfg.preset, shape=cfg.shape, wavelength=cfg.wavelength,
                     kinematics=cfg.kinematics, mode=cfg.mode, dt=cfg.dt, max_time=cfg.max_time,
-                    min_steps=cfg.min_steps)
+                    min_steps=cfg.min_steps, max_steps=cfg.max_steps)
     try:
         sim.check_firings(np.array([cfg.freq_range[1]]), np.array([cfg.stroke_range[1]]))
     except TableRangeError as exc:
@@ -28,12 +31,21 @@ def make_simulator(cfg: EnvConfig) -> Simulator:
 
 def check_target(target) -> float:
     """A target from ``reset(options=...)`` [m]: finite and where the observation can show it."""
-    t = float(target)
     limit = task.OBS_BOUND * task.LENGTH_SCALE
+    numeric = isinstance(target, (numbers.Real, np.floating, np.integer)) and not isinstance(
+        target, (bool, np.bool_))
+    t = float(target) if numeric else math.nan
     if not (np.isfinite(t) and abs(t) <= limit):
         raise ValueError(f"options['target'] = {target!r} is invalid: must be a finite distance "
                          f"beyond actuator 1 within +-{limit:g} m")
     return t
+
+
+def check_render_mode(render_mode, supported) -> None:
+    if render_mode is not None and render_mode not in supported:
+        raise ValueError(f"render_mode {render_mode!r} not supported; use None or one of "
+                         f"{list(supported)} (for a window, wrap an rgb_array env in "
+                         "gymnasium.wrappers.HumanRendering)")
 
 
 def raise_if_beyond_table(outcome: str, sim: Simulator) -> None:
@@ -60,7 +72,8 @@ class MicroConveyorEnv(gym.Env):
     | 1 | stroke height h [m] | linear onto ``stroke_range`` (100–200 µm) |
     | 2 | delay before the stroke [s] | linear onto ``delay_range`` (0–0.1 s) |
 
-    Out-of-range actions are **clipped** to [-1, 1]; NaN or inf raise ``ValueError``.
+    Out-of-range actions are **clipped** to [-1, 1]; NaN or inf, a shape other than ``(3,)`` or a
+    non-numeric dtype raise ``ValueError``.
 
     ## Observation space: ``Box(-10, 10, (6,), float32)`` (values clipped to the bounds)
 
@@ -96,10 +109,10 @@ class MicroConveyorEnv(gym.Env):
     def __init__(self, render_mode: str | None = None, config: EnvConfig | None = None, **kwargs):
         if config is not None and kwargs:
             raise ValueError("give either config= or keyword overrides, not both")
+        if config is not None and not isinstance(config, EnvConfig):
+            raise ValueError(f"config must be an EnvConfig, got {type(config).__name__}")
         self.config = config or EnvConfig.from_yaml(**kwargs)
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode {render_mode!r} not supported; use one of "
-                             f"{self.metadata['render_modes']}")
+        check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
         self.sim = make_simulator(self.config)
         self.positions = np.asarray(self.config.actuator_positions, dtype=np.float64)
@@ -144,7 +157,7 @@ class MicroConveyorEnv(gym.Env):
     def step(self, action):
         if self._done:
             raise RuntimeError("step() called on a finished episode: call reset() first")
-        a = task.check_actions(action, 1)
+        a = task.check_actions(action, None)
         xa = float(self.positions[self.fired])
         task.step_serial(a, self._x, self._v, self._t, self._fired, self._target, self._active,
                          self._C, self.positions, self.sim.params, *self.sim.tables,

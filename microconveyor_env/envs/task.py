@@ -116,13 +116,25 @@ def observe_all(x, v, t, fired, target, C, positions, obs):
         observe_part(x[i], v[i], t[i], fired[i], target[i], C, positions, obs[i])
 
 
-def check_actions(actions, n: int) -> np.ndarray:
-    """float64 (n, 3) copy of the actions; NaN/inf or a wrong shape raise ValueError."""
-    a = np.asarray(actions, dtype=np.float64)
-    if a.size != 3 * n:
-        raise ValueError(f"expected {n} action(s) of 3 components (frequency, stroke, delay), got "
-                         f"shape {np.shape(actions)}")
-    a = a.reshape(n, 3)
+def check_actions(actions, n: int | None) -> np.ndarray:
+    """float64 ``(n, 3)`` copy of the actions, checked.
+
+    ``n = None`` is the single env: exactly shape ``(3,)``; otherwise exactly ``(n, 3)``. A wrong
+    shape, a non-numeric dtype (bool, complex, str, object) or NaN/inf raise ``ValueError``.
+    """
+    expected = (3,) if n is None else (n, 3)
+    what = ("one action of 3 components (frequency, stroke, delay)" if n is None else
+            f"{n} actions of 3 components (frequency, stroke, delay)")
+    try:
+        raw = np.asarray(actions)
+    except (TypeError, ValueError) as exc:  # ragged nested sequences
+        raise ValueError(f"expected {what}, shape {expected}; got {type(actions).__name__} "
+                         f"that is not an array ({exc})") from None
+    if raw.shape != expected:
+        raise ValueError(f"expected {what}, shape {expected}; got shape {raw.shape}")
+    if raw.dtype.kind not in "iuf":
+        raise ValueError(f"expected {what} as real numbers; got dtype {raw.dtype}")
+    a = raw.astype(np.float64).reshape(-1, 3)
     if not np.isfinite(a).all():
         raise ValueError(f"action contains NaN or inf: {a.tolist()}")
     return a

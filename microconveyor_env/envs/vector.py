@@ -14,8 +14,10 @@ from gymnasium.vector.utils import batch_space
 from ..physics import dynamics_kernel as K
 from . import task
 from .config import EnvConfig
-from .conveyor import check_target, make_simulator, raise_if_beyond_table
+from .conveyor import check_render_mode, check_target, make_simulator, raise_if_beyond_table
 from .threads import ThreadChooser, threads
+
+MAX_ENVS = 1_000_000  # parts in one batch (each costs ~1 kB of state)
 
 
 class MicroConveyorVectorEnv(VectorEnv):
@@ -37,14 +39,19 @@ class MicroConveyorVectorEnv(VectorEnv):
     def __init__(self, num_envs: int = 1, render_mode: str | None = None,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
                  config: EnvConfig | None = None, **kwargs):
-        if int(num_envs) < 1:
-            raise ValueError(f"num_envs = {num_envs!r} must be >= 1")
+        if (isinstance(num_envs, bool) or not isinstance(num_envs, numbers.Integral)
+                or not 1 <= num_envs <= MAX_ENVS):
+            raise ValueError(f"num_envs = {num_envs!r} is invalid: must be an integer in "
+                             f"[1, {MAX_ENVS}]")
+        check_render_mode(render_mode, self.metadata["render_modes"])
         self.autoreset_mode = AutoresetMode(autoreset_mode)
         if self.autoreset_mode == AutoresetMode.DISABLED:
             raise ValueError("autoreset_mode DISABLED is not supported; use NEXT_STEP or SAME_STEP")
         self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
         if config is not None and kwargs:
             raise ValueError("give either config= or keyword overrides, not both")
+        if config is not None and not isinstance(config, EnvConfig):
+            raise ValueError(f"config must be an EnvConfig, got {type(config).__name__}")
         self.config = config or EnvConfig.from_yaml(**kwargs)
         self.num_envs = n = int(num_envs)
         self.render_mode = render_mode
