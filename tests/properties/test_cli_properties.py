@@ -48,14 +48,6 @@ def tmpdir_(tmp_path_factory):
     return d
 
 
-@pytest.fixture(scope="module")
-def tmpdir_(tmp_path_factory):
-    d = tmp_path_factory.mktemp("cli")
-    for name, text in PRESETS.items():
-        (d / name).write_text(text)
-    return d
-
-
 def _opts(pool, **kw):
     return st.lists(st.sampled_from(sorted(pool)).flatmap(
         lambda k: st.tuples(st.just(k), st.sampled_from(pool[k]))), unique_by=lambda o: o[0], **kw)
