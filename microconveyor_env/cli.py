@@ -158,12 +158,12 @@ def _demo_episode(path):
     """One MicroConveyor-v0 episode with a constant action (950 Hz, 200 um, no delay), rendered."""
     import gymnasium as gym
 
-    from .envs import task
+    from .envs import actions
     from .plots import save_frames
 
     env = gym.make("MicroConveyor-v0", render_mode="rgb_array")
     env.reset(seed=0, options={"target": 1e-3})
-    action = task.encode_actions(950.0, 200e-6, 0.0, env.unwrapped.config)
+    action = actions.encode_actions(950.0, 200e-6, 0.0, env.unwrapped.config)
     frames, total = [env.render()], 0.0
     while True:
         _, r, term, trunc, info = env.step(action)

@@ -12,7 +12,7 @@ from ..physics import dynamics_kernel as K
 from ..physics.contact_table import TableRangeError
 from ..physics.materials import ParameterError
 from ..physics.simulator import Simulator
-from . import task
+from . import actions, step as kstep, task
 from .config import EnvConfig
 
 
@@ -93,7 +93,7 @@ class MicroConveyorEnv(gym.Env):
     ## Episode end
     ``terminated``: at rest after the last firing, or detachment. ``truncated``: the simulated
     time limit ``max_time`` (or an unresolved stick–slip chatter, reported in ``info["outcome"]``).
-    ``info``: ``is_success``, ``final_error_m`` (signed x − target), ``outcome``
+    ``info``: ``is_success``, ``position_error_m`` (signed x − target, now), ``outcome``
     (``moving``/``rest``/``detached``/``max_time``/``too_many_events``), ``sim_time_s``,
     ``frequency_hz``, ``stroke_m``, ``delay_s`` (the decoded action).
 
@@ -116,12 +116,12 @@ class MicroConveyorEnv(gym.Env):
         self.render_mode = render_mode
         self.sim = make_simulator(self.config)
         self.positions = np.asarray(self.config.actuator_positions, dtype=np.float64)
-        self.action_space = spaces.Box(-1.0, 1.0, (3,), np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, (actions.ACTION_DIM,), np.float32)
         self.observation_space = spaces.Box(-task.OBS_BOUND, task.OBS_BOUND, (task.OBS_DIM,),
                                             np.float32)
-        self._C = task.constants(self.config, self.sim.dt, self.sim.min_steps)
+        self._AC, self._TC = actions.constants(self.config), task.constants(self.config)
         self._kout = np.zeros((1, K.N_OUT))
-        self._res = np.zeros((1, task.N_S))
+        self._res = np.zeros((1, kstep.N_S))
         self._obs_buf = np.zeros((1, task.OBS_DIM), dtype=np.float32)
         self._active = np.ones(1, dtype=np.bool_)
         self._x, self._v, self._t = np.zeros(1), np.zeros(1), np.zeros(1)
@@ -140,40 +140,37 @@ class MicroConveyorEnv(gym.Env):
     # ------------------------------------------------------------------ API
     def reset(self, *, seed=None, options=None):
         super().reset(seed=seed)
-        cfg = self.config
-        jitter = self.np_random.uniform(-1.0, 1.0) * cfg.start_jitter if cfg.start_jitter else 0.0
-        target = self.np_random.uniform(*cfg.target_range)
-        if options and "target" in options:
-            target = check_target(options["target"])
-        self._x[0], self._v[0], self._t[0] = -cfg.start_offset + jitter, 0.0, 0.0
+        given = check_target(options["target"]) if options and "target" in options else None
+        x0, target = task.initial_state(self.config, self.np_random, given)
+        self._x[0], self._v[0], self._t[0] = x0, 0.0, 0.0
         self._fired[0] = 0
         self._target[0] = target
         self._done = False
         self._last_firing = None
-        task.observe_all(self._x, self._v, self._t, self._fired, self._target, self._C,
-                         self.positions, self._obs_buf)
-        return self._obs_buf[0].copy(), self._info("moving")
+        kstep.observe_all(self._x, self._v, self._t, self._fired, self._target, self._TC,
+                          self.positions, self._obs_buf)
+        return self._obs_buf[0].copy(), self._info("moving", False)
 
     def step(self, action):
         if self._done:
             raise RuntimeError("step() called on a finished episode: call reset() first")
-        a = task.check_actions(action, None)
+        a = actions.check_actions(action, None)
         xa = float(self.positions[self.fired])
-        task.step_serial(a, self._x, self._v, self._t, self._fired, self._target, self._active,
-                         self._C, self.positions, self.sim.params, *self.sim.tables,
-                         task.NO_RECORD, self._kout,
-                         self._res, self._obs_buf)
+        kstep.step_serial(a, self._x, self._v, self._t, self._fired, self._target, self._active,
+                          self._AC, self._TC, self.sim.dt, self.sim.min_steps, self.positions,
+                          self.sim.params, *self.sim.tables, kstep.NO_RECORD, self._kout,
+                          self._res, self._obs_buf)
         res = self._res[0]
-        outcome = K.OUTCOMES[int(res[task.S_OUTCOME])]
+        outcome = K.OUTCOMES[int(res[kstep.S_OUTCOME])]
         raise_if_beyond_table(outcome, self.sim)
         terminated = outcome in ("rest", "detached")
         truncated = outcome in ("max_time", "too_many_events")
         self._done = terminated or truncated
-        f, h, d = float(res[task.S_F]), float(res[task.S_H]), float(res[task.S_D])
+        f, h, d = float(res[kstep.S_F]), float(res[kstep.S_H]), float(res[kstep.S_D])
         self._last_firing = (xa, f, h, d)
-        info = self._info(outcome)
+        info = self._info(outcome, bool(res[kstep.S_SUCCESS]))
         info["frequency_hz"], info["stroke_m"], info["delay_s"] = f, h, d
-        return (self._obs_buf[0].copy(), float(res[task.S_REWARD]), terminated, truncated, info)
+        return (self._obs_buf[0].copy(), float(res[kstep.S_REWARD]), terminated, truncated, info)
 
     def render(self):
         if self.render_mode != "rgb_array":
@@ -184,7 +181,6 @@ class MicroConveyorEnv(gym.Env):
                             self.t)
 
     # ------------------------------------------------------------------ helpers
-    def _info(self, outcome: str) -> dict:
-        success = (outcome == "rest" and abs(self.x - self.target) <= self.config.tolerance)
-        return {"is_success": bool(success), "final_error_m": float(self.x - self.target),
+    def _info(self, outcome: str, success: bool) -> dict:
+        return {"is_success": success, "position_error_m": float(self.x - self.target),
                 "outcome": outcome, "sim_time_s": float(self.t)}

@@ -29,7 +29,7 @@ def _make(cls, overrides, *args):
 
 
 def _check_info(info, n=None):
-    for key in ("final_error_m", "sim_time_s"):
+    for key in ("position_error_m", "sim_time_s"):
         assert np.all(np.isfinite(info[key])), (key, info[key])
     outcomes = [info["outcome"]] if n is None else list(info["outcome"])
     assert set(outcomes) <= OUTCOMES, outcomes
