@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.interpolate import CubicHermiteSpline
 from scipy.optimize import brentq, minimize_scalar
 
 from . import asperity
@@ -49,16 +50,6 @@ class DetachmentError(RuntimeError):
 
 class TableRangeError(ValueError):
     """A load above the largest tabulated load (rebuild with a larger ``load_ratio``)."""
-
-
-def _hermite(x, xk, yk, mk):
-    """Cubic Hermite interpolation of nodes (xk, yk, slopes mk) at x (xk increasing)."""
-    i = np.clip(np.searchsorted(xk, x, side="right") - 1, 0, xk.size - 2)
-    h = xk[i + 1] - xk[i]
-    t = (x - xk[i]) / h
-    t2, t3 = t * t, t * t * t
-    return ((2 * t3 - 3 * t2 + 1) * yk[i] + (t3 - 2 * t2 + t) * h * mk[i]
-            + (-2 * t3 + 3 * t2) * yk[i + 1] + (t3 - t2) * h * mk[i + 1])
 
 
 @dataclass(frozen=True)
@@ -274,6 +265,9 @@ class ContactTable:
         self._sigma = params.surface.sigma
         self._qscale = self.n_asp * params.friction_scale
         self._sqrt_n = math.sqrt(self.n_asp)
+        b = self.base  # d(u) and q(u): the cubic Hermite interpolants the kernel evaluates too
+        self._d_of_u = CubicHermiteSpline(b.u, b.d, b.d_u)
+        self._q_of_u = CubicHermiteSpline(b.u, b.q, b.q_u)
 
     # ---- scalar characteristics [SI] ----
     @property
@@ -325,15 +319,11 @@ class ContactTable:
 
     def separation(self, load) -> np.ndarray:
         """Separation d [m] on the stable branch carrying load N [N] (raises DetachmentError)."""
-        u = self._u(load)
-        b = self.base
-        return _hermite(u, b.u, b.d, b.d_u) * self._sigma
+        return self._d_of_u(self._u(load)) * self._sigma
 
     def friction(self, load) -> np.ndarray:
         """Maximum static friction Q [N] at load N [N] (raises DetachmentError)."""
-        u = self._u(load)
-        b = self.base
-        return self._qscale * _hermite(u, b.u, b.q, b.q_u)
+        return self._qscale * self._q_of_u(self._u(load))
 
     def kernel_arrays(self) -> tuple:
         """Arrays for the compiled kernel: (u_nodes, q_nodes, q_slopes, n_min) in SI, so that
