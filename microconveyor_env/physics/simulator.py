@@ -201,7 +201,8 @@ class Simulator:
         self.check_firings(f, h)
         cap = 0
         if record:
-            cap = int(stroke_steps(f, self.dt, self.min_steps).sum()) * 2 + 12 * len(f) + 64
+            cap = (int(stroke_steps(f, self.dt, self.min_steps).sum()) * 2
+                   + (12 + 2 * K.COAST_POINTS) * len(f) + 64)
         rec = np.zeros((cap, K.N_REC))
         out = np.zeros(K.N_OUT)
         t0 = time.perf_counter()
