@@ -335,19 +335,18 @@ def _accuracy_args(p):
 
 @command("bench", "kernel speed on the seed firing, against the dissertation-style loop")
 def cmd_bench(args):
-    from .studies.bench import bench_modes, load_reference
+    from .studies.bench import bench_modes
 
     out = {"modes": bench_modes(args.preset, repeats=args.repeats)}
-    ref_mod = load_reference()
-    if ref_mod is None or args.skip_reference:
+    if args.skip_reference:
         out["reference"] = None
-        out["reference_note"] = ("benchmarks/dissertation_reference.py not found (run from a "
-                                 "checkout)" if ref_mod is None else "skipped")
+        out["reference_note"] = "skipped"
     else:
         from .presets import load_preset
+        from .studies.reference_loop import converged_dt
 
         contact = load_preset(args.preset).contact
-        ref = ref_mod.converged_dt(contact)
+        ref = converged_dt(contact)
         out["reference"] = ref
         default = out["modes"]["event"]["median_wall_time_s"]
         out["speedup_vs_reference"] = ref["wall_time_s"] / default
