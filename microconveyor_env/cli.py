@@ -16,7 +16,7 @@ import traceback
 
 from .physics.materials import ParameterError
 
-COMMANDS = {}
+COMMANDS: dict = {}
 
 
 def command(name, help_):

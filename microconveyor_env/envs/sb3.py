@@ -27,7 +27,7 @@ class MicroConveyorSB3VecEnv(VecEnv):
     def __init__(self, num_envs: int = 8, **kwargs):
         self.venv = MicroConveyorVectorEnv(num_envs, autoreset_mode=AutoresetMode.SAME_STEP,
                                            **kwargs)
-        self._actions = None
+        self._actions: np.ndarray | None = None
         super().__init__(num_envs, self.venv.single_observation_space,
                          self.venv.single_action_space)
 

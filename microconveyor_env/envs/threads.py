@@ -23,7 +23,7 @@ SMOOTHING = 0.25     # weight of the newest measurement in the running mean
 def threads(n: int):
     """Run numba parallel regions with ``n`` threads inside the block."""
     prev = numba.get_num_threads()
-    numba.set_num_threads(max(1, min(n, numba.config.NUMBA_NUM_THREADS)))
+    numba.set_num_threads(max(1, min(n, numba.config.NUMBA_NUM_THREADS)))  # type: ignore[attr-defined]
     try:
         yield
     finally:
@@ -40,10 +40,10 @@ class ThreadChooser:
 
     def __init__(self, num_threads: int | None, num_envs: int):
         self.fixed = num_threads
-        self.parallel = numba.config.NUMBA_NUM_THREADS
+        self.parallel: int = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]
         if num_threads is None and (num_envs < SERIAL_BELOW or self.parallel < 2):
             self.fixed = 1
-        self.cost = {1: None, self.parallel: None}  # s per firing, running mean
+        self.cost: dict[int, float | None] = {1: None, self.parallel: None}  # s/firing, mean
         self.steps = 0
 
     def choose(self) -> int:
@@ -53,7 +53,7 @@ class ThreadChooser:
         untried = [k for k, c in self.cost.items() if c is None]
         if untried:
             return untried[0]
-        best = min(self.cost, key=self.cost.get)
+        best = min(self.cost, key=lambda k: self.cost[k] or 0.0)
         if self.steps % PROBE_EVERY == 0:
             return next(k for k in self.cost if k != best)
         return best
@@ -71,4 +71,4 @@ class ThreadChooser:
         if self.fixed is not None:
             return self.fixed
         known = {k: c for k, c in self.cost.items() if c is not None}
-        return min(known, key=known.get) if known else 1
+        return min(known, key=lambda k: known[k]) if known else 1

@@ -52,7 +52,7 @@ class MicroConveyorVectorEnv(VectorEnv):
             raise ValueError("give either config= or keyword overrides, not both")
         if config is not None and not isinstance(config, EnvConfig):
             raise ValueError(f"config must be an EnvConfig, got {type(config).__name__}")
-        self.config = config or EnvConfig.from_yaml(**kwargs)
+        self.config: EnvConfig = config or EnvConfig.from_yaml(**kwargs)
         self.num_envs = n = int(num_envs)
         self.render_mode = render_mode
         self.sim = make_simulator(self.config)
@@ -62,17 +62,19 @@ class MicroConveyorVectorEnv(VectorEnv):
                                                    (task.OBS_DIM,), np.float32)
         self.action_space = batch_space(self.single_action_space, n)
         self.observation_space = batch_space(self.single_observation_space, n)
-        self.x, self.v, self.t = np.zeros(n), np.zeros(n), np.zeros(n)
-        self.target = np.zeros(n)
-        self.fired = np.zeros(n, dtype=np.int64)
-        self.done = np.zeros(n, dtype=bool)
-        self.rngs = [seeding.np_random(None)[0] for _ in range(n)]
+        self.x: np.ndarray = np.zeros(n)       # position [m]
+        self.v: np.ndarray = np.zeros(n)       # velocity [m/s]
+        self.t: np.ndarray = np.zeros(n)       # simulated time [s]
+        self.target: np.ndarray = np.zeros(n)  # target [m]
+        self.fired: np.ndarray = np.zeros(n, dtype=np.int64)
+        self.done: np.ndarray = np.zeros(n, dtype=bool)
+        self.rngs: list[np.random.Generator] = [seeding.np_random(None)[0] for _ in range(n)]
         self._AC, self._TC = act.constants(self.config), task.constants(self.config)
-        self._kout = np.zeros((n, K.N_OUT))
+        self._kout: np.ndarray = np.zeros((n, K.N_OUT))
         self._res = np.zeros((n, kstep.N_S))
         self._obs_buf = np.zeros((n, task.OBS_DIM), dtype=np.float32)
         self.threads = ThreadChooser(self.config.num_threads, n)
-        self._started = False
+        self._started: bool = False
 
     # ------------------------------------------------------------------ resets
     def _reset_one(self, i: int, options: dict | None) -> None:
@@ -89,7 +91,7 @@ class MicroConveyorVectorEnv(VectorEnv):
     def reset(self, *, seed: int | list | None = None, options: dict | None = None):
         if seed is not None:
             seeds = ([int(seed) + i for i in range(self.num_envs)]
-                     if isinstance(seed, numbers.Integral) else [int(s) for s in seed])
+                     if isinstance(seed, (int, np.integer)) else [int(s) for s in seed])
             if len(seeds) != self.num_envs:
                 raise ValueError(f"{len(seeds)} seeds for {self.num_envs} envs")
             self.rngs = [seeding.np_random(s)[0] for s in seeds]
@@ -158,7 +160,7 @@ class MicroConveyorVectorEnv(VectorEnv):
                 final_info["_" + key] = mask
         for i in idx:
             final_obs[i] = obs[i].copy()
-            self._reset_one(i, None)
+            self._reset_one(int(i), None)
         reset = self._reset_infos()
         infos = dict(infos)
         for key, val in reset.items():

@@ -32,6 +32,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 from numba.core import caching as _nc
 
@@ -140,9 +141,12 @@ class GuardedCache:
         self._inner = inner
         self._label = label
         files = getattr(inner, "_cache_file", None)
+        self._index: Any = None       # Path of the index file, None: unknown numba layout
+        self._data_glob: Any = None
         try:
-            self._index = Path(files._index_path)
-            self._data_glob = files._data_name_pattern.replace("{number:d}", "*")
+            self._index = Path(files._index_path)  # type: ignore[union-attr]
+            self._data_glob = files._data_name_pattern.replace(  # type: ignore[union-attr]
+                "{number:d}", "*")
         except AttributeError:  # another numba layout: keep only the error catching
             self._index = None
             self._data_glob = None

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import sys
 import time
+from typing import Any
 
 import numpy as np
 
@@ -98,7 +99,7 @@ def make_episode_set(n_per_category: int = 60, seed: int = 0, n_actuators: int =
     rng = np.random.default_rng(seed)
     cfg = EnvConfig.from_yaml(n_actuators=n_actuators)
     m, k = n_per_category, n_actuators
-    screen = {"dt": SCREEN_DT, "mode": "event"}
+    screen: dict[str, Any] = {"dt": SCREEN_DT, "mode": "event"}
     bar = tqdm(total=4, desc="episode set", file=sys.stderr, disable=not progress, leave=False)
     picked = {"random": rng.uniform(-1, 1, (m, k, 3))}
     bar.update()
@@ -107,7 +108,7 @@ def make_episode_set(n_per_category: int = 60, seed: int = 0, n_actuators: int =
     r = run_episodes(pool, **screen)
     x = r["final_position_m"]
     ok = np.flatnonzero((r["outcome"] == "rest") & (x >= TARGET_RANGE[0]) & (x <= TARGET_RANGE[1]))
-    chosen = []
+    chosen: list[int] = []
     for goal in np.linspace(*TARGET_RANGE, m):  # the nearest unused candidate to each goal
         free = np.setdiff1d(ok, chosen)
         if free.size:

@@ -203,8 +203,8 @@ def converged_dt(contact, target_m=1e-6, reference_m=None, *, dt_start=DEFAULT_D
     freq = float(kw.get("freq", 950.0))
     T = 1.0 / freq
     dt = T / max(int(math.ceil(T / dt_start - 1e-9)), 1)
-    tried = []
-    chosen = None
+    tried: list[tuple] = []
+    chosen: tuple | None = None
     stopped_by = None
     last_wall = 0.0
     while True:
@@ -227,6 +227,7 @@ def converged_dt(contact, target_m=1e-6, reference_m=None, *, dt_start=DEFAULT_D
     converged = chosen is not None
     if not converged:
         chosen = min(tried, key=lambda e: abs(e[2]))
+    assert chosen is not None
     keys = ("dt_s", "displacement_m", "error_m", "wall_time_s")
     return {"converged": converged, **dict(zip(keys, chosen)), "reference_m": reference_m,
             "target_m": target_m, "tried": [dict(zip(keys, row)) for row in tried],

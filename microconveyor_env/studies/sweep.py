@@ -64,7 +64,7 @@ def parse_values(spec: str, param: str, max_points: int = MAX_POINTS) -> list:
     usage = (f"--{param} {spec!r} is invalid: use start:stop:step (finite numbers, step > 0, "
              "stop >= start) or a comma-separated list of finite numbers")
     if param == "profile":
-        values = [s.strip() for s in spec.split(",") if s.strip()]
+        values: list = [s.strip() for s in spec.split(",") if s.strip()]
     elif ":" in spec:
         try:
             a, b, c = (float(v) for v in spec.split(":"))
