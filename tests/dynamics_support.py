@@ -84,7 +84,8 @@ def assert_finite_result(r, label=""):
     assert (r.detach_position_m is not None) == (r.outcome == "detached"), label
 
 
-# Independent surface kinematics (physics.md §1), plain numpy, NOT the package's kinematics module.
+# Independent surface kinematics (docs/physics.md §1), plain numpy, NOT the package's kinematics
+# module.
 def quintic(t, freq, h):
     """(p, p_t, p_tt) of the rest-to-rest quintic stroke; 0 outside [0, T]."""
     t = np.asarray(t, float)
@@ -113,7 +114,7 @@ def surface(x, t, freq, h, x_act=0.0):
 
 
 def normal_load_ref(m, x, v, t, freq, h, exact):
-    """N = m cos(theta) (g0 + Y_tt [+ 2 Y_xt v + Y_xx v^2]) (physics.md §3)."""
+    """N = m cos(theta) (g0 + Y_tt [+ 2 Y_xt v + Y_xx v^2]) (docs/physics.md §3.2)."""
     _, Yx, Ytt, Yxt, Yxx = surface(x, t, freq, h)
     acc = G0 + Ytt + ((2 * Yxt * v + Yxx * v * v) if exact else 0.0)
     return m * acc / np.sqrt(1 + Yx ** 2), Yx

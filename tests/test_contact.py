@@ -99,7 +99,7 @@ def test_seed_preset_reference_figures(seed_table):
     assert 80e-9 <= r["pull_off_separation_m"] <= 90e-9
     assert r["pull_off_force_N"] == pytest.approx(6.2e-6, rel=0.05)
     assert r["friction_at_weight_N"] == pytest.approx(8e-8, rel=0.05)
-    assert r["slip_acceleration_flat_m_s2"] == pytest.approx(40, rel=0.05)  # physics.md §5
+    assert r["slip_acceleration_flat_m_s2"] == pytest.approx(40, rel=0.05)  # docs/physics.md §5
 
 
 def test_ke_preset_is_uncalibrated():

@@ -1,5 +1,5 @@
 """Closed forms on a still surface and an independent re-derivation of the normal load, the
-equation of motion and the stick condition along recorded trajectories (physics.md §3).
+equation of motion and the stick condition along recorded trajectories (docs/physics.md §3.2-3.4).
 
 Helpers and constants: ``dynamics_support.py``. Measured numbers are printed (``pytest -s``).
 """

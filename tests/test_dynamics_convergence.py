@@ -1,4 +1,5 @@
-"""Convergence in dt: event mode keeps RK4's order, the Karnopp threshold does not (physics.md §3).
+"""Convergence in dt: event mode keeps RK4's order, the Karnopp threshold does not
+(docs/physics.md §3.6-3.7).
 
 Helpers and constants: ``dynamics_support.py``. Measured numbers are printed (``pytest -s``).
 """
@@ -73,8 +74,8 @@ def test_convergence_of_detachment_instant(kinematics, freq, min_order):
 
     Seed kinematics: N depends on (x, t) only and the detachment time converges at ~RK4 order.
     Exact kinematics: N depends on xdot, and xdot converges slowly near pull-off because Q(N) has
-    an infinite slope there (d(N) ~ sqrt(N + F_pull), physics.md §2), so the integrand is not
-    smooth on the last steps: measured order ~1.6 (erratic), hence the lower bound 1.2.
+    an infinite slope there (d(N) ~ sqrt(N + F_pull), docs/physics.md §2.5), so the integrand is
+    not smooth on the last steps: measured order ~1.6 (erratic), hence the lower bound 1.2.
     """
     def det(n):
         s = sim(kinematics=kinematics, dt=dt_for(freq, n), min_steps=2)

@@ -1,4 +1,4 @@
-"""Stability where methods fail, input validation, the dissertation's figures (physics.md §5)
+"""Stability where methods fail, input validation, the dissertation's figures (docs/physics.md §5)
 and exact versus seed kinematics.
 
 Helpers and constants: ``dynamics_support.py``. Measured numbers are printed (``pytest -s``).

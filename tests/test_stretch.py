@@ -1,4 +1,4 @@
-"""Stretch-dependent roughness (physics.md §4)."""
+"""Stretch-dependent roughness (docs/physics.md §4)."""
 import numpy as np
 import pytest
 

@@ -1,4 +1,4 @@
-"""Sweeps, feasible windows and the accuracy study's default choice (physics.md §5 trends)."""
+"""Sweeps, feasible windows and the accuracy study's default choice (docs/physics.md §5 trends)."""
 import numpy as np
 import pytest
 

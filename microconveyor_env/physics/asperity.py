@@ -3,7 +3,7 @@
 All coefficients live in :data:`KE_FITS`, one table, so the (uncertain) choices are documented in one
 place. ``w = omega / omega_c`` is the interference over the critical interference.
 
-Choices made (physics.md §2):
+Choices made (docs/physics.md §2.2 gives the reasons):
 
 * contact load ``P/P_c``: the four KE 2002 ranges; the fits are used as printed, so ``P`` jumps by
   3 % at ``w = 1`` (1.00 vs 1.03) -- the surface integrals smooth this out;

@@ -1,4 +1,4 @@
-"""Calibration of the KE contact law to measured values (physics.md §2).
+"""Calibration of the KE contact law to measured values (docs/physics.md §2.6).
 
 KE friction predictions are uncertain by orders of magnitude at this scale, so two measured values
 can pin the model:

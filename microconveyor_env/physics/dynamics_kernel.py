@@ -1,4 +1,5 @@
-"""Compiled inner loop of the part dynamics (physics.md §3). Plain arrays in, plain arrays out.
+"""Compiled inner loop of the part dynamics (docs/physics.md §3.4-3.9).
+Plain arrays in, plain arrays out.
 
 State ``(x, v)``: horizontal position [m] and velocity [m/s] of the part on the surface
 ``Y = p(t) g(x - x_act) + slope x``. Per firing the kernel

@@ -1,4 +1,4 @@
-"""Instantaneous mechanics of the part on the surface, compiled (physics.md §3).
+"""Instantaneous mechanics of the part on the surface, compiled (docs/physics.md §3.2-3.3).
 
 Normal load, the tabulated maximum static friction Q(N), the slip acceleration, one RK4 step and
 the stick test: what :mod:`.dynamics_kernel` integrates. Model constants travel in one float

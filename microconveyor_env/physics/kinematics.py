@@ -1,4 +1,4 @@
-"""Surface and actuator kinematics (physics.md §1 and §4), SI units.
+"""Surface and actuator kinematics (docs/physics.md §1 and §4), SI units.
 
 Model
 -----
@@ -124,7 +124,7 @@ def surface_eval(x, t, x_act, f, h, kind, wl):
 @njit(cache=True)
 def zone_strain(amplitude, kind, wl, zone_length):
     """Uniform strain ``e = (s - l)/l`` of a zone of length ``l = zone_length`` centred on the
-    actuator, deflected as ``amplitude * g`` (physics.md §4); see the module docstring."""
+    actuator, deflected as ``amplitude * g`` (docs/physics.md §4); see the module docstring."""
     half = 0.5 * zone_length
     b = min(half, wl) if kind == GAUSSIAN else min(half, 0.5 * wl)
     acc = 0.0

@@ -7,7 +7,8 @@ Three small frozen dataclasses hold what the Kogut–Etsion (KE) model needs:
 * :class:`Part`      -- the micropart (mass and nominal contact area).
 
 :class:`ContactParams` bundles them with a dimensionless friction calibration scale and derives the
-quantities of physics.md §2 (composite modulus, K, asperity radius, critical interference, ...).
+quantities of docs/physics.md §2.1 (composite modulus, K, asperity radius, critical
+interference, ...).
 Every field is checked on construction; an invalid value raises :class:`ParameterError` naming the
 field, its value and the allowed range. The ranges are those where the contact table can be built
 (scanned one field at a time around the seed material; e.g. more surface energy than 2 J/m^2 or
@@ -69,7 +70,7 @@ class Materials:
     ----------
     E1, E2 : Young's moduli [Pa], in [1e8, 1e13].
     nu1, nu2 : Poisson ratios [-], in [0, 0.5). ``nu1`` also sets the KE factor ``K = 0.454 + 0.41 nu1``
-        and the Poisson thinning of the stretched carrier (physics.md §4).
+        and the Poisson thinning of the stretched carrier (docs/physics.md §4).
     hardness : hardness of the softer body [Pa], in [1e9, 1e11] (200 HB ~ 1.96e9 Pa).
     """
 
@@ -155,7 +156,7 @@ class ContactParams:
     """Everything the KE contact table depends on.
 
     ``friction_scale`` [-] (in [1e-6, 1e6]) multiplies the KE static-friction force Q; it is the friction
-    calibration of physics.md §2 (1 = pure KE).
+    calibration of docs/physics.md §2.6 (1 = pure KE).
     """
 
     materials: Materials = field(default_factory=Materials)
@@ -170,7 +171,7 @@ class ContactParams:
                                      f"got {type(getattr(self, name)).__name__}")
         _validate(self, {"friction_scale": (1e-6, 1e6, False, False, "-")})
 
-    # ---- derived quantities (physics.md §2) ----
+    # ---- derived quantities (docs/physics.md §2.1) ----
     @property
     def asperity_radius(self) -> float:
         """R from ``psi = (2E/(pi K H)) sqrt(sigma/R)`` [m]."""

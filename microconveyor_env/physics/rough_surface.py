@@ -1,4 +1,5 @@
-"""Kogut–Etsion rough-surface integrals by accurate, vectorised quadrature (physics.md §2).
+"""Kogut–Etsion rough-surface integrals by accurate, vectorised quadrature
+(docs/physics.md §2.3).
 
 All integrals are computed in lengths normalised by ``sigma`` (starred quantities) and *per asperity*
 (i.e. divided by ``eta A_n``)::

@@ -1,4 +1,4 @@
-"""Actuator arrays and firing schedules (physics.md §1), validated, SI units.
+"""Actuator arrays and firing schedules (docs/physics.md §1.1), validated, SI units.
 
 A schedule is a sequence of firings; each names an actuator of the array, its stroke 'frequency'
 ``f`` [Hz] (the stroke lasts ``1/f``), its stroke height ``h`` [m] and the delay [s] before it

@@ -1,4 +1,4 @@
-"""Stretch-dependent roughness (physics.md §4): contact tables over a grid of sigma.
+"""Stretch-dependent roughness (docs/physics.md §4): contact tables over a grid of sigma.
 
 A uniformly strained active zone (strain ``e``) thins its asperities by Poisson contraction and
 spreads them out::

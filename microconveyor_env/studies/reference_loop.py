@@ -1,7 +1,7 @@
 """The firing integrated "the dissertation's way": a plain-Python baseline for speed comparisons.
 
 One actuator (at x = 0) fires once; the part starts at rest at ``x0``. Same physics as the package
-kernel in ``karnopp`` mode with ``seed`` kinematics (physics.md §1-§3):
+kernel in ``karnopp`` mode with ``seed`` kinematics (docs/physics.md §1-§3):
 
 * surface ``Y = p(t) g(x - x_act)``, Gaussian ``g`` with ``s = WL/6``, quintic stroke ``p`` of
   height ``h`` and duration ``T = 1/f``;

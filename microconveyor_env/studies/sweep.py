@@ -1,8 +1,8 @@
 """Sweeps of a single firing over one parameter, and the feasible frequency window.
 
-The scene is the seed's single-actuator experiment (physics.md §5): one actuator at x = 0, the part
-starting at ``x0`` beside it, one stroke, then coasting to rest. Any of :data:`SWEEPABLE` can be
-swept; the others keep their base values.
+The scene is the seed's single-actuator experiment (docs/physics.md §5): one actuator at x = 0,
+the part starting at ``x0`` beside it, one stroke, then coasting to rest. Any of
+:data:`SWEEPABLE` can be swept; the others keep their base values.
 """
 from __future__ import annotations
 
