@@ -270,6 +270,10 @@ def _bench_args(p):
 _ARGS = {"contact": _contact_args, "demo": _demo_args, "simulate": _scene_args,
          "sweep": _sweep_args, "accuracy": _accuracy_args, "bench": _bench_args}
 
+from .studies.cli_studies import register as _register_studies  # noqa: E402  (studies: issue #9)
+
+_register_studies(command, _ARGS, _emit)
+
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="microconveyor", description=__doc__.splitlines()[0])
