@@ -35,7 +35,7 @@ def dask_client(_isolated_cache):
     studies' parallel = serial tests); the workers inherit the isolated cache directory."""
     distributed = pytest.importorskip("distributed")
     cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                       dashboard_address=None)
+                                       dashboard_address=":0")
     client = distributed.Client(cluster)
     yield client
     client.close()

@@ -135,3 +135,17 @@ def test_cli_studies_json_table_plot(tmp_path):
     assert (tmp_path / "eng_two.csv").exists() and (tmp_path / "eng.png").exists()
     r = _cli("engage", "--json", "--freqs", "500:100:1")
     assert r.returncode == 2 and "start:stop:step" in json.loads(r.stdout)["error"]
+
+
+@pytest.mark.slow
+def test_full_sensitivity_design():
+    """The whole Table 3.2 design (432 combinations): every combination scanned, the fit made,
+    and physics.md's three stated travel trends (energy -, roughness +, stroke +) recovered."""
+    from microconveyor_env.studies.sensitivity import sensitivity_rows, windows
+
+    rows = sensitivity_rows(progress=False)
+    assert len(windows(rows)) == 432
+    t = regression.table34(rows)
+    assert t["n"] > 1000
+    stated = [r for r in t["terms"] if r["factor"] in ("dgamma", "sigma_nm", "stroke_um")]
+    assert len(stated) == 7 and all(r["sign_agrees"] for r in stated)

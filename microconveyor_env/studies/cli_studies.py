@@ -40,7 +40,7 @@ QUICK_LEVELS = {"dgamma_J_m2": (1.0,), "sigma_m": (20e-9, 30e-9), "stroke_m": (1
 def _sensitivity_args(p):
     _engine_args(p, "sensitivity.csv")
     p.add_argument("--n-freq", type=int, default=8, help="design frequencies per combination")
-    p.add_argument("--sobol-n", type=int, default=64,
+    p.add_argument("--sobol-n", type=int, default=128,
                    help="Sobol' base sample size N (power of 2; N (2D+2) runs); 0: skip")
     p.add_argument("--quick", action="store_true",
                    help="a 8-combination design and N = 4 Sobol' sample (smoke test)")
@@ -94,10 +94,12 @@ def _engage_args(p):
     p.add_argument("--x0", default="-0.6e-3:0.6e-3:0.025e-3",
                    help="map start positions [m] relative to the actuator (use --x0=-...)")
     p.add_argument("--v0", default="-0.5:0.5:0.01", help="map initial velocities [m/s]")
-    p.add_argument("--two-freq", type=float, default=719.0, help="two-actuator frequency [Hz]")
-    p.add_argument("--two-stroke", type=float, default=178e-6, help="two-actuator stroke [m]")
-    p.add_argument("--spacing", default="0.3e-3:1.2e-3:0.05e-3", help="spacings [m]")
-    p.add_argument("--delay", default="0:4e-3:0.2e-3", help="delays of the second firing [s]")
+    p.add_argument("--two-freq", type=float, default=950.0, help="two-actuator frequency [Hz]")
+    p.add_argument("--two-stroke", type=float, default=200e-6, help="two-actuator stroke [m]")
+    p.add_argument("--start-offset", type=float, default=0.125e-3,
+                   help="two actuators: start this far upstream of the first [m]")
+    p.add_argument("--spacing", default="0.2e-3:1.5e-3:0.05e-3", help="spacings [m]")
+    p.add_argument("--delay", default="0:8e-3:0.2e-3", help="delays of the second firing [s]")
 
 
 def cmd_engage(args, emit):
@@ -109,7 +111,7 @@ def cmd_engage(args, emit):
     t0 = time.perf_counter()
     mrows = engage_map_rows(_values(args.freqs, "freq"), args.stroke, _values(args.x0, "x0"),
                             _values(args.v0, "v0"), preset=args.preset, **kw)
-    trows = two_actuator_rows(args.two_freq, args.two_stroke,
+    trows = two_actuator_rows(args.two_freq, args.two_stroke, args.start_offset,
                               spacings=_values(args.spacing, "spacing"),
                               delays=_values(args.delay, "delay"), preset=args.preset, **kw)
     wall = time.perf_counter() - t0

@@ -8,8 +8,8 @@ Without a firing it would coast ``sign(v0) v0^2 / (2 a)`` on the still flat surf
 along v0) or held it back. ``travel_along_m`` is the travel measured along the initial motion.
 
 *Two actuators.* Actuators at 0 and ``spacing`` [m], the part starting ``start_offset`` upstream
-of the first (the env's geometry: transport towards +x); the first fires, and after ``delay`` [s]
-the second. ``extra_m`` = final position - final position with the first firing only: > 0 where
+of the first (the seed firing mirrored: 950 Hz, 200 um, 0.125 mm, transport towards +x); the
+first fires, and after ``delay`` [s] the second. ``extra_m`` = final position - final position with the first firing only: > 0 where
 the second actuator carries the part on (accelerates it), < 0 where it brakes it.
 """
 from __future__ import annotations
@@ -156,9 +156,9 @@ def two_column(task: dict) -> list:
     return rows
 
 
-def two_actuator_rows(freq: float = 719.0, stroke: float = 178e-6, start_offset: float = 0.15e-3,
-                      spacings=tuple(np.round(np.arange(0.3e-3, 1.2e-3 + 1e-9, 0.05e-3), 9)),
-                      delays=tuple(np.round(np.arange(0.0, 4e-3 + 1e-12, 0.2e-3), 9)),
+def two_actuator_rows(freq: float = 950.0, stroke: float = 200e-6, start_offset: float = 0.125e-3,
+                      spacings=tuple(np.round(np.arange(0.2e-3, 1.5e-3 + 1e-9, 0.05e-3), 9)),
+                      delays=tuple(np.round(np.arange(0.0, 8e-3 + 1e-12, 0.2e-3), 9)),
                       preset: str = "seed", sim_kw=None, **engine_kw) -> list:
     """Final position over (delay [s], spacing [m]) at ``freq`` [Hz] and ``stroke`` [m]."""
     tasks = [{"freq_hz": float(freq), "stroke_m": float(stroke), "spacing_m": float(s),

@@ -78,7 +78,7 @@ def dask_client(workers: int | None = None, scheduler: str | None = None):
             client.close()
         return
     cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
-                           dashboard_address=None)
+                           dashboard_address=":0")
     client = Client(cluster)
     try:
         yield client

@@ -8,11 +8,27 @@ import numpy as np
 from ..plots import _save, _subplots
 
 
+def _sobol_bars(ax, block: dict, title: str) -> None:
+    idx = block["indices"]
+    x = np.arange(len(idx))
+    w = 0.38
+    ax.bar(x - w / 2, [i["S1"] for i in idx], w, yerr=[i["S1_conf"] for i in idx],
+           label="first order S1", capsize=3)
+    ax.bar(x + w / 2, [i["ST"] for i in idx], w, yerr=[i["ST_conf"] for i in idx],
+           label="total ST", capsize=3)
+    ax.set_xticks(x, [i["name"] for i in idx], rotation=30, ha="right", fontsize=8)
+    ax.axhline(0, color="k", lw=0.6)
+    ax.set_ylabel("Sobol' index")
+    ax.set_title(title, fontsize=9)
+    ax.legend(fontsize=8)
+
+
 def plot_sensitivity(table: dict | None, sobol: dict | None, path) -> str:
     """Left: our Table 3.4 estimates with +-2 standard errors (dissertation sign marked);
-    right: Sobol' first-order and total indices with their confidence intervals."""
-    fig, axes = _subplots(1, 2, figsize=(13, 5.5), squeeze=False)
-    ax1, ax2 = axes[0]
+    middle/right: Sobol' first-order and total indices (confidence intervals) of the distance and
+    of log10(distance)."""
+    fig, axes = _subplots(1, 3, figsize=(18, 5.5), squeeze=False)
+    ax1, ax2, ax3 = axes[0]
     if table:
         terms = [t for t in table["terms"] if t["term"] != "Intercept"]
         y = np.arange(len(terms))
@@ -32,21 +48,16 @@ def plot_sensitivity(table: dict | None, sobol: dict | None, path) -> str:
     else:
         ax1.axis("off")
     if sobol:
-        idx = sobol["indices"]
-        x = np.arange(len(idx))
-        w = 0.38
-        ax2.bar(x - w / 2, [i["S1"] for i in idx], w, yerr=[i["S1_conf"] for i in idx],
-                label="first order S1", capsize=3)
-        ax2.bar(x + w / 2, [i["ST"] for i in idx], w, yerr=[i["ST_conf"] for i in idx],
-                label="total ST", capsize=3)
-        ax2.set_xticks(x, [i["name"] for i in idx], rotation=30, ha="right", fontsize=8)
-        ax2.axhline(0, color="k", lw=0.6)
-        ax2.set_ylabel("Sobol' index")
-        ax2.set_title(f"Sobol' indices of the travel ({sobol['n_runs']} runs, "
-                      f"{int(sobol['conf_level'] * 100)} % CI)", fontsize=9)
-        ax2.legend(fontsize=8)
+        pct = int(sobol["conf_level"] * 100)
+        _sobol_bars(ax2, sobol, f"Sobol' indices of the distance ({sobol['n_runs']} runs, "
+                                f"{pct} % CI)")
+        if "log10_distance" in sobol:
+            _sobol_bars(ax3, sobol["log10_distance"], "Sobol' indices of log10(distance + 1 um)")
+        else:
+            ax3.axis("off")
     else:
         ax2.axis("off")
+        ax3.axis("off")
     return str(_save(fig, path))
 
 
@@ -63,77 +74,96 @@ def _grid(rows, xkey, ykey, zkey):
     return np.array(xs), np.array(ys), Z, D
 
 
+def _heat(fig, ax, xs, ys, Z, D, cmap, label, sx=1.0, sy=1.0, sz=1.0):
+    lim = np.nanmax(np.abs(Z)) * sz if np.isfinite(Z).any() else 1.0
+    im = ax.pcolormesh(xs * sx, ys * sy, Z * sz, cmap=cmap, vmin=-lim, vmax=lim,
+                       shading="nearest")
+    if D.any() and min(D.shape) >= 2:
+        ax.contourf(xs * sx, ys * sy, D.astype(float), levels=[0.5, 1.5], colors="none",
+                    hatches=["xxx"])
+    elif D.any():  # a single row or column: mark the detached cells
+        jj, ii = np.nonzero(D)
+        ax.plot(xs[ii] * sx, ys[jj] * sy, "kx")
+    fig.colorbar(im, ax=ax, label=label)
+
+
 def plot_engage(map_rows, two_rows, path) -> str:
-    """Heat maps of the travel over (initial velocity, start position) per frequency (cf. Figs.
-    4.3-4.8; detachment hatched in black), and of the second actuator's effect over (delay,
-    spacing)."""
+    """Top row: travel over (initial velocity, start position) per frequency (cf. Figs. 4.3-4.8);
+    bottom row: the firing's gain over plain coasting. Last column: the two-actuator map, the
+    second actuator's extra travel (top) and the final position (bottom). Detachment hatched."""
     freqs = sorted({r["freq_hz"] for r in map_rows}) if map_rows else []
-    n = len(freqs) + (1 if two_rows else 0)
-    fig, axes = _subplots(1, max(n, 1), figsize=(5.2 * max(n, 1), 4.6), squeeze=False)
-    for ax, f in zip(axes[0], freqs):
+    n = max(len(freqs) + (1 if two_rows else 0), 1)
+    fig, axes = _subplots(2, n, figsize=(5.2 * n, 8.6), squeeze=False)
+    for k, f in enumerate(freqs):
         rows = [r for r in map_rows if r["freq_hz"] == f]
-        xs, ys, Z, D = _grid(rows, "v0_m_s", "x0_m", "travel_m")
-        lim = np.nanmax(np.abs(Z)) * 1e3 if np.isfinite(Z).any() else 1.0
-        im = ax.pcolormesh(xs, ys * 1e3, Z * 1e3, cmap="RdBu_r", vmin=-lim, vmax=lim,
-                           shading="nearest")
-        if D.any():
-            ax.contourf(xs, ys * 1e3, D.astype(float), levels=[0.5, 1.5], colors="none",
-                        hatches=["xxx"])
-            ax.plot([], [], "ks", mfc="none", label="detached (hatched)")
-            ax.legend(fontsize=7, loc="lower right")
-        fig.colorbar(im, ax=ax, label="travel x_final - x0 [mm]")
-        ax.set_xlabel("initial velocity v0 [m/s]")
-        ax.set_ylabel("start position x0 - x_actuator [mm]")
-        ax.set_title(f"{f:g} Hz, h = {rows[0]['stroke_m'] * 1e6:g} um", fontsize=9)
+        for row, (key, label) in enumerate((("travel_m", "travel x_final - x0 [mm]"),
+                                            ("gain_m", "gain over coasting [mm]"))):
+            ax = axes[row][k]
+            xs, ys, Z, D = _grid(rows, "v0_m_s", "x0_m", key)
+            _heat(fig, ax, xs, ys, Z, D, "RdBu_r", label, sy=1e3, sz=1e3)
+            ax.set_xlabel("initial velocity v0 [m/s]")
+            ax.set_ylabel("start position x0 - x_actuator [mm]")
+            ax.set_title(f"{f:g} Hz, h = {rows[0]['stroke_m'] * 1e6:g} um: "
+                         f"{'travel' if row == 0 else 'gain'} (hatched: detached)", fontsize=9)
     if two_rows:
-        ax = axes[0][len(freqs)]
-        xs, ys, Z, D = _grid(two_rows, "delay_s", "spacing_m", "extra_m")
-        lim = np.nanmax(np.abs(Z)) * 1e6 if np.isfinite(Z).any() else 1.0
-        im = ax.pcolormesh(xs * 1e3, ys * 1e3, Z * 1e6, cmap="PuOr", vmin=-lim, vmax=lim,
-                           shading="nearest")
-        if D.any():
-            ax.contourf(xs * 1e3, ys * 1e3, D.astype(float), levels=[0.5, 1.5], colors="none",
-                        hatches=["xxx"])
-        fig.colorbar(im, ax=ax, label="extra travel from actuator 2 [um] (>0 accelerates)")
         r0 = two_rows[0]
-        ax.set_xlabel("delay [ms]")
-        ax.set_ylabel("spacing [mm]")
-        ax.set_title(f"two actuators, {r0['freq_hz']:g} Hz, h = {r0['stroke_m'] * 1e6:g} um",
-                     fontsize=9)
+        for row, (key, label) in enumerate((
+                ("extra_m", "extra travel from actuator 2 [mm] (> 0: carries on)"),
+                ("final_position_m", "final position [mm]"))):
+            ax = axes[row][len(freqs)]
+            xs, ys, Z, D = _grid(two_rows, "delay_s", "spacing_m", key)
+            _heat(fig, ax, xs, ys, Z, D, "PuOr" if row == 0 else "RdBu_r", label, sx=1e3,
+                  sy=1e3, sz=1e3)
+            ax.set_xlabel("delay [ms]")
+            ax.set_ylabel("spacing [mm]")
+            ax.set_title(f"two actuators, {r0['freq_hz']:g} Hz, h = {r0['stroke_m'] * 1e6:g} um"
+                         f", start {-r0['x0_m'] * 1e3:g} mm upstream", fontsize=9)
     return str(_save(fig, path))
 
 
 def plot_fidelity(assessed: dict, path) -> str:
-    """Per scene: error against the most faithful level versus wall time, per level."""
-    scenes = list(assessed["scenes"])
-    scenes = [s for s in scenes if any(r["scene"] == s for r in assessed["rows"])]
-    fig, axes = _subplots(1, len(scenes), figsize=(5.2 * len(scenes), 4.8), squeeze=False)
+    """Per scene (columns): top, error against the most faithful level (physics + numerics)
+    versus wall time; bottom, error against the level's own converged result (numerics only).
+    A level that stays far off on top but converges below differs in physics, not numerics."""
+    import textwrap
+
+    scenes = [s for s in assessed["scenes"] if any(r["scene"] == s for r in assessed["rows"])]
+    fig, axes = _subplots(2, len(scenes), figsize=(5.4 * len(scenes), 8.8), squeeze=False)
     floor = 1e-12
     markers = {"event": "o", "karnopp": "s"}
     colors = {("seed", "constant"): "tab:blue", ("exact", "constant"): "tab:orange",
               ("seed", "stretch"): "tab:green", ("exact", "stretch"): "tab:red"}
-    for ax, sc in zip(axes[0], scenes):
+    for k, sc in enumerate(scenes):
         rows = [r for r in assessed["rows"] if r["scene"] == sc]
-        for (kin, rough), col in colors.items():
-            for mode, mk in markers.items():
-                sel = sorted((r for r in rows if r["kinematics"] == kin and r["roughness"] == rough
-                              and r["mode"] == mode and not r["reference"]),
-                             key=lambda r: -r["dt_s"])
-                if not sel:
-                    continue
-                w = [r["wall_time_s"] * 1e6 for r in sel]
-                e = [max(r["error_vs_faithful_m"], floor) * 1e6 for r in sel]
-                ls = "-" if mode == "event" else "--"
-                ax.loglog(w, e, mk + ls, color=col, ms=4, lw=1,
-                          label=f"{kin} kin., {rough}, {mode}")
-                bad = [(wi, ei) for wi, ei, r in zip(w, e, sel) if not r["outcome_matches_faithful"]]
-                if bad:
-                    ax.plot(*zip(*bad), "kx", ms=9)
-        ax.axhline(assessed["tolerance_m"] * 1e6, color="r", ls=":", lw=0.8, label="1 um")
-        ax.set_xlabel("wall time per run [us]")
-        ax.set_ylabel("|position - most faithful| [um]  (x: other outcome)")
-        ax.set_title(sc + "\n" + assessed["scenes"][sc], fontsize=7)
-        ax.legend(fontsize=6)
+        for row, key in enumerate(("error_vs_faithful_m", "numerical_error_m")):
+            ax = axes[row][k]
+            for (kin, rough), col in colors.items():
+                for mode, mk in markers.items():
+                    sel = sorted((r for r in rows if r["kinematics"] == kin
+                                  and r["roughness"] == rough and r["mode"] == mode
+                                  and not r["reference"]), key=lambda r: -r["dt_s"])
+                    if not sel:
+                        continue
+                    w = [r["wall_time_s"] * 1e6 for r in sel]
+                    e = [max(r[key], floor) * 1e6 for r in sel]
+                    ls = "-" if mode == "event" else "--"
+                    ax.loglog(w, e, mk + ls, color=col, ms=4, lw=1,
+                              label=f"{kin} kin., {rough}, {mode}")
+                    if row == 0:
+                        bad = [(wi, ei) for wi, ei, r in zip(w, e, sel)
+                               if not r["outcome_matches_faithful"]]
+                        if bad:
+                            ax.plot(*zip(*bad), "kx", ms=9)
+            ax.axhline(assessed["tolerance_m"] * 1e6, color="r", ls=":", lw=0.8, label="1 um")
+            ax.set_xlabel("wall time per run [us]")
+            ax.set_ylabel("|position - most faithful| [um] (x: other outcome)" if row == 0
+                          else "|position - same level converged| [um]")
+            if row == 0:
+                ax.set_title(f"{sc}: physics + numerics\n"
+                             + textwrap.fill(assessed["scenes"][sc], 70), fontsize=7)
+            else:
+                ax.set_title(f"{sc}: numerics only", fontsize=8)
+            ax.legend(fontsize=6)
     return str(_save(fig, path))
 
 
