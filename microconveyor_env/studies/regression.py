@@ -136,11 +136,11 @@ def table34(rows, formula: str | None = None) -> dict:
 def table34_text(t: dict) -> str:
     lines = [f"Box-Cox lambda = {t['boxcox_lambda']:.4f}, n = {t['n']}, R^2 = "
              f"{t['r_squared']:.4f} (adj. {t['adj_r_squared']:.4f})",
-             f"{'term':34s} {'estimate':>11s} {'std.err':>9s} {'t':>8s} {'p':>9s}  diss.  agree",
-             ]
+             f"{'term':30s} {'estimate':>10s} {'std.err':>9s} {'t':>8s} {'p':>9s}  "
+             f"{'diss.est.':>9s} {'diss.sign':>9s}  agree"]
     for r in t["terms"]:
         agree = {True: "yes", False: "NO", None: ""}[r["sign_agrees"]]
-        lines.append(f"{r['term']:34s} {r['estimate']:11.4g} {r['std_error']:9.3g} {r['t']:8.2f} "
-                     f"{r['p']:9.2e}  {r['dissertation_sign'] or 'n/a':5s}  {agree}")
+        lines.append(f"{r['term']:30s} {r['estimate']:10.4g} {r['std_error']:9.3g} {r['t']:8.2f} "
+                     f"{r['p']:9.2e}  {'n/a':>9s} {r['dissertation_sign'] or 'no claim':>9s}  {agree}")
     lines.append("dissertation estimates: not available (signs from physics.md §5)")
     return "\n".join(lines)
