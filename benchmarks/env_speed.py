@@ -1,29 +1,36 @@
-"""Environment throughput (a benchmark script, not a test; timings are noisy, compare in one run).
+"""Environment throughput, idle and under load (a benchmark script, not a test).
 
-    python benchmarks/env_speed.py [--seconds 5] [--num-envs 64]
+    python benchmarks/env_speed.py [--seconds 3] [--num-envs 64] [--no-load]
 
-Prints JSON: gymnasium's ``benchmark_step`` on the single env (random actions, resets included)
-and the batched env's firings per second with N parts (NEXT_STEP autoreset steps, which fire
-nothing, are not counted as firings).
+Prints JSON with two columns, ``idle`` and ``loaded`` (as many busy processes as cores, as when
+PPO, an evaluation or a browser share the machine): gymnasium's ``benchmark_step`` on the single
+env (random actions, resets included) and the batched env's firings per second with N parts for
+``num_threads`` = 1 (serial), all cores (numba parallel) and ``None`` (the automatic choice).
+NEXT_STEP autoreset steps fire nothing and are not counted. Timings are noisy: compare within one
+run.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing as mp
+import os
 import time
 
 import gymnasium as gym
+import numba
 import numpy as np
 from gymnasium.utils.performance import benchmark_step
 
 import microconveyor_env  # noqa: F401  (registers MicroConveyor-v0)
 
 
-def batched_firings_per_s(num_envs: int, seconds: float, seed: int = 0) -> dict:
-    venv = gym.make_vec("MicroConveyor-v0", num_envs=num_envs)
+def batched_firings_per_s(num_envs: int, seconds: float, num_threads, seed: int = 0) -> dict:
+    venv = gym.make_vec("MicroConveyor-v0", num_envs=num_envs, num_threads=num_threads)
     venv.reset(seed=seed)
     rng = np.random.default_rng(seed)
-    venv.step(rng.uniform(-1, 1, (num_envs, 3)).astype(np.float32))  # warm-up
+    for _ in range(3):  # warm-up (kernel load; the automatic mode tries both choices)
+        venv.step(rng.uniform(-1, 1, (num_envs, 3)).astype(np.float32))
     firings = steps = 0
     t0 = time.perf_counter()
     while time.perf_counter() - t0 < seconds:
@@ -32,20 +39,47 @@ def batched_firings_per_s(num_envs: int, seconds: float, seed: int = 0) -> dict:
         firings += int((~resetting).sum())
         steps += 1
     wall = time.perf_counter() - t0
-    return {"num_envs": num_envs, "vector_steps": steps, "firings": firings,
-            "firings_per_s": firings / wall, "vector_steps_per_s": steps / wall}
+    return {"firings_per_s": round(firings / wall), "vector_steps_per_s": round(steps / wall),
+            "threads_in_use": venv.threads.current}
+
+
+def _busy(stop) -> None:
+    while not stop.is_set():
+        pass
+
+
+def measure(num_envs: int, seconds: float) -> dict:
+    env = gym.make("MicroConveyor-v0").unwrapped
+    benchmark_step(env, target_duration=0.5, seed=0)  # warm-up
+    out = {"single_env_steps_per_s": round(benchmark_step(env, target_duration=seconds, seed=0))}
+    for label, nt in (("serial", 1), ("parallel", numba.config.NUMBA_NUM_THREADS),
+                      ("auto", None)):
+        out[f"batched_{label}"] = batched_firings_per_s(num_envs, seconds, nt)
+    return out
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seconds", type=float, default=5.0)
+    ap.add_argument("--seconds", type=float, default=3.0)
     ap.add_argument("--num-envs", type=int, default=64)
+    ap.add_argument("--no-load", action="store_true", help="only the idle column")
     args = ap.parse_args()
-    env = gym.make("MicroConveyor-v0").unwrapped
-    benchmark_step(env, target_duration=0.5, seed=0)  # warm-up (kernel load)
-    single = benchmark_step(env, target_duration=args.seconds, seed=0)
-    print(json.dumps({"single_env_steps_per_s": single,
-                      "batched": batched_firings_per_s(args.num_envs, args.seconds)}, indent=2))
+    result = {"num_envs": args.num_envs, "cores": os.cpu_count(),
+              "numba_threads": numba.config.NUMBA_NUM_THREADS,
+              "idle": measure(args.num_envs, args.seconds)}
+    if not args.no_load:
+        stop = mp.Event()
+        procs = [mp.Process(target=_busy, args=(stop,), daemon=True)
+                 for _ in range(os.cpu_count() or 1)]
+        for p in procs:
+            p.start()
+        try:
+            result["loaded"] = measure(args.num_envs, args.seconds)
+        finally:
+            stop.set()
+            for p in procs:
+                p.join(5)
+    print(json.dumps(result, indent=2))
 
 
 if __name__ == "__main__":

@@ -224,6 +224,8 @@ def _sweep_args(p):
 
 @command("accuracy", "speed versus accuracy of the integrator settings (chart + default choice)")
 def cmd_accuracy(args):
+    if args.episode:
+        return _accuracy_episode(args)
     from .studies.accuracy import accuracy_study
 
     study = accuracy_study(args.preset, repeats=args.repeats, progress=True)
@@ -235,9 +237,47 @@ def cmd_accuracy(args):
     _emit(args, study, f"default: {d}" if d else "no setting within tolerance")
 
 
+def _accuracy_episode(args):
+    from .studies.episodes import episode_study
+
+    if args.preset != "seed":
+        raise ValueError("--episode runs MicroConveyor-v0's own preset (seed); drop --preset")
+    study = episode_study(n_per_category=args.per_category, seed=args.seed,
+                          repeats=min(args.repeats, 5), progress=True)
+    if args.plot:
+        from .plots import plot_episode_accuracy
+
+        study["plot"] = str(plot_episode_accuracy(study, args.plot))
+    _emit(args, study, _episode_text(study))
+
+
+def _episode_text(study) -> str:
+    lines = [f"{study['episodes']} episodes {study['counts']}, reference event dt = "
+             f"{study['reference_dt_s']:g} s (halving it moves no final position by more than "
+             f"{study['reference_half_dt_check']['max_error_m']:.1e} m)",
+             f"{'mode':>8} {'dt [s]':>9} {'min':>4} {'median':>9} {'p95':>9} {'max':>9} "
+             f"{'outc.':>5} {'succ.':>5} {'steps':>6} {'us/ep':>7}"]
+    for r in study["rows"]:
+        lines.append(f"{r['mode']:>8} {r['dt_s']:9.3g} {r['min_steps']:4d} "
+                     f"{r['median_error_m']:9.2e} {r['p95_error_m']:9.2e} {r['max_error_m']:9.2e} "
+                     f"{r['outcome_disagreements']:5d} {r['success_disagreements']:5d} "
+                     f"{r['rk4_steps_per_episode']:6.0f} "
+                     f"{r['wall_per_episode_s'] * 1e6:7.1f}")
+    rec = study["recommended"]
+    lines.append("recommended default: " + (f"{rec['mode']}, dt = {rec['dt_s']:g} s, min_steps = "
+                                            f"{rec['min_steps']}" if rec else "none meets the bar"))
+    return "\n".join(lines)
+
+
 def _accuracy_args(p):
     p.add_argument("--plot", metavar="FILE.png", help="write the chart")
     p.add_argument("--repeats", type=int, default=30, help="timed repeats per setting")
+    p.add_argument("--episode", action="store_true",
+                   help="whole MicroConveyor-v0 episodes (final position and outcome) instead of "
+                        "the single seed firing")
+    p.add_argument("--per-category", type=int, default=60,
+                   help="--episode: episodes per category (4 categories)")
+    p.add_argument("--seed", type=int, default=0, help="--episode: seed of the episode set")
 
 
 @command("bench", "kernel speed on the seed firing, against the dissertation-style loop")

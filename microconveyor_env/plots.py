@@ -143,6 +143,42 @@ def plot_accuracy(study: dict, path) -> Path:
     return _save(fig, path)
 
 
+def plot_episode_accuracy(study: dict, path) -> Path:
+    """Episode-level error (p95 and max of the final position) versus cost per episode."""
+    fig, ax = _subplots(figsize=(8.5, 5.5))
+    floor = 1e-10
+    for mode, colour in (("event", "C0"), ("karnopp", "C1")):
+        for ms, marker in zip((20, 32, 40, 48, 64), "osvD^"):
+            rows = [r for r in study["rows"] if r["mode"] == mode and r["min_steps"] == ms]
+            if not rows:
+                continue
+            w = [r["wall_per_episode_s"] * 1e6 for r in rows]
+            p95 = [max(r["p95_error_m"], floor) * 1e6 for r in rows]
+            ax.loglog(w, p95, marker + "-", color=colour, alpha=0.85,
+                      label=f"{mode}, >= {ms} steps/stroke: 95th percentile")
+            ax.loglog(w, [max(r["max_error_m"], floor) * 1e6 for r in rows], marker, color=colour,
+                      mfc="none", alpha=0.5)
+            for r, wi, ei in zip(rows, w, p95):
+                bad = r["outcome_disagreements"]
+                ax.annotate(f"{r['dt_s']:.2g}" + (f" ({bad} flips)" if bad else ""), (wi, ei),
+                            fontsize=6, alpha=0.7, xytext=(3, -8), textcoords="offset points")
+    ax.axhline(study["error_bar_m"] * 1e6, color="r", lw=0.8, ls=":",
+               label=f"bar: tolerance / 10 = {study['error_bar_m'] * 1e6:g} µm")
+    for key, style, name in (("env_default", "r*", "env default"),
+                             ("recommended", "g*", "cheapest meeting the bar")):
+        d = study.get(key)
+        if d:
+            ax.plot([d["wall_per_episode_s"] * 1e6], [max(d["p95_error_m"], floor) * 1e6], style,
+                    ms=15, label=f"{name}: {d['mode']}, dt = {d['dt_s']:g} s, "
+                                 f">= {d['min_steps']} steps/stroke")
+    ax.set_xlabel("wall time per episode [µs] (serial, this machine)  —  labels: dt [s]")
+    ax.set_ylabel("|final position − converged| [µm]  (open markers: max)")
+    ax.set_title(f"MicroConveyor-v0: episode-level accuracy, {study['episodes']} episodes "
+                 f"(reference: event, dt = {study['reference_dt_s']:g} s)", fontsize=10)
+    ax.legend(fontsize=7, loc="lower left")
+    return _save(fig, path)
+
+
 def save_frames(frames, path, cols: int = 2) -> Path:
     """Tile rendered env frames (uint8 H x W x 3) into one PNG."""
     n = len(frames)

@@ -46,7 +46,9 @@ class EnvConfig:
     max_time: float = 1.0
     mode: str = "event"
     kinematics: str = "seed"
-    dt: float = 5e-5
+    dt: float = 1e-4
+    min_steps: int = 48  # floor on RK4 steps per stroke
+    num_threads: int | None = None  # batched env only; None: the measured rule (envs/vector.py)
 
     def __post_init__(self):
         for name, (lo, hi, lo_open, unit) in _RANGES.items():
@@ -65,6 +67,19 @@ class EnvConfig:
             raise ParameterError(f"EnvConfig.n_actuators = {n!r} is invalid: must be an integer "
                                  "in [1, 1000]")
         object.__setattr__(self, "n_actuators", int(n))
+        ms = self.min_steps
+        if isinstance(ms, bool) or not isinstance(ms, (int, float)) or ms != int(ms) \
+                or not 2 <= ms <= 100000:
+            raise ParameterError(f"EnvConfig.min_steps = {ms!r} is invalid: must be an integer "
+                                 "in [2, 100000]")
+        object.__setattr__(self, "min_steps", int(ms))
+        nt = self.num_threads
+        if nt is not None:
+            if isinstance(nt, bool) or not isinstance(nt, (int, float)) or nt != int(nt) \
+                    or not 1 <= nt <= 1024:
+                raise ParameterError(f"EnvConfig.num_threads = {nt!r} is invalid: must be null "
+                                     "(automatic) or an integer in [1, 1024]")
+            object.__setattr__(self, "num_threads", int(nt))
         for name, (lo, hi, unit) in _PAIRS.items():
             pair = getattr(self, name)
             if not isinstance(pair, (list, tuple)) or len(pair) != 2:

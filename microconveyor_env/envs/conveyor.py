@@ -17,7 +17,8 @@ def make_simulator(cfg: EnvConfig) -> Simulator:
     """The env's simulator; refuses action ranges whose strongest stroke would load the part
     beyond the contact table (checked once here, so steps never need to)."""
     sim = Simulator(cfg.preset, shape=cfg.shape, wavelength=cfg.wavelength,
-                    kinematics=cfg.kinematics, mode=cfg.mode, dt=cfg.dt, max_time=cfg.max_time)
+                    kinematics=cfg.kinematics, mode=cfg.mode, dt=cfg.dt, max_time=cfg.max_time,
+                    min_steps=cfg.min_steps)
     try:
         sim.check_firings(np.array([cfg.freq_range[1]]), np.array([cfg.stroke_range[1]]))
     except TableRangeError as exc:
@@ -146,7 +147,8 @@ class MicroConveyorEnv(gym.Env):
         a = task.check_actions(action, 1)
         xa = float(self.positions[self.fired])
         task.step_serial(a, self._x, self._v, self._t, self._fired, self._target, self._active,
-                         self._C, self.positions, self.sim.params, *self.sim.tables, self._kout,
+                         self._C, self.positions, self.sim.params, *self.sim.tables,
+                         task.NO_RECORD, self._kout,
                          self._res, self._obs_buf)
         res = self._res[0]
         outcome = K.OUTCOMES[int(res[task.S_OUTCOME])]

@@ -18,6 +18,7 @@ OBS_DIM = 6
 OBS_BOUND = 10.0          # observations are clipped to [-OBS_BOUND, OBS_BOUND]
 LENGTH_SCALE = 10e-3      # m: position error and target are divided by this
 VELOCITY_SCALE = 0.5      # m/s
+NO_RECORD = np.zeros((0, K.N_REC))  # the env never records trajectories
 OBS_NAMES = ("error", "velocity", "to_next_actuator", "elapsed_time", "fired_fraction", "target")
 
 (C_F0, C_LOGSPAN, C_H0, C_HSPAN, C_D0, C_DSPAN, C_NACT, C_SPACING, C_TMAX, C_PSCALE, C_TCOST,
@@ -68,45 +69,44 @@ def observe_part(x, v, t, fired, target, C, positions, row):
 
 
 @njit(cache=True)
-def _step_part(i, actions, x, v, t, fired, target, C, positions, P, tu, tq, tqu, kout, res):
+def _step_part(i, actions, x, v, t, fired, target, C, positions, P, tu, tq, tqu, rec, kout, res):
     f, h, d = decode(actions[i, 0], actions[i, 1], actions[i, 2], C)
     last = fired[i] == int(C[C_NACT]) - 1
-    xa = np.empty(1)
-    xa[0] = positions[fired[i]]
-    fa, ha, da = np.empty(1), np.empty(1), np.empty(1)
-    fa[0], ha[0], da[0] = f, h, d
-    rec = np.zeros((0, K.N_REC))
-    K.run(xa, fa, ha, da, x[i], v[i], t[i], C[C_DT], int(C[C_MINSTEPS]), last, C[C_TMAX], P,
-          tu, tq, tqu, rec, kout[i])
-    code = int(kout[i, K.O_OUTCOME])
-    x_new, t_new = kout[i, K.O_X], kout[i, K.O_T]
+    out = kout[i]
+    K.reset_out(out)
+    x_new, v_new, t_new, code = K.fire(x[i], v[i], t[i], positions[fired[i]], f, h, d, C[C_DT],
+                                       int(C[C_MINSTEPS]), last, C[C_TMAX], P, tu, tq, tqu, rec,
+                                       out)
+    K.finish_out(out, x_new, v_new, t_new, code)
     success = code == K.REST and abs(x_new - target[i]) <= C[C_TOL]
     r = potential(x_new, target[i], C) - potential(x[i], target[i], C) - C[C_TCOST] * (t_new - t[i])
     if success:
         r += C[C_BONUS]
     if code == K.DETACHED:
         r -= C[C_PENALTY]
-    x[i], v[i], t[i] = x_new, kout[i, K.O_V], t_new
+    x[i], v[i], t[i] = x_new, v_new, t_new
     fired[i] += 1
     res[i, S_REWARD], res[i, S_OUTCOME], res[i, S_SUCCESS] = r, code, 1.0 if success else 0.0
     res[i, S_F], res[i, S_H], res[i, S_D] = f, h, d
 
 
 @njit(cache=True)
-def step_serial(actions, x, v, t, fired, target, active, C, positions, P, tu, tq, tqu, kout, res,
-                obs):
+def step_serial(actions, x, v, t, fired, target, active, C, positions, P, tu, tq, tqu, rec, kout,
+                res, obs):
     for i in range(x.shape[0]):
         if active[i]:
-            _step_part(i, actions, x, v, t, fired, target, C, positions, P, tu, tq, tqu, kout, res)
+            _step_part(i, actions, x, v, t, fired, target, C, positions, P, tu, tq, tqu, rec, kout,
+                       res)
         observe_part(x[i], v[i], t[i], fired[i], target[i], C, positions, obs[i])
 
 
 @njit(cache=True, parallel=True)
-def step_parallel(actions, x, v, t, fired, target, active, C, positions, P, tu, tq, tqu, kout,
-                  res, obs):
+def step_parallel(actions, x, v, t, fired, target, active, C, positions, P, tu, tq, tqu, rec,
+                  kout, res, obs):
     for i in prange(x.shape[0]):
         if active[i]:
-            _step_part(i, actions, x, v, t, fired, target, C, positions, P, tu, tq, tqu, kout, res)
+            _step_part(i, actions, x, v, t, fired, target, C, positions, P, tu, tq, tqu, rec, kout,
+                       res)
         observe_part(x[i], v[i], t[i], fired[i], target[i], C, positions, obs[i])
 
 

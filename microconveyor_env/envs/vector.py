@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numbers
+import time
 from typing import Any
 
 import numpy as np
@@ -14,6 +15,7 @@ from ..physics import dynamics_kernel as K
 from . import task
 from .config import EnvConfig
 from .conveyor import check_target, make_simulator, raise_if_beyond_table
+from .threads import ThreadChooser, threads
 
 
 class MicroConveyorVectorEnv(VectorEnv):
@@ -24,6 +26,9 @@ class MicroConveyorVectorEnv(VectorEnv):
     ``autoreset_mode``: ``NEXT_STEP`` (default, the gymnasium default: the step after a finished
     episode resets that sub-env, ignoring its action, with reward 0) or ``SAME_STEP`` (reset at
     once; the last observation and info are in ``info["final_obs"]`` / ``info["final_info"]``).
+    Threads: ``num_threads`` (an EnvConfig field, also a ``make_vec`` keyword): 1 runs a serial
+    loop, k > 1 numba's parallel loop with k threads, ``None`` (default) picks between the two by
+    measuring them as it runs (:mod:`.threads`). Results are bit-identical in every case.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4,
@@ -59,6 +64,7 @@ class MicroConveyorVectorEnv(VectorEnv):
         self._kout = np.zeros((n, K.N_OUT))
         self._res = np.zeros((n, task.N_S))
         self._obs_buf = np.zeros((n, task.OBS_DIM), dtype=np.float32)
+        self.threads = ThreadChooser(self.config.num_threads, n)
         self._started = False
 
     # ------------------------------------------------------------------ resets
@@ -100,9 +106,17 @@ class MicroConveyorVectorEnv(VectorEnv):
         active = ~resetting
         self._res[resetting] = 0.0
         self._res[resetting, task.S_OUTCOME] = K.MOVING
-        task.step_parallel(a, self.x, self.v, self.t, self.fired, self.target, active, self._C,
-                           self.positions, self.sim.params, *self.sim.tables, self._kout,
-                           self._res, self._obs_buf)
+        args = (a, self.x, self.v, self.t, self.fired, self.target, active, self._C,
+                self.positions, self.sim.params, *self.sim.tables, task.NO_RECORD, self._kout,
+                self._res, self._obs_buf)
+        k = self.threads.choose()
+        t0 = time.perf_counter()
+        if k == 1:
+            task.step_serial(*args)
+        else:
+            with threads(k):
+                task.step_parallel(*args)
+        self.threads.record(k, time.perf_counter() - t0, int(active.sum()))
         res = self._res
         codes = res[:, task.S_OUTCOME].astype(np.int64)
         if (codes == K.BEYOND_TABLE).any():

@@ -37,6 +37,10 @@ N_OUT = 10
 R_T, R_X, R_V, R_Y, R_N, R_Q, R_F, R_STICK = range(8)
 N_REC = 8
 MAX_EVENTS_PER_STEP = 32
+GOLDEN_ITERATIONS = 20  # golden-section steps for a load minimum inside a step
+SCREEN_MARGIN = 0.25    # search only if the parabolic estimate is within this * F_pull of pull-off
+# p''(t) of the quintic stroke is most negative at tau = (3 + sqrt 3)/6 of each half (mirrored)
+TAU_UNLOAD = (3.0 + math.sqrt(3.0)) / 6.0
 
 
 @njit(cache=True)
@@ -148,6 +152,63 @@ def _illinois_slip(x0, v0, tl, hmax, s, xa, f, h, P, tu, tq, tqu):
 
 
 @njit(cache=True)
+def _hidden_pull_off(x0, v0, x1, v1, tl, hs, N1, xa, f, h, P):
+    """A dip of the load below pull-off *inside* an accepted sliding step (both ends above it).
+
+    Checked only while the load is tensile at an end of the step, and searched only where a
+    parabola through the load at both ends and at the midpoint comes within ``SCREEN_MARGIN``
+    F_pull of pull-off: then the load along the step's cubic Hermite interpolant of x(t) is
+    minimised by golden-section search. Returns the sub-step length at the minimum if it lies
+    below pull-off, else -1.
+    """
+    n_min = P[I_NMIN]
+    N0 = normal_load(x0, v0, tl, xa, f, h, P)[0]
+    if min(N0, N1) >= 0.0:
+        return -1.0
+    # cheap screen: the parabola through the ends and the midpoint stays well above pull-off
+    Nm = _load_on_hermite(0.5, x0, v0, x1, v1, tl, hs, xa, f, h, P)
+    curv = N0 - 2.0 * Nm + N1
+    low = min(N0, Nm, N1)
+    if curv > 0.0:
+        th = 0.5 + 0.25 * (N0 - N1) / curv
+        if 0.0 < th < 1.0:
+            low = min(low, Nm - 0.125 * (N1 - N0) ** 2 / curv)
+    if low - n_min > SCREEN_MARGIN * -n_min:
+        return -1.0
+    a, b = 0.0, 1.0
+    g = 0.6180339887498949
+    c, d = b - g * (b - a), a + g * (b - a)
+    fc = _load_on_hermite(c, x0, v0, x1, v1, tl, hs, xa, f, h, P)
+    fd = _load_on_hermite(d, x0, v0, x1, v1, tl, hs, xa, f, h, P)
+    for _ in range(GOLDEN_ITERATIONS):
+        if fc < fd:
+            b, d, fd = d, c, fc
+            c = b - g * (b - a)
+            fc = _load_on_hermite(c, x0, v0, x1, v1, tl, hs, xa, f, h, P)
+        else:
+            a, c, fc = c, d, fd
+            d = a + g * (b - a)
+            fd = _load_on_hermite(d, x0, v0, x1, v1, tl, hs, xa, f, h, P)
+        if min(fc, fd) < n_min:
+            break
+    if fc < fd:
+        return c * hs if fc < n_min else -1.0
+    return d * hs if fd < n_min else -1.0
+
+
+@njit(cache=True)
+def _load_on_hermite(th, x0, v0, x1, v1, tl, hs, xa, f, h, P):
+    """Normal load at fraction ``th`` of a step, on the cubic Hermite interpolant of x(t)."""
+    t2 = th * th
+    t3 = t2 * th
+    x = ((2 * t3 - 3 * t2 + 1) * x0 + (t3 - 2 * t2 + th) * hs * v0 + (-2 * t3 + 3 * t2) * x1
+         + (t3 - t2) * hs * v1)
+    v = ((6 * t2 - 6 * th) * x0 / hs + (3 * t2 - 4 * th + 1) * v0 + (-6 * t2 + 6 * th) * x1 / hs
+         + (3 * t2 - 2 * th) * v1)
+    return normal_load(x, v, tl + th * hs, xa, f, h, P)[0]
+
+
+@njit(cache=True)
 def _stick_event(x, t, xa, f, h, P, tu, tq, tqu):
     m, d, _ = stick_state(x, t, xa, f, h, P, tu, tq, tqu)
     return min(m, d)
@@ -172,33 +233,55 @@ def _illinois_stick(x, t0, t1, xa, f, h, P, tu, tq, tqu):
 
 
 @njit(cache=True)
-def stroke(x, v, t0, xa, f, h, n_steps, P, tu, tq, tqu, rec, out):
+def stroke(x, v, t0, xa, f, h, n_steps, t_lim, P, tu, tq, tqu, rec, out):
     """Integrate one stroke (duration 1/f, ``n_steps`` RK4 steps) from state (x, v) at time t0.
 
-    Returns (x, v, outcome) with outcome MOVING (stroke finished), DETACHED, TOO_MANY_EVENTS or
-    BEYOND_TABLE (the load left the contact table); the event time/place go to ``out``.
+    The stroke is cut at ``t_lim`` [s, relative to t0] (the simulated-time limit). In event mode the
+    step grid also has nodes where the actuator's downward acceleration peaks (there the load on a
+    resting part is smallest), and a sliding step whose load is tensile at an end is searched for
+    a dip below pull-off inside it (:func:`_hidden_pull_off`), so a detachment cannot hide inside
+    a step.
+
+    Returns (x, v, outcome) with outcome MOVING (stroke finished), DETACHED, MAX_TIME,
+    TOO_MANY_EVENTS or BEYOND_TABLE (the load left the contact table); the event time/place go to
+    ``out``.
     """
     T = 1.0 / f
     dt = T / n_steps
     event = P[I_MODE] == EVENT
     n_min = P[I_NMIN]
     m = P[I_MASS]
+    t_unload1 = TAU_UNLOAD * 0.5 * T if event else T  # extra grid nodes (event mode only)
+    t_unload2 = T - t_unload1 if event else T
     recording = rec.shape[0] > 0
     stuck = v == 0.0
     s = 1.0 if v >= 0.0 else -1.0
     tl = 0.0
+    k = 0
     if recording:
         _record(rec, out, t0, x, v, 0.0 if stuck else s, xa, f, h, tl, P, tu, tq, tqu)
-    for k in range(n_steps + 1):
+    while True:
         if normal_load(x, v, tl, xa, f, h, P)[0] > P[I_NMAX]:  # Q(N) would extrapolate
             out[O_EVENT_T] = t0 + tl
             out[O_EVENT_X] = x
             return x, v, BEYOND_TABLE
-        if k == n_steps:
+        if tl >= T:
             break
-        t_end = T if k == n_steps - 1 else (k + 1) * dt
-        out[O_STEPS] += 1
+        if tl >= t_lim:
+            out[O_EVENT_T] = t0 + tl
+            out[O_EVENT_X] = x
+            return x, v, MAX_TIME
+        t_end = T if k >= n_steps - 1 else (k + 1) * dt
+        if tl < t_unload1 < t_end:
+            t_end = t_unload1
+        elif tl < t_unload2 < t_end:
+            t_end = t_unload2
+        if tl < t_lim < t_end:
+            t_end = t_lim
+        if t_end >= (k + 1) * dt or t_end >= T:
+            k += 1
         if not event:  # ---------------------------------------------- Karnopp threshold
+            out[O_STEPS] += 1
             N, Yx, c, _ = normal_load(x, v, tl, xa, f, h, P)
             if N < n_min:
                 out[O_EVENT_T] = t0 + tl
@@ -231,6 +314,7 @@ def stroke(x, v, t0, xa, f, h, n_steps, P, tu, tq, tqu, rec, out):
                 out[O_EVENT_X] = x
                 return x, v, TOO_MANY_EVENTS
             if stuck:
+                out[O_STEPS] += 1
                 m1, d1, _ = stick_state(x, t_end, xa, f, h, P, tu, tq, tqu)
                 if m1 > 0.0 and d1 > 0.0:
                     tl = t_end
@@ -250,12 +334,18 @@ def stroke(x, v, t0, xa, f, h, n_steps, P, tu, tq, tqu, rec, out):
                     _record(rec, out, t0 + tl, x, v, 0.0, xa, f, h, tl, P, tu, tq, tqu)
             else:
                 hs = t_end - tl
+                out[O_STEPS] += 1
                 xn, vn = rk4(x, v, tl, hs, s, xa, f, h, P, tu, tq, tqu)
                 Nn = normal_load(xn, vn, t_end, xa, f, h, P)[0]
+                h_ev = hs
                 if s * vn > 0.0 and Nn >= n_min:
-                    x, v, tl = xn, vn, t_end
-                    break
-                tau = _illinois_slip(x, v, tl, hs, s, xa, f, h, P, tu, tq, tqu)
+                    tm = _hidden_pull_off(x, v, xn, vn, tl, hs, Nn, xa, f, h, P)
+                    if tm <= 0.0 or _slip_event(x, v, tl, tm, s, 1.0, xa, f, h, P, tu, tq,
+                                                tqu) > 0.0:
+                        x, v, tl = xn, vn, t_end
+                        break
+                    h_ev = tm  # the load dips below pull-off inside the step: locate it
+                tau = _illinois_slip(x, v, tl, h_ev, s, xa, f, h, P, tu, tq, tqu)
                 n_ev += 1
                 out[O_EVENTS] += 1
                 if tau > 0.0:
@@ -291,40 +381,32 @@ def steps_for(f, dt, min_steps):
 
 
 @njit(cache=True)
-def run(xa, freq, stroke_h, delay, x0, v0, t0, dt, min_steps, to_rest, t_max, P, tu, tq, tqu,
-        rec, out):
-    """Fire the schedule (arrays over firings) from (x0, v0) at t0; fill ``out`` (see O_*)."""
-    x, v, t = x0, v0, t0
-    out[O_STEPS] = 0.0
-    out[O_EVENTS] = 0.0
-    out[O_NREC] = 0.0
-    out[O_EVENT_T] = -1.0
-    out[O_EVENT_X] = math.nan
-    outcome = MOVING
+def fire(x, v, t, xa, f, h, delay, dt, min_steps, to_rest, t_max, P, tu, tq, tqu, rec, out):
+    """One firing from (x, v) at time t: coast for ``delay``, stroke, and (``to_rest``) coast to
+    rest. Returns (x, v, t, outcome); no allocation (the single-firing entry point of the env).
+
+    ``out`` slots O_STEPS/O_EVENTS/O_NREC accumulate; O_EVENT_T/O_EVENT_X are set on an event.
+    """
     recording = rec.shape[0] > 0
-    for k in range(xa.shape[0]):
-        if delay[k] > 0.0:
-            if recording:
-                _record(rec, out, t, x, v, math.copysign(1.0, v) if v != 0.0 else 0.0, 0.0, 1.0,
-                        0.0, -1.0, P, tu, tq, tqu)
-            span = min(delay[k], max(t_max - t, 0.0))  # never coast past the time limit
-            x, v, used, rest, t_stop = coast(x, v, span, P, tu, tq, tqu)
-            if recording and t_stop > 0.0:
-                _record(rec, out, t + t_stop, x, 0.0, 0.0, 0.0, 1.0, 0.0, -1.0, P, tu, tq, tqu)
-            t += span
-            if span < delay[k]:
-                outcome = MAX_TIME
-                break
-        if t >= t_max:
-            outcome = MAX_TIME
-            break
-        x, v, outcome = stroke(x, v, t, xa[k], freq[k], stroke_h[k], steps_for(freq[k], dt, min_steps),
-                               P, tu, tq, tqu, rec, out)
-        if outcome != MOVING:
-            t = out[O_EVENT_T]
-            break
-        t += 1.0 / freq[k]
-    if outcome == MOVING and to_rest:
+    if delay > 0.0:
+        if recording:
+            _record(rec, out, t, x, v, math.copysign(1.0, v) if v != 0.0 else 0.0, 0.0, 1.0,
+                    0.0, -1.0, P, tu, tq, tqu)
+        span = min(delay, max(t_max - t, 0.0))  # never coast past the time limit
+        x, v, used, rest, t_stop = coast(x, v, span, P, tu, tq, tqu)
+        if recording and t_stop > 0.0:
+            _record(rec, out, t + t_stop, x, 0.0, 0.0, 0.0, 1.0, 0.0, -1.0, P, tu, tq, tqu)
+        t += span
+        if span < delay:
+            return x, v, t, MAX_TIME
+    if t >= t_max:
+        return x, v, t, MAX_TIME
+    x, v, outcome = stroke(x, v, t, xa, f, h, steps_for(f, dt, min_steps), t_max - t, P, tu, tq,
+                           tqu, rec, out)
+    if outcome != MOVING:
+        return x, v, out[O_EVENT_T], outcome
+    t += 1.0 / f
+    if to_rest:
         x, v, used, rest, t_stop = coast(x, v, max(t_max - t, 0.0), P, tu, tq, tqu)
         if rest:
             t += used
@@ -335,6 +417,20 @@ def run(xa, freq, stroke_h, delay, x0, v0, t0, dt, min_steps, to_rest, t_max, P,
         if recording:
             _record(rec, out, t, x, v, 0.0 if rest else math.copysign(1.0, v), 0.0, 1.0, 0.0,
                     -1.0, P, tu, tq, tqu)
+    return x, v, t, outcome
+
+
+@njit(cache=True)
+def reset_out(out):
+    out[O_STEPS] = 0.0
+    out[O_EVENTS] = 0.0
+    out[O_NREC] = 0.0
+    out[O_EVENT_T] = -1.0
+    out[O_EVENT_X] = math.nan
+
+
+@njit(cache=True)
+def finish_out(out, x, v, t, outcome):
     out[O_X] = x
     out[O_V] = v
     out[O_T] = t
@@ -342,6 +438,20 @@ def run(xa, freq, stroke_h, delay, x0, v0, t0, dt, min_steps, to_rest, t_max, P,
     out[O_STICK] = 1.0 if v == 0.0 else 0.0
 
 
+@njit(cache=True)
+def run(xa, freq, stroke_h, delay, x0, v0, t0, dt, min_steps, to_rest, t_max, P, tu, tq, tqu,
+        rec, out):
+    """Fire the schedule (arrays over firings) from (x0, v0) at t0; fill ``out`` (see O_*)."""
+    x, v, t = x0, v0, t0
+    reset_out(out)
+    outcome = MOVING
+    n = xa.shape[0]
+    for k in range(n):
+        x, v, t, outcome = fire(x, v, t, xa[k], freq[k], stroke_h[k], delay[k], dt, min_steps,
+                                to_rest and k == n - 1, t_max, P, tu, tq, tqu, rec, out)
+        if outcome != MOVING:
+            break
+    finish_out(out, x, v, t, outcome)
 
 
 refresh_jit_cache(globals())

@@ -150,7 +150,7 @@ class Simulator:
         self.check_firings(f, h)
         cap = 0
         if record:
-            cap = int(sum(self.steps_per_stroke(fi) for fi in f)) * 2 + 8 * len(f) + 64
+            cap = int(sum(self.steps_per_stroke(fi) for fi in f)) * 2 + 12 * len(f) + 64
         rec = np.zeros((cap, K.N_REC))
         out = np.zeros(K.N_OUT)
         t0 = time.perf_counter()

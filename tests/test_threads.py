@@ -1,0 +1,55 @@
+"""Threads in the batched env: results never depend on them; the automatic choice measures."""
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from microconveyor_env.envs import MicroConveyorVectorEnv
+from microconveyor_env.envs.threads import PROBE_EVERY, ThreadChooser
+
+from test_env import _assert_infos_equal
+
+
+@pytest.mark.parametrize("num_threads", [1, 2, None])
+def test_threads_change_no_result_bit(num_threads):
+    """Batched (serial, parallel, automatic) = SyncVectorEnv of single envs, every obs, reward,
+    flag and info key, through autoresets."""
+    n, seed = 16, 3
+    batched = MicroConveyorVectorEnv(n, num_threads=num_threads, n_actuators=3)
+    sync = gym.vector.SyncVectorEnv(
+        [lambda: gym.make("MicroConveyor-v0", n_actuators=3) for _ in range(n)])
+    o1, i1 = batched.reset(seed=seed)
+    o2, i2 = sync.reset(seed=seed)
+    np.testing.assert_array_equal(o1, o2)
+    _assert_infos_equal(i1, i2)
+    rng = np.random.default_rng(7)
+    for _ in range(12):
+        a = rng.uniform(-1, 1, (n, 3)).astype(np.float32)
+        r1, r2 = batched.step(a), sync.step(a)
+        for k in range(4):
+            np.testing.assert_array_equal(r1[k], r2[k])
+        _assert_infos_equal(r1[4], r2[4])
+    if num_threads is None:
+        assert set(batched.threads.cost) == {1, batched.threads.parallel}
+
+
+def test_chooser_fixed_and_small_batches():
+    assert ThreadChooser(1, 64).choose() == 1
+    assert ThreadChooser(2, 64).choose() == 2
+    assert ThreadChooser(None, 2).choose() == 1  # a parallel region never pays for 2 parts
+
+
+def test_chooser_follows_the_measurement_and_probes():
+    c = ThreadChooser(None, 64)
+    if c.parallel < 2:
+        pytest.skip("numba has one thread here")
+    first, second = c.choose(), None
+    c.record(first, 1.0, 10)           # serial: 0.1 s per firing
+    second = c.choose()
+    assert second != first
+    c.record(second, 0.01, 10)         # parallel: 10x faster
+    picks = [c.choose() for _ in range(PROBE_EVERY * 2)]
+    assert picks.count(second) >= len(picks) - 3 and first in picks  # mostly best, probes other
+    for _ in range(20):                # the load changes: parallel becomes slow
+        k = c.choose()
+        c.record(k, 10.0 if k == second else 0.001, 10)  # parallel now 1 s per firing
+    assert c.current == first
