@@ -147,6 +147,8 @@ def _scene_args(p, sweep=False):
             p.add_argument(f"--{name}", default=None, help=f"sweep {name} (SI units)")
     p.add_argument("--mode", default="event", choices=("event", "karnopp"))
     p.add_argument("--kinematics", default="seed", choices=("seed", "exact"))
+    p.add_argument("--roughness", default="constant", choices=("constant", "stretch"),
+                   help="stretch: sigma follows the strain of the active zone (physics.md §4)")
     p.add_argument("--dt", type=float, default=None, help="largest RK4 step [s]")
     p.add_argument("--plot", metavar="FILE.png", help="write a chart")
 
@@ -155,6 +157,8 @@ def _sim_kw(args) -> dict:
     kw = {"mode": args.mode, "kinematics": args.kinematics}
     if args.dt is not None:
         kw["dt"] = args.dt
+    if args.roughness != "constant":
+        kw["roughness"] = args.roughness
     return kw
 
 

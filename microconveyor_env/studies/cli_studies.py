@@ -161,6 +161,46 @@ def cmd_fidelity(args, emit):
     emit(args, res)
 
 
+# ----------------------------------------------------------------------------- stretch
+def _stretch_args(p):
+    _engine_args(p, "stretch.csv")
+    p.add_argument("--freq", default="200:1500:25", help="frequencies [Hz], list or a:b:c")
+    p.add_argument("--stroke", type=float, default=200e-6, help="stroke h [m]")
+    p.add_argument("--x0", type=float, default=0.125e-3, help="start position [m]")
+    p.add_argument("--profile", default="gaussian", help="gaussian, sinusoidal, clamped_beam")
+    p.add_argument("--wavelength", type=float, default=0.6e-3, help="wavelength WL [m]")
+    p.add_argument("--kinematics", default="seed", choices=("seed", "exact"))
+    p.add_argument("--repeats", type=int, default=3, help="timed repeats per run")
+    p.add_argument("--n-sigma", type=int, default=21, help="sigma nodes of the stretch tables")
+
+
+def cmd_stretch(args, emit):
+    from ..physics.simulator import Simulator
+    from .engine import write_table
+    from .stretch_study import compare, stretch_rows
+
+    t0 = time.perf_counter()
+    sim = Simulator(args.preset, shape=args.profile, wavelength=args.wavelength,
+                    roughness="stretch", n_sigma=args.n_sigma)  # build/load the tables once
+    setup = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    rows = stretch_rows(_values(args.freq, "freq"), args.stroke, args.x0, args.profile,
+                        args.wavelength, args.repeats, args.preset,
+                        {"kinematics": args.kinematics, "n_sigma": args.n_sigma},
+                        **_engine_kw(args))
+    out = {"preset": args.preset, "stroke_m": args.stroke, "x0_m": args.x0,
+           "profile": args.profile, "kinematics": args.kinematics,
+           "peak_strain": sim.peak_strain(args.stroke), "stretch_setup_s": setup,
+           "sigma_nodes": len(sim.stretch.tables), "max_strain": sim.stretch.max_strain,
+           **compare(rows), "wall_time_s": time.perf_counter() - t0,
+           "table": str(write_table(rows, args.out))}
+    if args.plot:
+        from .plots_studies import plot_stretch
+
+        out["plot"] = plot_stretch({"rows": rows}, args.plot)
+    emit(args, out)
+
+
 def register(command, args_table, emit) -> None:
     """Add the study subcommands to the CLI's registry (``command``) and argument table."""
     for name, help_, fn, add in (
@@ -169,6 +209,8 @@ def register(command, args_table, emit) -> None:
             ("engage", "engaging velocity/position maps and the two-actuator map (ch. 4)",
              cmd_engage, _engage_args),
             ("fidelity", "which model level a scene needs: error against the most faithful "
-                         "level and cost", cmd_fidelity, _fidelity_args)):
+                         "level and cost", cmd_fidelity, _fidelity_args),
+            ("stretch", "travel versus frequency with constant and stretch-dependent roughness "
+                        "(ch. 5), and its cost", cmd_stretch, _stretch_args)):
         command(name, help_)(lambda args, _fn=fn: _fn(args, emit))
         args_table[name] = add

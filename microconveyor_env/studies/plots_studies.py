@@ -1,7 +1,6 @@
 """Charts of the studies (matplotlib Agg, imported lazily; same style as :mod:`..plots`)."""
 from __future__ import annotations
 
-import math
 
 import numpy as np
 
@@ -183,10 +182,18 @@ def plot_stretch(study: dict, path) -> str:
     ax1.set_ylabel("travel [um]")
     ax1.set_title("travel with and without stretch (cf. ch. 5)", fontsize=9)
     ax1.legend(fontsize=8)
-    rows = [r for r in study["rows"] if r["roughness"] == "stretch"]
-    ax2.plot([r["freq_hz"] for r in rows], [r.get("max_strain", math.nan) for r in rows], "s-",
-             ms=3)
+    c = {r["freq_hz"]: r for r in study["rows"] if r["roughness"] == "constant"}
+    pairs = [(r["freq_hz"], abs(r["displacement_m"]), abs(c[r["freq_hz"]]["displacement_m"]))
+             for r in study["rows"] if r["roughness"] == "stretch" and r["freq_hz"] in c
+             and r["outcome"] == c[r["freq_hz"]]["outcome"] == "rest"
+             and abs(c[r["freq_hz"]]["displacement_m"]) >= 10e-6]
+    if pairs:
+        f, s_, c_ = (np.array(v) for v in zip(*pairs))
+        ax2.plot(f, (s_ / c_ - 1.0) * 100, "s-", ms=3)
+    ax2.axhline(0, color="k", lw=0.6)
     ax2.set_xlabel("frequency [Hz]")
-    ax2.set_ylabel("largest strain of the active zone [-]")
-    ax2.set_title("strain reached during the stroke", fontsize=9)
+    ax2.set_ylabel("travel change with stretch [%]")
+    peak = max((r.get("peak_strain", 0.0) for r in study["rows"]), default=0.0)
+    ax2.set_title(f"stretch versus constant (both at rest; peak zone strain {peak:.3f})",
+                  fontsize=9)
     return str(_save(fig, path))
