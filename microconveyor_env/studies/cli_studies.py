@@ -26,6 +26,20 @@ def _engine_kw(args) -> dict:
             "chunk_size": args.chunk_size, "progress": not args.no_progress}
 
 
+def _with_engine(args, body):
+    """``body(engine keywords, cluster start-up time [s])`` with one Dask client for all of a
+    command's runs when ``--workers``/``--scheduler`` is given."""
+    kw = _engine_kw(args)
+    workers, scheduler = kw.pop("workers"), kw.pop("scheduler")
+    if not (workers or scheduler):
+        return body(kw, 0.0)
+    from .engine import dask_client
+
+    t0 = time.perf_counter()
+    with dask_client(workers, scheduler) as client:
+        return body({**kw, "client": client}, time.perf_counter() - t0)
+
+
 def _values(spec, name):
     from .sweep import parse_values
 
@@ -47,14 +61,20 @@ def _sensitivity_args(p):
 
 
 def cmd_sensitivity(args, emit):
-    from . import regression, sobol
-    from .engine import write_table
-    from .sensitivity import LEVELS, sensitivity_rows, windows
+    from .sensitivity import LEVELS
 
     levels = QUICK_LEVELS if args.quick else LEVELS
     n_freq = 4 if args.quick else args.n_freq
     sobol_n = (4 if args.sobol_n else 0) if args.quick else args.sobol_n
-    kw = _engine_kw(args)
+    _with_engine(args, lambda kw, startup: _sensitivity(args, emit, levels, n_freq, sobol_n, kw,
+                                                         startup))
+
+
+def _sensitivity(args, emit, levels, n_freq, sobol_n, kw, startup):
+    from . import regression, sobol
+    from .engine import write_table
+    from .sensitivity import sensitivity_rows, windows
+
     t0 = time.perf_counter()
     rows = sensitivity_rows(levels, n_freq=n_freq, preset=args.preset, **kw)
     design_wall = time.perf_counter() - t0
@@ -63,6 +83,7 @@ def cmd_sensitivity(args, emit):
            "runs": len(rows), "design_runs": sum(r["phase"] == "design" for r in rows),
            "empty_windows": sum(w["window_hz"] is None for w in windows(rows)),
            "wall_time_s": design_wall, "workers": args.workers, "scheduler": args.scheduler,
+           "cluster_startup_s": startup,
            "table34": table, "table": str(write_table(rows, args.out))}
     sob = None
     if sobol_n:
@@ -103,11 +124,14 @@ def _engage_args(p):
 
 
 def cmd_engage(args, emit):
+    _with_engine(args, lambda kw, startup: _engage(args, emit, kw))
+
+
+def _engage(args, emit, kw):
     from .engage import (check_speed_statement, engage_map_rows, summarise_two,
                          two_actuator_rows)
     from .engine import write_table
 
-    kw = _engine_kw(args)
     t0 = time.perf_counter()
     mrows = engage_map_rows(_values(args.freqs, "freq"), args.stroke, _values(args.x0, "x0"),
                             _values(args.v0, "v0"), preset=args.preset, **kw)
