@@ -1,15 +1,18 @@
 """The ``microconveyor`` command line.
 
 Every subcommand accepts ``--json`` and then prints exactly one JSON object on stdout (SI units, keys
-with unit suffixes); human-readable text and progress bars go to stderr. Errors exit with status 2
-and, under ``--json``, print ``{"error": ...}``.
+with unit suffixes); human-readable text and progress bars go to stderr. Every error (a bad
+argument included) exits with status 2 and one line on stderr and, under ``--json``, prints one
+``{"error": ..., "error_type": ...}`` object on stdout; never a traceback.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
+import traceback
 
 from .physics.materials import ParameterError
 
@@ -25,7 +28,7 @@ def command(name, help_):
 
 def _emit(args, result: dict, human: str = "") -> None:
     if args.json:
-        print(json.dumps(result, indent=None, default=_json_default))
+        print(json.dumps(result, indent=None, default=_json_default, allow_nan=False))
     else:
         print(human or "\n".join(f"{k:32s} {v}" for k, v in result.items()))
 
@@ -40,6 +43,46 @@ def _json_default(o):
     raise TypeError(type(o))
 
 
+# ----------------------------------------------------------------------------- value parsing
+def _plot_path(text: str) -> str:
+    """``--plot`` value: a non-empty file name; without an extension ``.png`` is added (the
+    reported path is the one written); the extension must be a format matplotlib writes."""
+    from pathlib import Path
+
+    if not text.strip():
+        raise argparse.ArgumentTypeError("empty file name")
+    path = Path(text)
+    if text.endswith(("/", "\\")) or path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text!r} is a folder; give a file name")
+    if not path.suffix:
+        path = path.with_name(path.name + ".png")
+    fmt = path.suffix[1:].lower()
+    if fmt not in _plot_formats():
+        raise argparse.ArgumentTypeError(f"unsupported chart format {fmt!r}; use one of "
+                                         f"{', '.join(sorted(_plot_formats()))}")
+    return str(path)
+
+
+def _plot_formats() -> set:
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    return set(FigureCanvasBase.get_supported_filetypes())
+
+
+def _count(lo: int, hi: int | None = None):
+    """An integer option in [lo, hi] (hi None: the library checks the upper bound)."""
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if v < lo or (hi is not None and v > hi):
+            raise argparse.ArgumentTypeError(f"must be an integer in [{lo}, "
+                                             f"{'...' if hi is None else f'{hi:g}'}], got {v}")
+        return v
+    return parse
+
+
 def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--preset", default="seed", help="preset name (seed, ke) or YAML path")
@@ -47,7 +90,8 @@ def _common(p: argparse.ArgumentParser) -> None:
 
 # ----------------------------------------------------------------------------- contact
 def _contact_args(p):
-    p.add_argument("--plot", metavar="FILE.png", help="draw P, F_s, N and Q versus separation")
+    p.add_argument("--plot", metavar="FILE.png", type=_plot_path,
+                   help="draw P, F_s, N and Q versus separation")
     p.add_argument("--check-table", action="store_true",
                    help="also measure the table against direct quadrature")
 
@@ -94,9 +138,12 @@ def cmd_demo(args):
     table = ContactTable(preset.contact)
     charts = [plot_contact(table, out_dir / "contact.png", f"preset {preset.name}")]
     scene = Scene(preset=args.preset)
-    # the chart's firing with a 10x finer step than the default, so the curves are smooth
-    firing = Scene(preset=args.preset, sim_kw={"dt": 5e-6}).run(record=True)
-    charts.append(plot_firing(firing, scene.freq, out_dir / "firing.png"))
+    # the chart's firing with a 10x finer step than the default, so the curves are smooth; run
+    # once first so the reported wall time is the steady-state figure, not the numba compile
+    fine = Scene(preset=args.preset, sim_kw={"dt": 5e-6})
+    fine.run()
+    firing = fine.run(record=True)
+    charts.append(plot_firing(firing, scene.freq, out_dir / "firing.png", stroke=scene.stroke))
     freq = sweep(scene, "freq", parse_values("200:1500:25", "freq"), progress=True)
     charts.append(plot_sweep(freq, out_dir / "sweep.png"))
     episode = _demo_episode(out_dir / "episode.png")
@@ -114,12 +161,12 @@ def _demo_episode(path):
     """One MicroConveyor-v0 episode with a constant action (950 Hz, 200 um, no delay), rendered."""
     import gymnasium as gym
 
-    from .envs import task
+    from .envs import actions
     from .plots import save_frames
 
     env = gym.make("MicroConveyor-v0", render_mode="rgb_array")
     env.reset(seed=0, options={"target": 1e-3})
-    action = task.encode_actions(950.0, 200e-6, 0.0, env.unwrapped.config)
+    action = actions.encode_actions(950.0, 200e-6, 0.0, env.unwrapped.config)
     frames, total = [env.render()], 0.0
     while True:
         _, r, term, trunc, info = env.step(action)
@@ -150,7 +197,10 @@ def _scene_args(p, sweep=False):
     p.add_argument("--roughness", default="constant", choices=("constant", "stretch"),
                    help="stretch: sigma follows the strain of the active zone (physics.md §4)")
     p.add_argument("--dt", type=float, default=None, help="largest RK4 step [s]")
-    p.add_argument("--plot", metavar="FILE.png", help="write a chart")
+    p.add_argument("--max-steps", type=_count(1), default=None,
+                   help="refuse a firing needing more RK4 steps (default 1e7; raise it if you "
+                        "mean it)")
+    p.add_argument("--plot", metavar="FILE.png", type=_plot_path, help="write a chart")
 
 
 def _sim_kw(args) -> dict:
@@ -159,6 +209,8 @@ def _sim_kw(args) -> dict:
         kw["dt"] = args.dt
     if args.roughness != "constant":
         kw["roughness"] = args.roughness
+    if args.max_steps is not None:
+        kw["max_steps"] = args.max_steps
     return kw
 
 
@@ -178,7 +230,7 @@ def cmd_simulate(args):
     if args.plot:
         from .plots import plot_firing
 
-        out["plot"] = str(plot_firing(res, args.freq, args.plot))
+        out["plot"] = str(plot_firing(res, args.freq, args.plot, stroke=args.stroke))
     _emit(args, out)
 
 
@@ -197,10 +249,11 @@ def cmd_sweep(args):
     base = {}
     for k, v in given.items():
         if k != param:
-            base[k] = v if k == "profile" else float(v)
+            base[k] = v if k == "profile" else parse_values(v, k, 1)[0]
     scene = Scene(preset=args.preset, sim_kw=_sim_kw(args), **base)
-    values = parse_values(given[param], param)
-    res = sweep(scene, param, values, progress=not args.no_progress)
+    limit = {} if args.max_points is None else {"max_points": args.max_points}
+    values = parse_values(given[param], param, **limit)
+    res = sweep(scene, param, values, progress=not args.no_progress, **limit)
     keyed = {"freq": "freq_hz", "stroke": "stroke_m", "x0": "x0_m", "wavelength": "wavelength_m",
              "mass": "mass_kg", "sigma": "sigma_m", "dgamma": "dgamma_J_m2", "profile": "profile"}
     out = {"preset": args.preset,
@@ -224,6 +277,8 @@ def _sweep_text(res) -> str:
 def _sweep_args(p):
     _scene_args(p, sweep=True)
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    p.add_argument("--max-points", type=_count(1, 10 ** 9), default=None,
+                   help="refuse sweeps of more points (default 10000; raise it if you mean it)")
 
 
 @command("accuracy", "speed versus accuracy of the integrator settings (chart + default choice)")
@@ -274,31 +329,31 @@ def _episode_text(study) -> str:
 
 
 def _accuracy_args(p):
-    p.add_argument("--plot", metavar="FILE.png", help="write the chart")
-    p.add_argument("--repeats", type=int, default=30, help="timed repeats per setting")
+    p.add_argument("--plot", metavar="FILE.png", type=_plot_path, help="write the chart")
+    p.add_argument("--repeats", type=_count(1, 10_000), default=30,
+                   help="timed repeats per setting")
     p.add_argument("--episode", action="store_true",
                    help="whole MicroConveyor-v0 episodes (final position and outcome) instead of "
                         "the single seed firing")
-    p.add_argument("--per-category", type=int, default=60,
+    p.add_argument("--per-category", type=_count(1, 10_000), default=60,
                    help="--episode: episodes per category (4 categories)")
     p.add_argument("--seed", type=int, default=0, help="--episode: seed of the episode set")
 
 
 @command("bench", "kernel speed on the seed firing, against the dissertation-style loop")
 def cmd_bench(args):
-    from .studies.bench import bench_modes, load_reference
+    from .studies.bench import bench_modes
 
     out = {"modes": bench_modes(args.preset, repeats=args.repeats)}
-    ref_mod = load_reference()
-    if ref_mod is None or args.skip_reference:
+    if args.skip_reference:
         out["reference"] = None
-        out["reference_note"] = ("benchmarks/dissertation_reference.py not found (run from a "
-                                 "checkout)" if ref_mod is None else "skipped")
+        out["reference_note"] = "skipped"
     else:
         from .presets import load_preset
+        from .studies.reference_loop import converged_dt
 
         contact = load_preset(args.preset).contact
-        ref = ref_mod.converged_dt(contact)
+        ref = converged_dt(contact)
         out["reference"] = ref
         default = out["modes"]["event"]["median_wall_time_s"]
         out["speedup_vs_reference"] = ref["wall_time_s"] / default
@@ -306,7 +361,8 @@ def cmd_bench(args):
 
 
 def _bench_args(p):
-    p.add_argument("--repeats", type=int, default=500, help="timed repeats per mode")
+    p.add_argument("--repeats", type=_count(1, 1_000_000), default=500,
+                   help="timed repeats per mode")
     p.add_argument("--skip-reference", action="store_true",
                    help="do not run the (slow) plain-Python reference")
 
@@ -319,9 +375,18 @@ from .studies.cli_studies import register as _register_studies  # noqa: E402  (s
 _register_studies(command, _ARGS, _emit)
 
 
+class UsageError(ValueError):
+    """A command line argparse refused (raised instead of printing usage and exiting)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):
+        raise UsageError(f"{self.prog}: {message} (see --help)")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="microconveyor", description=__doc__.splitlines()[0])
-    sub = parser.add_subparsers(dest="command", required=True)
+    parser = _Parser(prog="microconveyor", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     for name, (fn, help_) in COMMANDS.items():
         p = sub.add_parser(name, help=help_, description=help_)
         _common(p)
@@ -330,16 +395,38 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+# Errors that user input can cause: reported in one line, never with a traceback.
+USER_ERRORS = (ParameterError, ValueError, RuntimeError, OSError, OverflowError, MemoryError,
+               RecursionError)
+
+
+def _fail(argv, command: str, exc: BaseException) -> int:
+    """The error contract: ``--json``: one ``{"error": ...}`` object on stdout; always one line on
+    stderr; exit status 2."""
+    expected = isinstance(exc, USER_ERRORS)
+    text = " ".join(str(exc).split()) or type(exc).__name__  # one line
+    if not expected:
+        text += " (internal error: please report it; MICROCONVEYOR_DEBUG=1 shows the traceback)"
+    msg = f"{type(exc).__name__}: {text}"
+    if any(a.startswith("--j") and "--json".startswith(a) for a in argv):  # argparse abbrevs
+        print(json.dumps({"error": msg, "error_type": type(exc).__name__}), flush=True)
+    print(f"microconveyor{' ' + command if command else ''}: {msg}", file=sys.stderr)
+    if not expected and os.environ.get("MICROCONVEYOR_DEBUG"):
+        traceback.print_exception(exc)
+    return 2
+
+
 def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    command = ""
     try:
+        args = build_parser().parse_args(argv)
+        command = args.command
         args.func(args)
-    except (ParameterError, ValueError, RuntimeError, OSError) as exc:
-        msg = f"{type(exc).__name__}: {exc}"
-        if getattr(args, "json", False):
-            print(json.dumps({"error": msg, "error_type": type(exc).__name__}))
-        print(f"microconveyor {args.command}: {msg}", file=sys.stderr)
-        return 2
+    except KeyboardInterrupt:
+        raise
+    except Exception as exc:  # noqa: BLE001 - the error contract covers every failure
+        return _fail(argv, command, exc)
     return 0
 
 

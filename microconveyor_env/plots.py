@@ -15,7 +15,7 @@ def _subplots(nrows: int = 1, ncols: int = 1, **kw):
 
 
 def plot_contact(table, path: str | Path, title: str = "") -> Path:
-    """Seed Fig. 3.11 / 3.15 analogues: P, F_s, N versus separation (pull-off marked), and Q."""
+    """The contact law of a preset: P, F_s, N versus separation (pull-off marked), and Q."""
     from .physics.rough_surface import surface_forces
 
     p = table.params
@@ -37,8 +37,8 @@ def plot_contact(table, path: str | Path, title: str = "") -> Path:
     ax1.axvspan(dn[0], dA, color="tab:green", alpha=0.06, label="stable branch")
     ax1.set_ylim(-2.0 * Fp * uN, 6.0 * Fp * uN)
     ax1.set_xlabel("separation d [nm]")
-    ax1.set_ylabel("force [uN]")
-    ax1.set_title("Load, adhesion and net load (cf. Fig. 3.11)")
+    ax1.set_ylabel("force [µN]")
+    ax1.set_title(f"load, adhesion and net load{' — ' + title if title else ''}")
     ax1.legend(fontsize=8)
     ax2.semilogy(dn, np.maximum(f["Q_N"], 1e-30), "tab:purple", label="max static friction Q")
     w = p.part.weight
@@ -48,7 +48,7 @@ def plot_contact(table, path: str | Path, title: str = "") -> Path:
     ax2.axvline(dA, color="r", ls="--", lw=0.8, label="pull-off separation")
     ax2.set_xlabel("separation d [nm]")
     ax2.set_ylabel("Q [N]")
-    ax2.set_title("Maximum static friction (cf. Fig. 3.15)")
+    ax2.set_title(f"maximum static friction{' — ' + title if title else ''}")
     ax2.legend(fontsize=8)
     if title:
         fig.suptitle(title)
@@ -56,15 +56,22 @@ def plot_contact(table, path: str | Path, title: str = "") -> Path:
 
 
 def _save(fig, path) -> Path:
+    """Write ``fig``; a name without an extension gets ``.png``. Returns the path written."""
     path = Path(path)
+    if not str(path).strip() or path.name in ("", ".", ".."):
+        raise ValueError(f"chart path {str(path)!r} is not a file name")
+    if not path.suffix:
+        path = path.with_name(path.name + ".png")
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
     return path
 
 
-def plot_firing(result, freq: float, path, delay: float = 0.0, title: str = "") -> Path:
-    """Seed Fig. 3.16 analogue: friction force and horizontal velocity versus time, with the
-    stroke's up and down phases shaded and stick intervals marked."""
+def plot_firing(result, freq: float, path, delay: float = 0.0, title: str = "",
+                stroke: float | None = None) -> Path:
+    """One firing: friction force, velocity, position and normal load versus time, with the
+    stroke's up and down phases shaded and stick intervals marked (``freq`` [Hz], ``stroke`` [m],
+    ``delay`` [s] before the stroke)."""
     tr = result.trajectory
     t_ms = tr["t_s"] * 1e3
     fig, (ax1, ax2, ax3) = _subplots(3, 1, figsize=(9, 7.5), sharex=True)
@@ -83,17 +90,20 @@ def plot_firing(result, freq: float, path, delay: float = 0.0, title: str = "") 
     ax2.set_ylabel("velocity dx/dt [mm/s]")
     ax2.legend(fontsize=8, loc="upper right")
     ax3.plot(t_ms, tr["x_m"] * 1e6, "tab:red", lw=1.2)
-    ax3.set_ylabel("part position x [um]", color="tab:red")
+    ax3.set_ylabel("part position x [µm]", color="tab:red")
     ax3.set_xlabel("time [ms]  (orange: stroke up, blue: stroke down)")
     ax4 = ax3.twinx()
     ax4.plot(t_ms, tr["N_N"] * 1e6, color="0.35", lw=0.9)
-    ax4.set_ylabel("normal load N [uN]", color="0.35")
-    ax1.set_title(title or f"one firing at {freq:g} Hz (cf. Fig. 3.16): outcome {result.outcome}")
+    ax4.set_ylabel("normal load N [µN]", color="0.35")
+    scene = f"{freq:g} Hz" + (f", {stroke * 1e6:g} µm stroke" if stroke else "") \
+        + f", start {result.x0_m * 1e3:g} mm from the actuator"
+    ax1.set_title(title or f"one firing ({scene}): {result.outcome}, travel "
+                           f"{result.displacement_m * 1e6:.0f} µm")
     return _save(fig, path)
 
 
 def plot_sweep(sweep: dict, path, title: str = "") -> Path:
-    """Seed Fig. 3.17 analogue: travel versus the swept parameter, detachment and window marked."""
+    """Travel versus the swept parameter, detachment and the feasible window marked."""
     vals = np.asarray(sweep["values"], dtype=object)
     fig, ax = _subplots(figsize=(8, 4.5))
     numeric = sweep["param"] != "profile"
@@ -110,72 +120,94 @@ def plot_sweep(sweep: dict, path, title: str = "") -> Path:
     if not numeric:
         ax.set_xticks(x, list(vals))
     ax.set_xlabel(f"{sweep['param']} [{sweep['unit']}]")
-    ax.set_ylabel("travel [um]")
-    ax.set_title(title or f"travel versus {sweep['param']} (cf. Fig. 3.17)")
+    ax.set_ylabel("travel [µm]")
+    ax.set_title(title or f"travel of one firing versus {sweep['param']}")
     ax.legend(fontsize=8)
     return _save(fig, path)
 
 
 def plot_accuracy(study: dict, path) -> Path:
     """Error of the final position versus wall time per firing, per mode and kinematics level."""
-    fig, ax = _subplots(figsize=(8, 5))
+    fig, ax = _subplots(figsize=(10, 5))
     styles = {("event", "seed"): "o-", ("karnopp", "seed"): "s-",
               ("event", "exact"): "o--", ("karnopp", "exact"): "s--"}
-    floor = 1e-12
-    for (mode, kin), st in styles.items():
+    floor = 1e-12  # m: errors below are drawn at the floor, marked with a downward triangle
+    clipped_any = False
+    for i, ((mode, kin), st) in enumerate(styles.items()):
         rows = [r for r in study["rows"] if r["mode"] == mode and r["kinematics"] == kin]
         if not rows:
             continue
         w = [r["wall_time_s"] * 1e6 for r in rows]
         e = [max(r["error_m"], floor) * 1e6 for r in rows]
-        ax.loglog(w, e, st, label=f"{mode}, {kin} kinematics")
-        for r, wi, ei in zip(rows, w, e):
-            ax.annotate(f"{r['dt_s']:.2g}", (wi, ei), fontsize=6, alpha=0.7)
-    ax.axhline(study["tolerance_m"] * 1e6, color="r", lw=0.8, ls=":", label="1 um tolerance")
+        line, = ax.loglog(w, e, st, label=f"{mode}, {kin} kinematics")
+        clipped = [(wi, ei) for r, wi, ei in zip(rows, w, e) if r["error_m"] < floor]
+        if clipped:
+            clipped_any = True
+            ax.plot(*zip(*clipped), "v", color=line.get_color(), ms=9, mfc="none")
+        for r, wi, ei in zip(rows, w, e):  # dt labels, offset per series so they do not overlap
+            ax.annotate(f"{r['dt_s']:.2g}", (wi, ei), fontsize=6, alpha=0.75,
+                        xytext=(4, 6 - 7 * i), textcoords="offset points", color=line.get_color())
+    if clipped_any:
+        ax.plot([], [], "kv", mfc="none", label=f"error below {floor * 1e6:g} µm (at the floor)")
+    ax.axhline(study["tolerance_m"] * 1e6, color="r", lw=0.8, ls=":",
+               label=f"tolerance {study['tolerance_m'] * 1e6:g} µm")
     d = study.get("default")
     if d:
         ax.plot([d["wall_time_s"] * 1e6], [max(d["error_m"], floor) * 1e6], "r*", ms=16,
                 label=f"default: {d['mode']}, dt = {d['dt_s']:g} s")
-    ax.set_xlabel("wall time per firing [us]  (labels: dt [s])")
-    ax.set_ylabel("|final position - converged| [um]")
-    ax.set_title(f"speed versus accuracy, seed firing {study['freq_hz']:g} Hz")
-    ax.legend(fontsize=8)
+    ax.set_xlabel("wall time per firing [µs]  (labels: dt [s])")
+    ax.set_ylabel("|final position − converged| [µm]")
+    ax.set_title(f"speed versus accuracy of one firing: {study['freq_hz']:g} Hz, "
+                 f"{study['stroke_m'] * 1e6:g} µm stroke, start {study['x0_m'] * 1e3:g} mm",
+                 fontsize=10)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     return _save(fig, path)
 
 
 def plot_episode_accuracy(study: dict, path) -> Path:
-    """Episode-level error (p95 and max of the final position) versus cost per episode."""
-    fig, ax = _subplots(figsize=(8.5, 5.5))
+    """Episode-level error (95th percentile and max of the final position) versus cost per episode
+    (RK4 steps: deterministic, unlike wall time on a shared machine)."""
+    fig, ax = _subplots(figsize=(10, 5.5))
     floor = 1e-10
-    for mode, colour in (("event", "C0"), ("karnopp", "C1")):
-        for ms, marker in zip((20, 32, 40, 48, 64), "osvD^"):
-            rows = [r for r in study["rows"] if r["mode"] == mode and r["min_steps"] == ms]
-            if not rows:
-                continue
-            w = [r["wall_per_episode_s"] * 1e6 for r in rows]
-            p95 = [max(r["p95_error_m"], floor) * 1e6 for r in rows]
-            ax.loglog(w, p95, marker + "-", color=colour, alpha=0.85,
-                      label=f"{mode}, >= {ms} steps/stroke: 95th percentile")
-            ax.loglog(w, [max(r["max_error_m"], floor) * 1e6 for r in rows], marker, color=colour,
-                      mfc="none", alpha=0.5)
-            for r, wi, ei in zip(rows, w, p95):
-                bad = r["outcome_disagreements"]
-                ax.annotate(f"{r['dt_s']:.2g}" + (f" ({bad} flips)" if bad else ""), (wi, ei),
-                            fontsize=6, alpha=0.7, xytext=(3, -8), textcoords="offset points")
+    rows = study["rows"]
+    series = [("event", dt) for dt in sorted({r["dt_s"] for r in rows if r["mode"] == "event"})]
+    series.append(("karnopp", None))
+    for i, (mode, dt) in enumerate(series):
+        sel = [r for r in rows if r["mode"] == mode and (dt is None or r["dt_s"] == dt)]
+        sel.sort(key=lambda r: r["rk4_steps_per_episode"])
+        x = [r["rk4_steps_per_episode"] for r in sel]
+        colour = "C1" if mode == "karnopp" else f"C{[0, 2, 4, 5, 6][i % 5]}"
+        label = (f"event, dt = {dt:g} s, >= 20 ... 64 steps/stroke" if mode == "event"
+                 else "karnopp, >= 20 steps/stroke, dt = 5e-5 ... 7.8e-7 s")
+        ax.loglog(x, [max(r["p95_error_m"], floor) * 1e6 for r in sel], "o-", color=colour,
+                  label=label)
+        ax.loglog(x, [max(r["max_error_m"], floor) * 1e6 for r in sel], "o", color=colour,
+                  mfc="none", alpha=0.6)
+        for r, xi in zip(sel, x):
+            note = f"{r['min_steps']}" if mode == "event" else f"{r['dt_s']:.2g} s"
+            if r["outcome_disagreements"]:
+                note += f", {r['outcome_disagreements']} outcome flips"
+            ax.annotate(note, (xi, max(r["p95_error_m"], floor) * 1e6), fontsize=6, alpha=0.8,
+                        xytext=(3, 4), textcoords="offset points")
     ax.axhline(study["error_bar_m"] * 1e6, color="r", lw=0.8, ls=":",
-               label=f"bar: tolerance / 10 = {study['error_bar_m'] * 1e6:g} µm")
-    for key, style, name in (("env_default", "r*", "env default"),
-                             ("recommended", "g*", "cheapest meeting the bar")):
+               label=f"bar: tolerance / 10 = {study['error_bar_m'] * 1e6:g} µm (95th percentile)")
+    former = next((r for r in rows if r["mode"] == "event" and r["dt_s"] == 5e-5
+                   and r["min_steps"] == 20), None)
+    marks = [("env_default", "r*", "env default"), ("recommended", "g+", "cheapest meeting the bar")]
+    for key, style, name in marks:
         d = study.get(key)
         if d:
-            ax.plot([d["wall_per_episode_s"] * 1e6], [max(d["p95_error_m"], floor) * 1e6], style,
-                    ms=15, label=f"{name}: {d['mode']}, dt = {d['dt_s']:g} s, "
-                                 f">= {d['min_steps']} steps/stroke")
-    ax.set_xlabel("wall time per episode [µs] (serial, this machine)  —  labels: dt [s]")
-    ax.set_ylabel("|final position − converged| [µm]  (open markers: max)")
-    ax.set_title(f"MicroConveyor-v0: episode-level accuracy, {study['episodes']} episodes "
-                 f"(reference: event, dt = {study['reference_dt_s']:g} s)", fontsize=10)
-    ax.legend(fontsize=7, loc="lower left")
+            ax.plot([d["rk4_steps_per_episode"]], [max(d["p95_error_m"], floor) * 1e6], style,
+                    ms=16, mew=2, label=f"{name}: {d['mode']}, dt = {d['dt_s']:g} s, "
+                                        f">= {d['min_steps']} steps/stroke")
+    if former:
+        ax.plot([former["rk4_steps_per_episode"]], [former["p95_error_m"] * 1e6], "kx", ms=12,
+                mew=2, label="former default settings (dt = 5e-5 s, >= 20 steps/stroke)")
+    ax.set_xlabel("cost: RK4 steps per episode (numbers at the points: steps/stroke, or dt)")
+    ax.set_ylabel("|final position − converged| [µm]\nfilled: 95th percentile, open: max")
+    ax.set_title(f"MicroConveyor-v0 episode-level accuracy: {study['episodes']} seeded episodes "
+                 f"vs event mode at dt = {study['reference_dt_s']:g} s", fontsize=10)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     return _save(fig, path)
 
 

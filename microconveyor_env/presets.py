@@ -37,23 +37,63 @@ def available_presets() -> list[str]:
     return sorted(p.name[:-5] for p in files.iterdir() if p.name.endswith(".yaml"))
 
 
+MAX_PRESET_BYTES = 100_000
+_DYNAMICS_KEYS = {"kinematics"}  # simulator defaults a preset may set
+_SECTIONS = ("materials", "surface", "part", "calibration", "dynamics")
+
+
+class _NoAliasLoader(yaml.SafeLoader):
+    """Safe YAML without anchors/aliases (an alias bomb would expand to gigabytes)."""
+
+    def compose_node(self, parent, index):
+        if self.check_event(yaml.AliasEvent):
+            event = self.peek_event()
+            raise yaml.composer.ComposerError(None, None, "YAML aliases (*name) are not allowed "
+                                              "in presets", event.start_mark)
+        return super().compose_node(parent, index)
+
+
+def parse_yaml(text: str, what: str):
+    """Safe-load ``text`` (no aliases, bounded size); PresetError with the position on failure."""
+    if len(text) > MAX_PRESET_BYTES:
+        raise PresetError(f"{what} is too large ({len(text)} bytes > {MAX_PRESET_BYTES})")
+    try:
+        return yaml.load(text, Loader=_NoAliasLoader)  # noqa: S506 - a SafeLoader subclass
+    except yaml.YAMLError as exc:
+        raise PresetError(f"{what} is not valid YAML: {' '.join(str(exc).split())}") from None
+    except RecursionError:
+        raise PresetError(f"{what} is nested too deeply") from None
+
+
 def _read(name_or_path: str) -> dict:
     p = Path(name_or_path)
     if p.suffix in (".yaml", ".yml") and p.exists():
-        text = p.read_text()
+        try:
+            text = p.read_text()
+        except (OSError, UnicodeDecodeError) as exc:
+            raise PresetError(f"preset {name_or_path!r} cannot be read: {exc}") from None
     else:
         res = resources.files("microconveyor_env.configs") / f"{name_or_path}.yaml"
-        if not res.is_file():
+        if "/" in str(name_or_path) or "\\" in str(name_or_path) or not res.is_file():
             raise PresetError(f"unknown preset {name_or_path!r}; available: "
                               f"{', '.join(available_presets())} (or a path to a .yaml file)")
         text = res.read_text()
-    data = yaml.safe_load(text)
+    data = parse_yaml(text, f"preset {name_or_path!r}")
     if not isinstance(data, dict):
         raise PresetError(f"preset {name_or_path!r} is not a YAML mapping")
     unknown = set(data) - _TOP_KEYS
     if unknown:
-        raise PresetError(f"preset {name_or_path!r}: unknown keys {sorted(unknown)}; "
+        raise PresetError(f"preset {name_or_path!r}: unknown keys {sorted(unknown, key=str)}; "
                           f"allowed {sorted(_TOP_KEYS)}")
+    for key in ("name", "description"):
+        if key in data and not isinstance(data[key], str):
+            raise PresetError(f"preset {name_or_path!r}: {key} must be text, got "
+                              f"{type(data[key]).__name__}")
+    for key in _SECTIONS:
+        raw = data.get(key)
+        if raw is not None and not (isinstance(raw, dict) and all(isinstance(k, str) for k in raw)):
+            raise PresetError(f"preset {name_or_path!r}: {key} must be a mapping of names to "
+                              f"values, got {type(raw).__name__}")
     return data
 
 
@@ -88,5 +128,9 @@ def load_preset(name_or_path: str = "seed") -> Preset:
         except TypeError as exc:
             raise ParameterError(f"calibration: {exc}") from None
         params, report = calibrate(params, target)
+    dynamics = dict(data.get("dynamics") or {})
+    if set(dynamics) - _DYNAMICS_KEYS:
+        raise PresetError(f"preset {name_or_path!r}: unknown dynamics keys "
+                          f"{sorted(set(dynamics) - _DYNAMICS_KEYS)}; allowed {sorted(_DYNAMICS_KEYS)}")
     return Preset(name=data.get("name", str(name_or_path)), description=data.get("description", ""),
-                  contact=params, calibration=report, dynamics=dict(data.get("dynamics") or {}))
+                  contact=params, calibration=report, dynamics=dynamics)

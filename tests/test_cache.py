@@ -1,5 +1,6 @@
 """On-disk cache of contact tables: keyed by inputs, atomic, corrupt files rebuilt."""
 import numpy as np
+import pytest
 
 from microconveyor_env.physics import contact_table as ct
 from microconveyor_env.physics.materials import ContactParams
@@ -64,3 +65,40 @@ def test_key_depends_on_quadrature_settings(monkeypatch):
     k = ct.table_key(p, 0.01, 1e4)
     monkeypatch.setattr(rough_surface, "GL_ORDER", rough_surface.GL_ORDER + 2)
     assert ct.table_key(p, 0.01, 1e4) != k
+
+
+def _tampered(arrays, how):
+    a = {k: np.array(v, copy=True) for k, v in arrays.items()}
+    if how == "negative-friction":
+        a["q"] = -a["q"]
+    elif how == "shuffled-loads":
+        a["n"] = a["n"][::-1].copy()
+    elif how == "u-not-sqrt-of-n":
+        a["u"] = a["u"] * 1.01
+    elif how == "moved-pull-off":
+        a["d_pull"] = a["d_pull"] + 0.5
+    elif how == "positive-n-min":
+        a["n_min"] = -a["n_min"]
+    elif how == "short-arrays":
+        a["q"] = a["q"][:-1]
+    elif how == "2-d":
+        a["q_u"] = np.stack([a["q_u"], a["q_u"]])
+    return a
+
+
+@pytest.mark.parametrize("how", ["negative-friction", "shuffled-loads", "u-not-sqrt-of-n",
+                                 "moved-pull-off", "positive-n-min", "short-arrays", "2-d"])
+def test_parseable_but_inconsistent_cache_is_rebuilt(monkeypatch, tmp_path, how):
+    """A table file that loads fine but could not have come from the builder is not trusted."""
+    _fresh(monkeypatch, tmp_path)
+    p = ContactParams()
+    good = ct.ContactTable(p, spacing=0.02)
+    path = next(tmp_path.glob("ke-table-*.npz"))
+    key = ct.table_key(p, 0.02, ct.DEFAULT_LOAD_RATIO)
+    assert ct._load_cached(path, key) is not None
+    np.savez(path, key=np.array(key), **_tampered(good.base.arrays(), how))
+    assert ct._load_cached(path, key) is None
+    monkeypatch.setattr(ct, "_MEMO", {})
+    rebuilt = ct.ContactTable(p, spacing=0.02)
+    np.testing.assert_array_equal(rebuilt.base.q, good.base.q)
+    assert ct._load_cached(path, key) is not None  # and the good table was written back

@@ -268,3 +268,25 @@ def test_friction_never_does_positive_work_on_still_flat_surface(mode):
     r0 = s.simulate(Schedule.sequence(ActuatorArray.uniform(3, 1e-3), 950.0, 0.0, 0.0), 0.0,
                     v0=0.1, record=True)
     assert np.all(np.diff(np.abs(r0.trajectory["v_m_s"])) <= 0)
+
+
+def test_recorded_coast_lies_on_the_parabola():
+    """A recorded firing carries the closed-form coast after the stroke as many points on the
+    parabola x = x_T + v_T tau - a tau^2 / 2 (a = Q(m g0) / m), up to the rest point; the chart
+    of a firing shows the coast as it is, not as a straight line between two points."""
+    s = sim()
+    r = s.simulate(Schedule.single(F_SEED, H), X0, record=True)
+    tr = r.trajectory
+    T = 1.0 / F_SEED
+    end = np.flatnonzero(np.isclose(tr["t_s"], T, rtol=0, atol=1e-15))[-1]
+    x_T, v_T = tr["x_m"][end], tr["v_m_s"][end]
+    after = tr["t_s"] > T
+    assert after.sum() >= 30 and v_T != 0.0
+    a = s.flat_deceleration() * np.sign(v_T)
+    tau = tr["t_s"][after] - T
+    np.testing.assert_allclose(tr["x_m"][after], x_T + v_T * tau - 0.5 * a * tau ** 2,
+                               rtol=0, atol=1e-12)
+    assert tr["t_s"][-1] == pytest.approx(r.rest_time_s, rel=1e-12)
+    assert tr["x_m"][-1] == r.final_position_m and tr["v_m_s"][-1] == 0.0
+    np.testing.assert_allclose(tr["F_N"][after][:-1], -np.sign(v_T) * s.flat_deceleration()
+                               * s.mass, rtol=1e-9)

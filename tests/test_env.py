@@ -9,7 +9,7 @@ import pytest
 
 import microconveyor_env
 from microconveyor_env.envs import EnvConfig, MicroConveyorEnv, MicroConveyorVectorEnv
-from microconveyor_env.envs import task
+from microconveyor_env.envs import actions, task
 
 # Warnings the checkers may legitimately raise for this env (none are expected today).
 WARNING_WHITELIST: tuple = ()
@@ -22,7 +22,7 @@ def _heuristic(env):
     e = env.unwrapped
     gap = abs(e.target - e.x)
     f = 700.0 if gap > 2e-3 else 400.0
-    return task.encode_actions(f, 180e-6, 0.0, cfg)
+    return actions.encode_actions(f, 180e-6, 0.0, cfg)
 
 
 def test_registered_and_idempotent():
@@ -52,7 +52,7 @@ def _rollout(env, seed, actions):
     out = [obs]
     for a in actions:
         obs, r, te, tr, info = env.step(a)
-        out.append((obs, r, te, tr, info["final_error_m"], info["outcome"]))
+        out.append((obs, r, te, tr, info["position_error_m"], info["outcome"]))
         if te or tr:
             obs, _ = env.reset()
             out.append(obs)
@@ -284,3 +284,23 @@ def test_sb3_adapter_truncation_seeding_and_reset_infos():
     for i in range(2):
         assert infos[i]["outcome"] == "max_time" and infos[i]["TimeLimit.truncated"] is True
         assert env.reset_infos[i]["outcome"] == "moving"
+        # the reset info of an autoreset carries the reset keys only (the vector env's masks),
+        # not the step-only keys with placeholder values
+        assert set(env.reset_infos[i]) == {"is_success", "position_error_m", "outcome",
+                                           "sim_time_s"}
+        assert infos[i]["frequency_hz"] > 0 and "terminal_observation" in infos[i]
+
+
+def test_success_is_decided_once_by_the_task():
+    """The env's is_success is the compiled task's verdict: at rest within tolerance."""
+    env = gym.make("MicroConveyor-v0", n_actuators=1).unwrapped
+    a = actions.encode_actions(950.0, 200e-6, 0.0, env.config)
+    env.reset(seed=0)
+    _, _, term, _, info = env.step(a)
+    x_end = env.x
+    for target, expected in ((x_end, True), (x_end + 0.9 * env.config.tolerance, True),
+                             (x_end + 1.1 * env.config.tolerance, False)):
+        env.reset(seed=0, options={"target": target})
+        _, _, term, _, info = env.step(a)
+        assert term and info["outcome"] == "rest" and info["is_success"] is expected
+        assert info["position_error_m"] == pytest.approx(x_end - target, abs=1e-15)

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from microconveyor_env.envs import EnvConfig, task
+from microconveyor_env.envs import EnvConfig, actions
 from microconveyor_env.physics.schedule import Schedule
 from microconveyor_env.studies.episodes import compare, episode_study, run_episodes
 
@@ -19,7 +19,7 @@ BAR = EnvConfig.from_yaml().tolerance / 10  # 5 um
 
 def _stored():
     cfg = EnvConfig.from_yaml()
-    acts = np.stack([task.encode_actions(e["frequency_hz"], e["stroke_m"], e["delay_s"], cfg)
+    acts = np.stack([actions.encode_actions(e["frequency_hz"], e["stroke_m"], e["delay_s"], cfg)
                      for e in DATA["episodes"]]).astype(np.float64)
     tail = np.array([e.get("tail", False) for e in DATA["episodes"]])
     return acts, tail

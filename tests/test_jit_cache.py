@@ -31,3 +31,37 @@ def test_digest_covers_every_compiled_module():
     for mod in (K, task, forces, kin):
         src = Path(mod.__file__).read_text()
         assert "refresh_jit_cache(globals())" in src, mod.__name__
+
+
+def test_every_compiled_module_is_in_the_digest():
+    """A module that calls refresh_jit_cache is listed in COMPILED_SOURCES (else an edit of it
+    would leave stale machine code in its callers' caches)."""
+    from microconveyor_env.physics.jit_cache import COMPILED_SOURCES
+
+    root = Path(K.__file__).resolve().parents[1]
+    calling = {str(p.relative_to(root)) for p in root.rglob("*.py")
+               if "refresh_jit_cache(globals())" in p.read_text()}
+    assert calling == set(COMPILED_SOURCES)
+
+
+def test_numba_private_caching_api_is_what_jit_cache_expects():
+    """jit_cache leans on numba's private caching internals (written against numba 0.68): if a
+    numba release changes them, this fails loudly here instead of silently disabling the cache
+    guard in a user's import."""
+    import numba
+    from numba.core import caching as nc
+
+    from microconveyor_env.physics.jit_cache import FallbackLocator, GuardedCache
+
+    assert hasattr(nc, "_SourceFileBackedLocatorMixin") and hasattr(nc, "_CacheLocator")
+    assert isinstance(nc.CacheImpl._locator_classes, list)
+    assert FallbackLocator in nc.CacheImpl._locator_classes, numba.__version__
+    for name in ("load_overload", "save_overload", "flush", "enable", "cache_path"):
+        assert hasattr(nc.FunctionCache, name), (name, numba.__version__)
+    cache = K.run._cache
+    assert isinstance(cache, GuardedCache), (type(cache), numba.__version__)
+    inner = cache._inner
+    files = inner._cache_file
+    assert Path(files._index_path).name.endswith(".nbi")
+    assert "{number:d}" in files._data_name_pattern
+    assert getattr(inner._impl, "locator", None) is not None

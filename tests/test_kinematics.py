@@ -7,8 +7,10 @@ import pytest
 from scipy.integrate import IntegrationWarning, quad
 
 from microconveyor_env.physics import kinematics as km
+from microconveyor_env.physics.dynamics_kernel import TAU_UNLOAD
+from microconveyor_env.physics.simulator import PEAK_QUINTIC_ACCEL
 from microconveyor_env.physics.kinematics import (
-    CLAMPED_BEAM, GAUSSIAN, SHAPES, SINUSOIDAL, shape_eval, stroke_duration, stroke_eval,
+    CLAMPED_BEAM, GAUSSIAN, SHAPES, SINUSOIDAL, shape_eval, stroke_eval,
     surface_eval, surface_profile, zone_strain,
 )
 
@@ -33,9 +35,21 @@ def smooth_points(kind, wl, n=401, span=0.7, gap=1e-3):
 
 
 # ---------------------------------------------------------------------------------------- shapes
-def test_shape_codes():
-    assert (GAUSSIAN, SINUSOIDAL, CLAMPED_BEAM) == (0, 1, 2)
-    assert SHAPES == {"gaussian": 0, "sinusoidal": 1, "clamped_beam": 2}
+def test_shape_names_select_their_shapes():
+    """Each name in SHAPES selects the shape it names: the compiled shape_eval of its code
+    equals the plain-numpy profile of the name and has that shape's signature values."""
+    assert len(set(SHAPES.values())) == len(SHAPES)
+    wl = 0.6e-3
+    u = np.linspace(-0.7 * wl, 0.7 * wl, 57)
+    for name, code in SHAPES.items():
+        g = np.array([shape_eval(code, ui, wl)[0] for ui in u])
+        np.testing.assert_allclose(g, surface_profile(u, 1.0, name, wl), rtol=1e-13, atol=1e-15)
+    at_edge = {k: shape_eval(c, 0.5 * wl, wl)[0] for k, c in SHAPES.items()}
+    assert at_edge["gaussian"] == pytest.approx(math.exp(-4.5), rel=1e-13)  # s = wl/6
+    assert at_edge["sinusoidal"] == at_edge["clamped_beam"] == 0.0
+    quarter = {k: shape_eval(c, 0.25 * wl, wl)[0] for k, c in SHAPES.items()}
+    assert quarter["sinusoidal"] == pytest.approx(0.5, rel=1e-13)   # (1 + cos(pi/2)) / 2
+    assert quarter["clamped_beam"] == pytest.approx(0.5, rel=1e-13)  # 4 (l/4)^2 (2 l) / l^3
 
 
 @pytest.mark.parametrize("wl", WLS)
@@ -147,8 +161,7 @@ def stroke_arrays(t, f, h):
 
 @pytest.mark.parametrize("f", FREQS)
 def test_stroke_end_points(f):
-    T = stroke_duration(f)
-    assert T == 1.0 / f
+    T = 1.0 / f
     half = T / 2
     vs, as_ = H / half, H / half**2                  # velocity and acceleration scales
     for t, p_expected in ((0.0, 0.0), (half, H), (T, 0.0)):
@@ -157,6 +170,7 @@ def test_stroke_end_points(f):
         assert abs(p_t) <= 1e-14 * vs and abs(p_tt) <= 1e-14 * as_
     for t in (-1e-12, -1.0, T * (1 + 1e-9), 10 * T):
         assert stroke_eval(t, f, H) == (0.0, 0.0, 0.0)
+    assert stroke_eval(T * (1 - 1e-3), f, H)[0] > 0.0  # the stroke lasts exactly 1/f
 
 
 @pytest.mark.parametrize("f", FREQS)
@@ -189,8 +203,7 @@ def test_stroke_derivatives_match_finite_differences(f):
 def test_stroke_peak_acceleration(f):
     T = 1.0 / f
     half = T / 2
-    expected = 10 / math.sqrt(3) * H / half**2
-    assert 10 / math.sqrt(3) == pytest.approx(5.7735, abs=1e-4)
+    expected = PEAK_QUINTIC_ACCEL * H / half**2  # the simulator's table-range check uses it
     t = np.linspace(0.0, T, 200_001)
     acc = stroke_arrays(t, f, H)[2]
     assert np.abs(acc).max() == pytest.approx(expected, rel=1e-8)
@@ -198,6 +211,9 @@ def test_stroke_peak_acceleration(f):
     for tau, sign in (((1 - 1 / math.sqrt(3)) / 2, 1), ((1 + 1 / math.sqrt(3)) / 2, -1)):
         assert stroke_eval(tau * half, f, H)[2] == pytest.approx(sign * expected, rel=1e-12)
         assert stroke_eval(T - tau * half, f, H)[2] == pytest.approx(sign * expected, rel=1e-12)
+    # the event mode's extra grid nodes sit exactly at the downward peaks
+    assert stroke_eval(TAU_UNLOAD * half, f, H)[2] == pytest.approx(-expected, rel=1e-12)
+    assert stroke_eval(T - TAU_UNLOAD * half, f, H)[2] == pytest.approx(-expected, rel=1e-12)
 
 
 # --------------------------------------------------------------------------------------- surface

@@ -3,23 +3,29 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 from dataclasses import dataclass
 from importlib import resources
 
-import yaml
-
 from ..physics.kinematics import SHAPES
 from ..physics.materials import ParameterError, check_range
+from ..physics.simulator import MAX_STEPS, MIN_DT, MIN_WAVELENGTH, \
+    check_max_steps, check_step_budget
+from .task import LENGTH_SCALE, OBS_BOUND
 
+# Position error and target are observed / LENGTH_SCALE, clipped to +-OBS_BOUND: targets beyond
+# this distance could not be seen.
+MAX_TARGET = OBS_BOUND * LENGTH_SCALE  # m
+MIN_LENGTH = 1e-9  # m: below it, |x - target| / tolerance overflows (NaN rewards)
 _RANGES = {  # field -> (lo, hi, lo_open, unit)
-    "spacing": (0.0, 1.0, True, "m"), "wavelength": (0.0, 1.0, True, "m"),
+    "spacing": (1e-6, 1.0, False, "m"), "wavelength": (MIN_WAVELENGTH, 1.0, False, "m"),
     "start_offset": (0.0, 1.0, False, "m"), "start_jitter": (0.0, 1.0, False, "m"),
-    "tolerance": (0.0, 1.0, True, "m"),
+    "tolerance": (MIN_LENGTH, 1.0, False, "m"),
     "time_cost": (0.0, 1e6, False, "1/s"), "success_bonus": (0.0, 1e6, False, "-"),
-    "detach_penalty": (0.0, 1e6, False, "-"), "max_time": (0.0, 1e6, True, "s"),
-    "dt": (0.0, 1.0, True, "s"),
+    "detach_penalty": (0.0, 1e6, False, "-"), "max_time": (1e-6, 1e6, False, "s"),
+    "dt": (MIN_DT, 1.0, False, "s"),
 }
-_PAIRS = {"target_range": (0.0, 1.0, "m"), "freq_range": (0.0, 1e6, "Hz"),
+_PAIRS = {"target_range": (0.0, MAX_TARGET, "m"), "freq_range": (0.0, 1e6, "Hz"),
           "stroke_range": (0.0, 1e-2, "m"), "delay_range": (0.0, 1e4, "s")}
 
 
@@ -49,6 +55,7 @@ class EnvConfig:
     dt: float = 1e-4
     min_steps: int = 48  # floor on RK4 steps per stroke
     num_threads: int | None = None  # batched env only; None: the measured rule (envs/vector.py)
+    max_steps: int = MAX_STEPS
 
     def __post_init__(self):
         for name, (lo, hi, lo_open, unit) in _RANGES.items():
@@ -57,13 +64,14 @@ class EnvConfig:
         if self.progress_scale is None:
             object.__setattr__(self, "progress_scale", self.tolerance)
         object.__setattr__(self, "progress_scale", check_range(
-            "EnvConfig", "progress_scale", self.progress_scale, 0.0, 1.0, True, unit="m"))
+            "EnvConfig", "progress_scale", self.progress_scale, MIN_LENGTH, 1.0, unit="m"))
         if self.start_jitter > self.start_offset:
             raise ParameterError(f"EnvConfig.start_jitter = {self.start_jitter!r} is invalid: must "
                                  f"be <= start_offset ({self.start_offset!r} m) so the part starts "
                                  "upstream of actuator 1")
         n = self.n_actuators
-        if isinstance(n, bool) or not isinstance(n, (int, float)) or n != int(n) or not 1 <= n <= 1000:
+        if (isinstance(n, bool) or not isinstance(n, numbers.Real) or not math.isfinite(n)
+                or n != int(n) or not 1 <= n <= 1000):
             raise ParameterError(f"EnvConfig.n_actuators = {n!r} is invalid: must be an integer "
                                  "in [1, 1000]")
         object.__setattr__(self, "n_actuators", int(n))
@@ -92,6 +100,11 @@ class EnvConfig:
         if self.freq_range[0] <= 0:
             raise ParameterError(f"EnvConfig.freq_range = {self.freq_range!r} is invalid: "
                                  "frequencies must be > 0 Hz")
+        object.__setattr__(self, "max_steps", check_max_steps("EnvConfig", self.max_steps))
+        # the slowest strokes of a whole episode must fit the step budget
+        check_step_budget("EnvConfig (dt, freq_range, n_actuators)",
+                          [self.freq_range[0]] * self.n_actuators, self.dt,
+                          self.min_steps, self.max_steps, self.max_time)
         for name, allowed in (("shape", tuple(SHAPES)), ("mode", ("event", "karnopp")),
                               ("kinematics", ("seed", "exact"))):
             if getattr(self, name) not in allowed:
@@ -101,12 +114,17 @@ class EnvConfig:
     @classmethod
     def from_yaml(cls, path: str | None = None, **overrides) -> "EnvConfig":
         """Defaults from ``configs/envs/MicroConveyor-v0.yaml`` (or ``path``), then ``overrides``."""
+        from ..presets import parse_yaml
+
         if path is None:
             text = (resources.files("microconveyor_env.configs") / "envs" / "MicroConveyor-v0.yaml").read_text()
         else:
             with open(path) as fh:
                 text = fh.read()
-        data = yaml.safe_load(text) or {}
+        data = parse_yaml(text, f"env config {path or 'defaults'}") or {}
+        if not isinstance(data, dict):
+            raise ParameterError(f"env config {path!r} is not a YAML mapping")
+        data = dict(data)
         data.update(overrides)
         known = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(data) - known)

@@ -1,6 +1,9 @@
 """MicroConveyor-v0: carry a micropart to a target with a linear array of micro-actuators."""
 from __future__ import annotations
 
+import math
+import numbers
+
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
@@ -9,7 +12,7 @@ from ..physics import dynamics_kernel as K
 from ..physics.contact_table import TableRangeError
 from ..physics.materials import ParameterError
 from ..physics.simulator import Simulator
-from . import task
+from . import actions, step as kstep, task
 from .config import EnvConfig
 
 
@@ -18,7 +21,7 @@ def make_simulator(cfg: EnvConfig) -> Simulator:
     beyond the contact table (checked once here, so steps never need to)."""
     sim = Simulator(cfg.preset, shape=cfg.shape, wavelength=cfg.wavelength,
                     kinematics=cfg.kinematics, mode=cfg.mode, dt=cfg.dt, max_time=cfg.max_time,
-                    min_steps=cfg.min_steps)
+                    min_steps=cfg.min_steps, max_steps=cfg.max_steps)
     try:
         sim.check_firings(np.array([cfg.freq_range[1]]), np.array([cfg.stroke_range[1]]))
     except TableRangeError as exc:
@@ -28,12 +31,21 @@ def make_simulator(cfg: EnvConfig) -> Simulator:
 
 def check_target(target) -> float:
     """A target from ``reset(options=...)`` [m]: finite and where the observation can show it."""
-    t = float(target)
     limit = task.OBS_BOUND * task.LENGTH_SCALE
+    numeric = isinstance(target, (numbers.Real, np.floating, np.integer)) and not isinstance(
+        target, (bool, np.bool_))
+    t = float(target) if numeric else math.nan
     if not (np.isfinite(t) and abs(t) <= limit):
         raise ValueError(f"options['target'] = {target!r} is invalid: must be a finite distance "
                          f"beyond actuator 1 within +-{limit:g} m")
     return t
+
+
+def check_render_mode(render_mode, supported) -> None:
+    if render_mode is not None and render_mode not in supported:
+        raise ValueError(f"render_mode {render_mode!r} not supported; use None or one of "
+                         f"{list(supported)} (for a window, wrap an rgb_array env in "
+                         "gymnasium.wrappers.HumanRendering)")
 
 
 def raise_if_beyond_table(outcome: str, sim: Simulator) -> None:
@@ -60,7 +72,8 @@ class MicroConveyorEnv(gym.Env):
     | 1 | stroke height h [m] | linear onto ``stroke_range`` (100–200 µm) |
     | 2 | delay before the stroke [s] | linear onto ``delay_range`` (0–0.1 s) |
 
-    Out-of-range actions are **clipped** to [-1, 1]; NaN or inf raise ``ValueError``.
+    Out-of-range actions are **clipped** to [-1, 1]; NaN or inf, a shape other than ``(3,)`` or a
+    non-numeric dtype raise ``ValueError``.
 
     ## Observation space: ``Box(-10, 10, (6,), float32)`` (values clipped to the bounds)
 
@@ -80,7 +93,7 @@ class MicroConveyorEnv(gym.Env):
     ## Episode end
     ``terminated``: at rest after the last firing, or detachment. ``truncated``: the simulated
     time limit ``max_time`` (or an unresolved stick–slip chatter, reported in ``info["outcome"]``).
-    ``info``: ``is_success``, ``final_error_m`` (signed x − target), ``outcome``
+    ``info``: ``is_success``, ``position_error_m`` (signed x − target, now), ``outcome``
     (``moving``/``rest``/``detached``/``max_time``/``too_many_events``), ``sim_time_s``,
     ``frequency_hz``, ``stroke_m``, ``delay_s`` (the decoded action).
 
@@ -96,19 +109,19 @@ class MicroConveyorEnv(gym.Env):
     def __init__(self, render_mode: str | None = None, config: EnvConfig | None = None, **kwargs):
         if config is not None and kwargs:
             raise ValueError("give either config= or keyword overrides, not both")
+        if config is not None and not isinstance(config, EnvConfig):
+            raise ValueError(f"config must be an EnvConfig, got {type(config).__name__}")
         self.config = config or EnvConfig.from_yaml(**kwargs)
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode {render_mode!r} not supported; use one of "
-                             f"{self.metadata['render_modes']}")
+        check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
         self.sim = make_simulator(self.config)
         self.positions = np.asarray(self.config.actuator_positions, dtype=np.float64)
-        self.action_space = spaces.Box(-1.0, 1.0, (3,), np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, (actions.ACTION_DIM,), np.float32)
         self.observation_space = spaces.Box(-task.OBS_BOUND, task.OBS_BOUND, (task.OBS_DIM,),
                                             np.float32)
-        self._C = task.constants(self.config, self.sim.dt, self.sim.min_steps)
+        self._AC, self._TC = actions.constants(self.config), task.constants(self.config)
         self._kout = np.zeros((1, K.N_OUT))
-        self._res = np.zeros((1, task.N_S))
+        self._res = np.zeros((1, kstep.N_S))
         self._obs_buf = np.zeros((1, task.OBS_DIM), dtype=np.float32)
         self._active = np.ones(1, dtype=np.bool_)
         self._x, self._v, self._t = np.zeros(1), np.zeros(1), np.zeros(1)
@@ -127,40 +140,37 @@ class MicroConveyorEnv(gym.Env):
     # ------------------------------------------------------------------ API
     def reset(self, *, seed=None, options=None):
         super().reset(seed=seed)
-        cfg = self.config
-        jitter = self.np_random.uniform(-1.0, 1.0) * cfg.start_jitter if cfg.start_jitter else 0.0
-        target = self.np_random.uniform(*cfg.target_range)
-        if options and "target" in options:
-            target = check_target(options["target"])
-        self._x[0], self._v[0], self._t[0] = -cfg.start_offset + jitter, 0.0, 0.0
+        given = check_target(options["target"]) if options and "target" in options else None
+        x0, target = task.initial_state(self.config, self.np_random, given)
+        self._x[0], self._v[0], self._t[0] = x0, 0.0, 0.0
         self._fired[0] = 0
         self._target[0] = target
         self._done = False
         self._last_firing = None
-        task.observe_all(self._x, self._v, self._t, self._fired, self._target, self._C,
-                         self.positions, self._obs_buf)
-        return self._obs_buf[0].copy(), self._info("moving")
+        kstep.observe_all(self._x, self._v, self._t, self._fired, self._target, self._TC,
+                          self.positions, self._obs_buf)
+        return self._obs_buf[0].copy(), self._info("moving", False)
 
     def step(self, action):
         if self._done:
             raise RuntimeError("step() called on a finished episode: call reset() first")
-        a = task.check_actions(action, 1)
+        a = actions.check_actions(action, None)
         xa = float(self.positions[self.fired])
-        task.step_serial(a, self._x, self._v, self._t, self._fired, self._target, self._active,
-                         self._C, self.positions, self.sim.params, *self.sim.tables,
-                         task.NO_RECORD, self._kout,
-                         self._res, self._obs_buf)
+        kstep.step_serial(a, self._x, self._v, self._t, self._fired, self._target, self._active,
+                          self._AC, self._TC, self.sim.dt, self.sim.min_steps, self.positions,
+                          self.sim.params, *self.sim.tables, kstep.NO_RECORD, self._kout,
+                          self._res, self._obs_buf)
         res = self._res[0]
-        outcome = K.OUTCOMES[int(res[task.S_OUTCOME])]
+        outcome = K.OUTCOMES[int(res[kstep.S_OUTCOME])]
         raise_if_beyond_table(outcome, self.sim)
         terminated = outcome in ("rest", "detached")
         truncated = outcome in ("max_time", "too_many_events")
         self._done = terminated or truncated
-        f, h, d = float(res[task.S_F]), float(res[task.S_H]), float(res[task.S_D])
+        f, h, d = float(res[kstep.S_F]), float(res[kstep.S_H]), float(res[kstep.S_D])
         self._last_firing = (xa, f, h, d)
-        info = self._info(outcome)
+        info = self._info(outcome, bool(res[kstep.S_SUCCESS]))
         info["frequency_hz"], info["stroke_m"], info["delay_s"] = f, h, d
-        return (self._obs_buf[0].copy(), float(res[task.S_REWARD]), terminated, truncated, info)
+        return (self._obs_buf[0].copy(), float(res[kstep.S_REWARD]), terminated, truncated, info)
 
     def render(self):
         if self.render_mode != "rgb_array":
@@ -171,7 +181,6 @@ class MicroConveyorEnv(gym.Env):
                             self.t)
 
     # ------------------------------------------------------------------ helpers
-    def _info(self, outcome: str) -> dict:
-        success = (outcome == "rest" and abs(self.x - self.target) <= self.config.tolerance)
-        return {"is_success": bool(success), "final_error_m": float(self.x - self.target),
+    def _info(self, outcome: str, success: bool) -> dict:
+        return {"is_success": success, "position_error_m": float(self.x - self.target),
                 "outcome": outcome, "sim_time_s": float(self.t)}

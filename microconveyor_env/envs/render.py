@@ -25,7 +25,7 @@ def render_frame(cfg, x, target, fired, last_firing, t, size=(8.0, 3.0), dpi=80)
     if last_firing is not None:
         xa, f, h, d = last_firing
         ax.plot(xs * 1e3, surface_profile(xs, h, cfg.shape, cfg.wavelength, xa) * 1e6, "--",
-                color="tab:orange", lw=1, label=f"last stroke peak ({f:.0f} Hz, {h * 1e6:.0f} um)")
+                color="tab:orange", lw=1, label=f"last stroke peak ({f:.0f} Hz, {h * 1e6:.0f} µm)")
     for i, p in enumerate(pos):
         ax.plot([p * 1e3], [-25], marker="^", ms=10, color="tab:blue" if i >= fired else "0.6")
     ax.axvspan((target - cfg.tolerance) * 1e3, (target + cfg.tolerance) * 1e3, color="tab:green",
@@ -35,9 +35,9 @@ def render_frame(cfg, x, target, fired, last_firing, t, size=(8.0, 3.0), dpi=80)
     ax.set_xlim(lo * 1e3, hi * 1e3)
     ax.set_ylim(-60, 260)
     ax.set_xlabel("x [mm]")
-    ax.set_ylabel("height [um]")
+    ax.set_ylabel("height [µm]")
     ax.set_title(f"t = {t * 1e3:.2f} ms, fired {fired}/{cfg.n_actuators}, "
-                 f"error {abs(x - target) * 1e6:.0f} um", fontsize=9)
+                 f"error {abs(x - target) * 1e6:.0f} µm", fontsize=9)
     ax.legend(fontsize=7, loc="upper right")
     fig.tight_layout()
     canvas.draw()

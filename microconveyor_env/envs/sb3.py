@@ -14,7 +14,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
 from .vector import MicroConveyorVectorEnv
 
-_SCALAR_INFO = ("is_success", "final_error_m", "outcome", "sim_time_s", "frequency_hz",
+_SCALAR_INFO = ("is_success", "position_error_m", "outcome", "sim_time_s", "frequency_hz",
                 "stroke_m", "delay_s")
 
 
@@ -52,7 +52,7 @@ class MicroConveyorSB3VecEnv(VecEnv):
         out = self._split(infos)
         for i in np.flatnonzero(dones):
             self.reset_infos[i] = out[i]  # top-level rows of finished envs hold the reset info
-            out[i] = {k: _py(src[k][i]) for k in _SCALAR_INFO if k in src}
+            out[i] = {k: _py(src[k][i]) for k in _SCALAR_INFO if k in src and src["_" + k][i]}
             out[i]["terminal_observation"] = infos["final_obs"][i]
             out[i]["TimeLimit.truncated"] = bool(trunc[i] and not term[i])
         return obs, rew.astype(np.float32), dones, out
@@ -70,7 +70,8 @@ class MicroConveyorSB3VecEnv(VecEnv):
         return {"target": np.array([o["target"] for o in opts], dtype=float)}
 
     def _split(self, infos) -> list:
-        return [{k: _py(infos[k][i]) for k in _SCALAR_INFO if k in infos}
+        """Per-env info dicts with the keys the batched env's masks (``_key``) mark present."""
+        return [{k: _py(infos[k][i]) for k in _SCALAR_INFO if k in infos and infos["_" + k][i]}
                 for i in range(self.num_envs)]
 
     def close(self) -> None:

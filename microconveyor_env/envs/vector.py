@@ -12,10 +12,12 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from ..physics import dynamics_kernel as K
-from . import task
+from . import actions as act, step as kstep, task
 from .config import EnvConfig
-from .conveyor import check_target, make_simulator, raise_if_beyond_table
+from .conveyor import check_render_mode, check_target, make_simulator, raise_if_beyond_table
 from .threads import ThreadChooser, threads
+
+MAX_ENVS = 1_000_000  # parts in one batch (each costs ~1 kB of state)
 
 
 class MicroConveyorVectorEnv(VectorEnv):
@@ -37,20 +39,25 @@ class MicroConveyorVectorEnv(VectorEnv):
     def __init__(self, num_envs: int = 1, render_mode: str | None = None,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
                  config: EnvConfig | None = None, **kwargs):
-        if int(num_envs) < 1:
-            raise ValueError(f"num_envs = {num_envs!r} must be >= 1")
+        if (isinstance(num_envs, bool) or not isinstance(num_envs, numbers.Integral)
+                or not 1 <= num_envs <= MAX_ENVS):
+            raise ValueError(f"num_envs = {num_envs!r} is invalid: must be an integer in "
+                             f"[1, {MAX_ENVS}]")
+        check_render_mode(render_mode, self.metadata["render_modes"])
         self.autoreset_mode = AutoresetMode(autoreset_mode)
         if self.autoreset_mode == AutoresetMode.DISABLED:
             raise ValueError("autoreset_mode DISABLED is not supported; use NEXT_STEP or SAME_STEP")
         self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
         if config is not None and kwargs:
             raise ValueError("give either config= or keyword overrides, not both")
+        if config is not None and not isinstance(config, EnvConfig):
+            raise ValueError(f"config must be an EnvConfig, got {type(config).__name__}")
         self.config = config or EnvConfig.from_yaml(**kwargs)
         self.num_envs = n = int(num_envs)
         self.render_mode = render_mode
         self.sim = make_simulator(self.config)
         self.positions = np.asarray(self.config.actuator_positions, dtype=np.float64)
-        self.single_action_space = spaces.Box(-1.0, 1.0, (3,), np.float32)
+        self.single_action_space = spaces.Box(-1.0, 1.0, (act.ACTION_DIM,), np.float32)
         self.single_observation_space = spaces.Box(-task.OBS_BOUND, task.OBS_BOUND,
                                                    (task.OBS_DIM,), np.float32)
         self.action_space = batch_space(self.single_action_space, n)
@@ -60,23 +67,21 @@ class MicroConveyorVectorEnv(VectorEnv):
         self.fired = np.zeros(n, dtype=np.int64)
         self.done = np.zeros(n, dtype=bool)
         self.rngs = [seeding.np_random(None)[0] for _ in range(n)]
-        self._C = task.constants(self.config, self.sim.dt, self.sim.min_steps)
+        self._AC, self._TC = act.constants(self.config), task.constants(self.config)
         self._kout = np.zeros((n, K.N_OUT))
-        self._res = np.zeros((n, task.N_S))
+        self._res = np.zeros((n, kstep.N_S))
         self._obs_buf = np.zeros((n, task.OBS_DIM), dtype=np.float32)
         self.threads = ThreadChooser(self.config.num_threads, n)
         self._started = False
 
     # ------------------------------------------------------------------ resets
     def _reset_one(self, i: int, options: dict | None) -> None:
-        cfg = self.config
-        rng = self.rngs[i]
-        jitter = rng.uniform(-1.0, 1.0) * cfg.start_jitter if cfg.start_jitter else 0.0
-        target = rng.uniform(*cfg.target_range)
+        given = None
         if options and "target" in options:
             tv = np.broadcast_to(np.asarray(options["target"], dtype=float), (self.num_envs,))
-            target = check_target(tv[i])
-        self.x[i], self.v[i], self.t[i] = -cfg.start_offset + jitter, 0.0, 0.0
+            given = check_target(tv[i])
+        x0, target = task.initial_state(self.config, self.rngs[i], given)
+        self.x[i], self.v[i], self.t[i] = x0, 0.0, 0.0
         self.fired[i] = 0
         self.target[i] = target
         self.done[i] = False
@@ -91,13 +96,13 @@ class MicroConveyorVectorEnv(VectorEnv):
         for i in range(self.num_envs):
             self._reset_one(i, options)
         self._started = True
-        return self._obs(), self._infos(np.full(self.num_envs, "moving", dtype=object))
+        return self._obs(), self._reset_infos()
 
     # ------------------------------------------------------------------ step
     def step(self, actions):
         if not self._started:
             raise RuntimeError("call reset() before step()")
-        a = task.check_actions(actions, self.num_envs)
+        a = act.check_actions(actions, self.num_envs)
         n = self.num_envs
         resetting = self.done.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP else \
             np.zeros(n, dtype=bool)
@@ -105,29 +110,31 @@ class MicroConveyorVectorEnv(VectorEnv):
             self._reset_one(i, None)
         active = ~resetting
         self._res[resetting] = 0.0
-        self._res[resetting, task.S_OUTCOME] = K.MOVING
-        args = (a, self.x, self.v, self.t, self.fired, self.target, active, self._C,
-                self.positions, self.sim.params, *self.sim.tables, task.NO_RECORD, self._kout,
-                self._res, self._obs_buf)
+        self._res[resetting, kstep.S_OUTCOME] = K.MOVING
+        args = (a, self.x, self.v, self.t, self.fired, self.target, active, self._AC, self._TC,
+                self.sim.dt, self.sim.min_steps, self.positions, self.sim.params, *self.sim.tables,
+                kstep.NO_RECORD, self._kout, self._res, self._obs_buf)
         k = self.threads.choose()
         t0 = time.perf_counter()
         if k == 1:
-            task.step_serial(*args)
+            kstep.step_serial(*args)
         else:
             with threads(k):
-                task.step_parallel(*args)
+                kstep.step_parallel(*args)
         self.threads.record(k, time.perf_counter() - t0, int(active.sum()))
         res = self._res
-        codes = res[:, task.S_OUTCOME].astype(np.int64)
+        codes = res[:, kstep.S_OUTCOME].astype(np.int64)
         if (codes == K.BEYOND_TABLE).any():
             raise_if_beyond_table("load_beyond_table", self.sim)
         terminated = active & ((codes == K.REST) | (codes == K.DETACHED))
         truncated = active & ((codes == K.MAX_TIME) | (codes == K.TOO_MANY_EVENTS))
-        rew = np.where(active, res[:, task.S_REWARD], 0.0)
+        rew = np.where(active, res[:, kstep.S_REWARD], 0.0)
         self.done = terminated | truncated
         obs = self._obs_buf.copy()
-        infos = self._infos(np.array(K.OUTCOMES, dtype=object)[codes])
-        for key, col in (("frequency_hz", task.S_F), ("stroke_m", task.S_H), ("delay_s", task.S_D)):
+        infos = self._infos(np.array(K.OUTCOMES, dtype=object)[codes],
+                            active & (res[:, kstep.S_SUCCESS] > 0.5))
+        for key, col in (("frequency_hz", kstep.S_F), ("stroke_m", kstep.S_H),
+                         ("delay_s", kstep.S_D)):
             infos[key], infos["_" + key] = res[:, col].copy(), active.copy()
         if self.autoreset_mode == AutoresetMode.SAME_STEP and self.done.any():
             infos = self._same_step_reset(obs, infos)
@@ -152,7 +159,7 @@ class MicroConveyorVectorEnv(VectorEnv):
         for i in idx:
             final_obs[i] = obs[i].copy()
             self._reset_one(i, None)
-        reset = self._infos(np.full(self.num_envs, "moving", dtype=object))
+        reset = self._reset_infos()
         infos = dict(infos)
         for key, val in reset.items():
             if not key.startswith("_"):
@@ -167,14 +174,17 @@ class MicroConveyorVectorEnv(VectorEnv):
 
     # ------------------------------------------------------------------ helpers
     def _obs(self):
-        task.observe_all(self.x, self.v, self.t, self.fired, self.target, self._C, self.positions,
-                         self._obs_buf)
+        kstep.observe_all(self.x, self.v, self.t, self.fired, self.target, self._TC,
+                          self.positions, self._obs_buf)
         return self._obs_buf.copy()
 
-    def _infos(self, outcome) -> dict:
+    def _reset_infos(self) -> dict:
+        return self._infos(np.full(self.num_envs, "moving", dtype=object),
+                           np.zeros(self.num_envs, dtype=bool))
+
+    def _infos(self, outcome, success) -> dict:
         ok = np.ones(self.num_envs, dtype=bool)
-        success = (outcome == "rest") & (np.abs(self.x - self.target) <= self.config.tolerance)
-        infos = {"is_success": success.astype(bool), "final_error_m": self.x - self.target,
+        infos = {"is_success": success.copy(), "position_error_m": self.x - self.target,
                  "outcome": outcome, "sim_time_s": self.t.copy()}
         for key in list(infos):
             infos["_" + key] = ok.copy()

@@ -25,10 +25,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.interpolate import CubicHermiteSpline
 from scipy.optimize import brentq, minimize_scalar
 
 from . import asperity
-from .materials import ContactParams
+from .materials import ContactParams, ParameterError, check_range
 from . import rough_surface
 from .rough_surface import Normalised, SurfaceIntegrals
 
@@ -49,16 +50,6 @@ class DetachmentError(RuntimeError):
 
 class TableRangeError(ValueError):
     """A load above the largest tabulated load (rebuild with a larger ``load_ratio``)."""
-
-
-def _hermite(x, xk, yk, mk):
-    """Cubic Hermite interpolation of nodes (xk, yk, slopes mk) at x (xk increasing)."""
-    i = np.clip(np.searchsorted(xk, x, side="right") - 1, 0, xk.size - 2)
-    h = xk[i + 1] - xk[i]
-    t = (x - xk[i]) / h
-    t2, t3 = t * t, t * t * t
-    return ((2 * t3 - 3 * t2 + 1) * yk[i] + (t3 - 2 * t2 + t) * h * mk[i]
-            + (-2 * t3 + 3 * t2) * yk[i + 1] + (t3 - t2) * h * mk[i + 1])
 
 
 @dataclass(frozen=True)
@@ -181,13 +172,29 @@ def _load_cached(path: Path, key: str) -> BaseTable | None:
         for k in ("n_min", "d_pull", "d_balance", "build_seconds"):
             fields[k] = float(fields[k])
         t = BaseTable(**fields)
-        arrays = (t.u, t.d, t.d_u, t.q, t.q_u, t.n)
-        if (not all(np.all(np.isfinite(a)) for a in arrays) or t.u.size < 16
-                or len({a.size for a in arrays}) != 1 or np.any(np.diff(t.u) <= 0)):
-            return None
-        return t
+        return t if consistent(t) else None
     except Exception:  # corrupt, truncated, wrong layout: rebuild, never trust
         return None
+
+
+def consistent(t: BaseTable) -> bool:
+    """Whether a (cached) table is one :func:`build_base_table` could have made: finite 1-d arrays
+    of one size, the stable branch from pull-off (u = 0, d = d_A, n = n_min < 0) with n rising,
+    d falling, u = sqrt(n - n_min), friction q >= 0, and the balance point inside the branch."""
+    arrays = (t.u, t.d, t.d_u, t.q, t.q_u, t.n)
+    scalars = (t.n_min, t.d_pull, t.d_balance, t.build_seconds)
+    if (any(a.ndim != 1 for a in arrays) or len({a.size for a in arrays}) != 1 or t.u.size < 16
+            or not all(np.all(np.isfinite(a)) for a in arrays)
+            or not all(math.isfinite(x) for x in scalars)):
+        return False
+    with np.errstate(all="ignore"):
+        return bool(
+            t.n_min < 0 and t.u[0] == 0 and t.n[0] == t.n_min and t.d[0] == t.d_pull
+            and np.all(np.diff(t.u) > 0) and np.all(np.diff(t.n) > 0) and np.all(np.diff(t.d) < 0)
+            and np.all(t.d_u < 0) and np.all(t.q >= 0)
+            and t.d[-1] <= t.d_balance <= t.d_pull
+            and np.allclose(t.u, np.sqrt(np.maximum(t.n - t.n_min, 0.0)), rtol=1e-9,
+                            atol=1e-12 * math.sqrt(abs(t.n_min))))
 
 
 def _store(path: Path, key: str, table: BaseTable) -> None:
@@ -205,13 +212,21 @@ def _store(path: Path, key: str, table: BaseTable) -> None:
 def base_table(params: ContactParams, spacing: float = DEFAULT_SPACING,
                load_ratio: float = DEFAULT_LOAD_RATIO, use_cache: bool = True) -> BaseTable:
     """Cached :func:`build_base_table` (memory, then disk, then build)."""
+    spacing = check_range("ContactTable", "spacing", spacing, 1e-4, 0.5)  # <= ~1e5 nodes
+    load_ratio = check_range("ContactTable", "load_ratio", load_ratio, 10.0, 1e8)
     key = table_key(params, spacing, load_ratio)
     if key in _MEMO:
         return _MEMO[key]
     path = cache_dir() / f"ke-table-{key}.npz"
     table = _load_cached(path, key) if use_cache else None
     if table is None:
-        table = build_base_table(params, spacing, load_ratio)
+        try:
+            table = build_base_table(params, spacing, load_ratio)
+        except (RuntimeError, ArithmeticError, ValueError, MemoryError) as exc:
+            raise ParameterError(
+                f"no contact table for these contact parameters ({exc}); each is within its own "
+                f"range but together they are outside what the model supports: "
+                f"{_describe(params)}") from None
         if use_cache:
             try:
                 _store(path, key, table)
@@ -222,6 +237,12 @@ def base_table(params: ContactParams, spacing: float = DEFAULT_SPACING,
 
 
 _MEMO: dict[str, BaseTable] = {}
+
+
+def _describe(params: ContactParams) -> str:
+    d = params.as_dict()
+    return ", ".join(f"{group}.{k} = {v:g}" for group in ("materials", "surface")
+                     for k, v in d[group].items())
 
 
 # ----------------------------------------------------------------------------- public table
@@ -244,6 +265,9 @@ class ContactTable:
         self._sigma = params.surface.sigma
         self._qscale = self.n_asp * params.friction_scale
         self._sqrt_n = math.sqrt(self.n_asp)
+        b = self.base  # d(u) and q(u): the cubic Hermite interpolants the kernel evaluates too
+        self._d_of_u = CubicHermiteSpline(b.u, b.d, b.d_u)
+        self._q_of_u = CubicHermiteSpline(b.u, b.q, b.q_u)
 
     # ---- scalar characteristics [SI] ----
     @property
@@ -266,6 +290,16 @@ class ContactTable:
         """Largest tabulated compressive load [N]."""
         return self.n_asp * float(self.base.n[-1])
 
+    def check_weight(self) -> None:
+        """ParameterError (naming Part.mass) if the part's weight is beyond the table."""
+        part = self.params.part
+        if part.weight > self.max_load:
+            raise ParameterError(
+                f"Part.mass = {part.mass!r} is invalid for this contact: its weight "
+                f"{part.weight:.3g} N is beyond the contact table ({self.max_load:.3g} N); use a "
+                "lighter part, or more adhesion or contact (Part.area, Surface.beta, "
+                "Surface.dgamma)")
+
     # ---- lookups ----
     def _u(self, load) -> np.ndarray:
         N = np.asarray(load, dtype=float)
@@ -285,15 +319,11 @@ class ContactTable:
 
     def separation(self, load) -> np.ndarray:
         """Separation d [m] on the stable branch carrying load N [N] (raises DetachmentError)."""
-        u = self._u(load)
-        b = self.base
-        return _hermite(u, b.u, b.d, b.d_u) * self._sigma
+        return self._d_of_u(self._u(load)) * self._sigma
 
     def friction(self, load) -> np.ndarray:
         """Maximum static friction Q [N] at load N [N] (raises DetachmentError)."""
-        u = self._u(load)
-        b = self.base
-        return self._qscale * _hermite(u, b.u, b.q, b.q_u)
+        return self._qscale * self._q_of_u(self._u(load))
 
     def kernel_arrays(self) -> tuple:
         """Arrays for the compiled kernel: (u_nodes, q_nodes, q_slopes, n_min) in SI, so that
@@ -307,6 +337,7 @@ class ContactTable:
         """The contact characteristics in SI units (keys carry unit suffixes)."""
         p = self.params
         w = p.part.weight
+        self.check_weight()
         return {
             "pull_off_force_N": self.pull_off_force,
             "pull_off_separation_m": self.pull_off_separation,

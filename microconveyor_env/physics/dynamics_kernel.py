@@ -41,6 +41,7 @@ N_OUT = 10
 R_T, R_X, R_V, R_Y, R_N, R_Q, R_F, R_STICK = range(8)
 N_REC = 8
 MAX_EVENTS_PER_STEP = 32
+COAST_POINTS = 32  # trajectory rows recorded per closed-form coast
 GOLDEN_ITERATIONS = 20  # golden-section steps for a load minimum inside a step
 SCREEN_MARGIN = 0.25    # search only if the parabolic estimate is within this * F_pull of pull-off
 # p''(t) of the quintic stroke is most negative at tau = (3 + sqrt 3)/6 of each half (mirrored)
@@ -401,9 +402,9 @@ def fire(x, v, t, xa, f, h, delay, dt, min_steps, to_rest, t_max, P, tu, tq, tqu
             _record(rec, out, t, x, v, math.copysign(1.0, v) if v != 0.0 else 0.0, 0.0, 1.0,
                     0.0, -1.0, P, tu, tq, tqu)
         span = min(delay, max(t_max - t, 0.0))  # never coast past the time limit
+        if recording:
+            _record_coast(x, v, t, span, P, tu, tq, tqu, rec, out)
         x, v, used, rest, t_stop = coast(x, v, span, P, tu, tq, tqu)
-        if recording and t_stop > 0.0:
-            _record(rec, out, t + t_stop, x, 0.0, 0.0, 0.0, 1.0, 0.0, -1.0, P, tu, tq, tqu)
         t += span
         if span < delay:
             return x, v, t, MAX_TIME
@@ -415,6 +416,8 @@ def fire(x, v, t, xa, f, h, delay, dt, min_steps, to_rest, t_max, P, tu, tq, tqu
         return x, v, out[O_EVENT_T], outcome
     t += 1.0 / f
     if to_rest:
+        if recording:
+            _record_coast(x, v, t, max(t_max - t, 0.0), P, tu, tq, tqu, rec, out)
         x, v, used, rest, t_stop = coast(x, v, max(t_max - t, 0.0), P, tu, tq, tqu)
         if rest:
             t += used
@@ -422,10 +425,22 @@ def fire(x, v, t, xa, f, h, delay, dt, min_steps, to_rest, t_max, P, tu, tq, tqu
         else:
             t = max(t, t_max)
             outcome = MAX_TIME
-        if recording:
-            _record(rec, out, t, x, v, 0.0 if rest else math.copysign(1.0, v), 0.0, 1.0, 0.0,
-                    -1.0, P, tu, tq, tqu)
     return x, v, t, outcome
+
+
+@njit(cache=True)
+def _record_coast(x, v, t, span, P, tu, tq, tqu, rec, out):
+    """Trajectory rows of the closed-form coast of ``span`` [s] from (x, v) at time t:
+    COAST_POINTS rows evenly over its moving part, each evaluated exactly (a parabola per phase)."""
+    _, _, _, rest, t_stop = coast(x, v, span, P, tu, tq, tqu)
+    moving = t_stop if rest else span
+    if not 0.0 < moving < math.inf:
+        return
+    for j in range(1, COAST_POINTS + 1):
+        tau = moving * j / COAST_POINTS
+        xj, vj, _, _, _ = coast(x, v, tau, P, tu, tq, tqu)
+        sj = 0.0 if vj == 0.0 else math.copysign(1.0, vj)
+        _record(rec, out, t + tau, xj, vj, sj, 0.0, 1.0, 0.0, -1.0, P, tu, tq, tqu)
 
 
 @njit(cache=True)

@@ -135,11 +135,6 @@ def zone_strain(amplitude, kind, wl, zone_length):
     return 2.0 * b * acc / zone_length
 
 
-def stroke_duration(f):
-    """Duration ``T = 1/f`` [s] of one stroke at actuator 'frequency' ``f`` [Hz]."""
-    return 1.0 / f
-
-
 def surface_profile(x_array, amplitude, kind, wl, x_act=0.0):
     """Surface height ``Y = amplitude * g(x - x_act)`` over an array (plain numpy, for plotting).
 

@@ -9,12 +9,17 @@ Three small frozen dataclasses hold what the Kogut–Etsion (KE) model needs:
 :class:`ContactParams` bundles them with a dimensionless friction calibration scale and derives the
 quantities of physics.md §2 (composite modulus, K, asperity radius, critical interference, ...).
 Every field is checked on construction; an invalid value raises :class:`ParameterError` naming the
-field, its value and the allowed range.
+field, its value and the allowed range. The ranges are those where the contact table can be built
+(scanned one field at a time around the seed material; e.g. more surface energy than 2 J/m^2 or
+heights below 10 nm leave no stable branch up to the table's load range). A combination of
+in-range values can still fall outside the model; building its table then raises a
+:class:`ParameterError` listing all the contact fields.
 """
 from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 from dataclasses import dataclass, field
 
 G0 = 9.81
@@ -27,14 +32,21 @@ class ParameterError(ValueError):
 
 def check_range(owner: str, name: str, value, lo: float = -math.inf, hi: float = math.inf,
                 lo_open: bool = False, hi_open: bool = False, unit: str = "") -> float:
-    """Return ``float(value)`` or raise :class:`ParameterError` if it is not finite and in range."""
+    """Return ``float(value)`` or raise :class:`ParameterError` if it is not a finite real number
+    in range (bools and numeric strings are refused, not converted)."""
     label = f"{owner}.{name}" if owner else name
     lb = "(" if lo_open else "["
     rb = ")" if hi_open else "]"
     allowed = f"a finite number in {lb}{lo:g}, {hi:g}{rb}" + (f" [{unit}]" if unit else "")
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        hint = ""
+        if isinstance(value, str):
+            hint = (" (a number, not text; note that YAML reads 1e-3 without a decimal point as "
+                    "text: write 1.0e-3)")
+        raise ParameterError(f"{label} = {value!r} is invalid: must be {allowed}{hint}")
     try:
         v = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ParameterError(f"{label} = {value!r} is invalid: must be {allowed}") from None
     bad = (not math.isfinite(v) or v < lo or v > hi or (lo_open and v == lo)
            or (hi_open and v == hi))
@@ -55,10 +67,10 @@ class Materials:
 
     Attributes
     ----------
-    E1, E2 : Young's moduli [Pa], > 0.
+    E1, E2 : Young's moduli [Pa], in [1e8, 1e13].
     nu1, nu2 : Poisson ratios [-], in [0, 0.5). ``nu1`` also sets the KE factor ``K = 0.454 + 0.41 nu1``
         and the Poisson thinning of the stretched carrier (physics.md §4).
-    hardness : hardness of the softer body [Pa], > 0 (200 HB ~ 1.96e9 Pa).
+    hardness : hardness of the softer body [Pa], in [1e9, 1e11] (200 HB ~ 1.96e9 Pa).
     """
 
     E1: float = 2e11
@@ -69,9 +81,9 @@ class Materials:
 
     def __post_init__(self):
         _validate(self, {
-            "E1": (0, math.inf, True, False, "Pa"), "E2": (0, math.inf, True, False, "Pa"),
+            "E1": (1e8, 1e13, False, False, "Pa"), "E2": (1e8, 1e13, False, False, "Pa"),
             "nu1": (0, 0.5, False, True, "-"), "nu2": (0, 0.5, False, True, "-"),
-            "hardness": (0, math.inf, True, False, "Pa"),
+            "hardness": (1e9, 1e11, False, False, "Pa"),
         })
 
     @property
@@ -91,12 +103,13 @@ class Surface:
 
     Attributes
     ----------
-    sigma : standard deviation of asperity heights [m], > 0.
-    psi : plasticity index [-], > 0; fixes the asperity radius R.
-    beta : ``eta R sigma`` [-], > 0; fixes the asperity density eta.
-    dgamma : surface energy (work of adhesion per area) [J/m^2], > 0 (the model needs adhesion:
-        without it there is no pull-off point and no stable branch to tabulate).
-    eps : Lennard-Jones intermolecular distance [m], > 0 (about 0.4 nm).
+    sigma : standard deviation of asperity heights [m], in [1e-8, 1e-6].
+    psi : plasticity index [-], in [0.5, 1e3] (tables build from about 1 up); fixes the asperity
+        radius R.
+    beta : ``eta R sigma`` [-], in [1e-6, 1e3]; fixes the asperity density eta.
+    dgamma : surface energy (work of adhesion per area) [J/m^2], in [1e-6, 2] (the model needs
+        adhesion: without it there is no pull-off point and no stable branch to tabulate).
+    eps : Lennard-Jones intermolecular distance [m], in [1e-10, 3e-9] (about 0.4 nm).
     """
 
     sigma: float = 20e-9
@@ -107,9 +120,9 @@ class Surface:
 
     def __post_init__(self):
         _validate(self, {
-            "sigma": (0, 1e-3, True, False, "m"), "psi": (0, 1e3, True, False, "-"),
-            "beta": (0, 1e3, True, False, "-"), "dgamma": (0, 1e3, True, False, "J/m^2"),
-            "eps": (0, 1e-6, True, False, "m"),
+            "sigma": (1e-8, 1e-6, False, False, "m"), "psi": (0.5, 1e3, False, False, "-"),
+            "beta": (1e-6, 1e3, False, False, "-"), "dgamma": (1e-6, 2.0, False, False, "J/m^2"),
+            "eps": (1e-10, 3e-9, False, False, "m"),
         })
 
 
@@ -119,15 +132,17 @@ class Part:
 
     Attributes
     ----------
-    mass : [kg], > 0 (default 2e-9 kg, a ~100 um steel cube).
-    area : nominal contact area A_n [m^2], > 0 (default 100 um x 100 um).
+    mass : [kg], in [1e-15, 1] (default 2e-9 kg, a ~100 um steel cube); its weight must also be
+        within the contact table (checked with the table).
+    area : nominal contact area A_n [m^2], in [1e-14, 1] (default 100 um x 100 um).
     """
 
     mass: float = 2e-9
     area: float = 1e-8
 
     def __post_init__(self):
-        _validate(self, {"mass": (0, 1.0, True, False, "kg"), "area": (0, 1.0, True, False, "m^2")})
+        _validate(self, {"mass": (1e-15, 1.0, False, False, "kg"),
+                         "area": (1e-14, 1.0, False, False, "m^2")})
 
     @property
     def weight(self) -> float:
@@ -139,7 +154,7 @@ class Part:
 class ContactParams:
     """Everything the KE contact table depends on.
 
-    ``friction_scale`` [-] (> 0) multiplies the KE static-friction force Q; it is the friction
+    ``friction_scale`` [-] (in [1e-6, 1e6]) multiplies the KE static-friction force Q; it is the friction
     calibration of physics.md §2 (1 = pure KE).
     """
 
@@ -153,7 +168,7 @@ class ContactParams:
             if not isinstance(getattr(self, name), cls):
                 raise ParameterError(f"ContactParams.{name} must be a {cls.__name__}, "
                                      f"got {type(getattr(self, name)).__name__}")
-        _validate(self, {"friction_scale": (0, math.inf, True, False, "-")})
+        _validate(self, {"friction_scale": (1e-6, 1e6, False, False, "-")})
 
     # ---- derived quantities (physics.md §2) ----
     @property

@@ -100,7 +100,3 @@ class Schedule:
         d = np.array([fi.delay for fi in self.firings], dtype=float)
         return xa, f, h, d
 
-    @property
-    def duration(self) -> float:
-        """Time until the last stroke ends [s]."""
-        return float(sum(f.delay + 1.0 / f.frequency for f in self.firings))

@@ -25,6 +25,46 @@ DEFAULT_MODE = "event"
 DEFAULT_DT = 5e-5          # s; the accuracy study's pick (event mode, within 1 um; docs/validation.md)
 MIN_STEPS_PER_STROKE = 20  # default floor on steps per stroke; below it a warning is issued
 PEAK_QUINTIC_ACCEL = 10.0 / math.sqrt(3.0)  # max |p''| in units of h / (T/2)^2
+MIN_DT = 1e-12             # s
+MIN_WAVELENGTH = 1e-6      # m
+MAX_STEPS = 10_000_000     # default cap on the RK4 steps of one run (~10 s of kernel time)
+MAX_STEPS_LIMIT = 10 ** 12  # largest cap one may ask for
+
+
+def stroke_steps(f, dt: float, min_steps: int) -> np.ndarray:
+    """RK4 steps of strokes at frequencies ``f`` [Hz] (as the kernel's ``steps_for``), as floats
+    that never overflow: ``inf`` where ``1/(f dt)`` is beyond float range."""
+    f = np.asarray(f, dtype=float)
+    with np.errstate(over="ignore", divide="ignore", under="ignore", invalid="ignore"):
+        n = np.maximum(np.ceil(1.0 / (f * dt) - 1e-9), max(int(min_steps), 2))
+        return np.where(np.isfinite(n), n + n % 2, n)
+
+
+def check_step_budget(owner: str, f, dt: float, min_steps: int, max_steps: int,
+                      max_time: float = math.inf) -> float:
+    """Total RK4 steps of strokes at ``f`` (a stroke is cut at ``max_time`` [s], so at most the
+    steps of its first ``max_time``); ParameterError if above ``max_steps``."""
+    steps = stroke_steps(f, dt, min_steps)
+    with np.errstate(over="ignore", invalid="ignore"):
+        steps = steps * np.minimum(1.0, max_time * np.asarray(f, dtype=float))
+    total = float(np.sum(steps))
+    if not total <= max_steps:
+        f = np.atleast_1d(np.asarray(f, dtype=float))
+        raise ParameterError(
+            f"{owner}: dt = {dt:g} s with strokes down to f = {f.min():g} Hz needs {total:.3g} RK4 "
+            f"steps, more than max_steps = {max_steps:g} (about a second per million steps); "
+            f"raise dt or the lowest frequency, or raise max_steps (at most "
+            f"{MAX_STEPS_LIMIT:g}) if you mean it")
+    return total
+
+
+def check_max_steps(owner: str, value) -> int:
+    """``max_steps``: an integer in [1, MAX_STEPS_LIMIT]."""
+    if (isinstance(value, bool) or not isinstance(value, (int, np.integer))
+            or not 1 <= value <= MAX_STEPS_LIMIT):
+        raise ParameterError(f"{owner}.max_steps = {value!r} is invalid: must be an integer in "
+                             f"[1, {MAX_STEPS_LIMIT:g}]")
+    return int(value)
 
 
 class StepSizeWarning(UserWarning):
@@ -89,13 +129,16 @@ class Simulator:
     zone_length : length of the active zone centred on the firing actuator [m] (default: the
         wavelength); outside it the surface under the part is unstrained.
     max_strain, n_sigma : the strain range [-] and number of sigma nodes of the stretch tables.
+    max_steps : cap on the RK4 steps of one :meth:`simulate` call (default ``MAX_STEPS``, 1e7:
+        seconds of computing); a schedule needing more is refused up front. Raise it if you mean it.
     """
 
     def __init__(self, contact="seed", shape: str = "gaussian", wavelength: float = 0.6e-3,
                  kinematics: str | None = None, mode: str = DEFAULT_MODE, dt: float = DEFAULT_DT,
                  slope: float = 0.0, max_time: float = 10.0,
-                 min_steps: int = MIN_STEPS_PER_STROKE, roughness: str = "constant",
-                 zone_length: float | None = None, max_strain: float = 0.4, n_sigma: int = 21):
+                 min_steps: int = MIN_STEPS_PER_STROKE, max_steps: int = MAX_STEPS,
+                 roughness: str = "constant", zone_length: float | None = None,
+                 max_strain: float = 0.4, n_sigma: int = 21):
         defaults = {}
         if not isinstance(contact, ContactParams):
             from ..presets import load_preset
@@ -116,12 +159,19 @@ class Simulator:
         self.roughness = roughness
         self.contact = contact
         self.shape, self.kinematics, self.mode = shape, kinematics, mode
-        self.wavelength = check_range("Simulator", "wavelength", wavelength, 0, 1.0, True, unit="m")
-        self.dt = check_range("Simulator", "dt", dt, 0, 1.0, True, unit="s")
-        self.min_steps = int(check_range("Simulator", "min_steps", min_steps, 2, 1e7))
+        self.wavelength = check_range("Simulator", "wavelength", wavelength, MIN_WAVELENGTH, 1.0,
+                                      unit="m")
+        self.dt = check_range("Simulator", "dt", dt, MIN_DT, 1.0, unit="s")
+        if isinstance(min_steps, bool) or not isinstance(min_steps, (int, np.integer)) \
+                or not 2 <= min_steps <= 10 ** 7:
+            raise ParameterError(f"Simulator.min_steps = {min_steps!r} is invalid: must be an "
+                                 "integer in [2, 1e7]")
+        self.min_steps = int(min_steps)
+        self.max_steps = check_max_steps("Simulator", max_steps)
         self.slope = check_range("Simulator", "slope", slope, -100, 100)
         self.max_time = check_range("Simulator", "max_time", max_time, 0, math.inf, True, unit="s")
         self.table = ContactTable(contact)
+        self.table.check_weight()
         self.mass = contact.part.mass
         P = np.zeros(F.N_PARAMS)
         P[F.I_MASS], P[F.I_G0] = self.mass, G0
@@ -177,8 +227,10 @@ class Simulator:
 
     # ------------------------------------------------------------------ checks
     def check_firings(self, f: np.ndarray, h: np.ndarray) -> None:
-        """Warn about under-resolved strokes; refuse loads beyond the contact table."""
-        steps = np.maximum(np.ceil(1.0 / (f * self.dt) - 1e-9), self.min_steps)
+        """Warn about under-resolved strokes; refuse loads beyond the contact table and more
+        steps than ``max_steps``."""
+        check_step_budget("Simulator", f, self.dt, self.min_steps, self.max_steps, self.max_time)
+        steps = stroke_steps(f, self.dt, self.min_steps)
         if steps.min() < MIN_STEPS_PER_STROKE:
             warnings.warn(f"dt = {self.dt:g} s resolves the fastest stroke (f = {f.max():g} Hz) "
                           f"with {int(steps.min())} steps (< {MIN_STEPS_PER_STROKE}); results may "
@@ -203,13 +255,14 @@ class Simulator:
         """Run ``schedule`` from position ``x0`` [m] and velocity ``v0`` [m/s] at t = 0."""
         if not isinstance(schedule, Schedule):
             raise ParameterError(f"schedule must be a Schedule, got {type(schedule).__name__}")
-        x0 = check_range("simulate", "x0", x0, unit="m")
-        v0 = check_range("simulate", "v0", v0, unit="m/s")
+        x0 = check_range("simulate", "x0", x0, -1.0, 1.0, unit="m")
+        v0 = check_range("simulate", "v0", v0, -100.0, 100.0, unit="m/s")
         xa, f, h, d = schedule.arrays()
         self.check_firings(f, h)
         cap = 0
         if record:
-            cap = int(sum(self.steps_per_stroke(fi) for fi in f)) * 2 + 12 * len(f) + 64
+            cap = (int(stroke_steps(f, self.dt, self.min_steps).sum()) * 2
+                   + (12 + 2 * K.COAST_POINTS) * len(f) + 64)
         rec = np.zeros((cap, K.N_REC))
         out = np.zeros(K.N_OUT)
         t0 = time.perf_counter()
@@ -242,7 +295,9 @@ class Simulator:
             trajectory=traj)
 
     def steps_per_stroke(self, frequency: float) -> int:
-        return int(K.steps_for(float(frequency), self.dt, self.min_steps))
+        f = check_range("Simulator", "frequency", frequency, 0, math.inf, True, unit="Hz")
+        check_step_budget("Simulator", f, self.dt, self.min_steps, self.max_steps)
+        return int(K.steps_for(f, self.dt, self.min_steps))
 
     def flat_deceleration(self) -> float:
         """Deceleration of a sliding part on the flat, still surface, Q(m g0)/m [m/s^2]."""

@@ -44,8 +44,9 @@ class StretchContact:
     def __init__(self, params: ContactParams, max_strain: float = 0.4, n_sigma: int = 21,
                  **table_kw):
         check_range("StretchContact", "max_strain", max_strain, 0.0, 1.0, True, True)
-        if int(n_sigma) < 2:
-            raise ParameterError(f"StretchContact.n_sigma = {n_sigma!r} is invalid: must be >= 2")
+        if isinstance(n_sigma, bool) or not isinstance(n_sigma, int) or not 2 <= n_sigma <= 1000:
+            raise ParameterError(f"StretchContact.n_sigma = {n_sigma!r} is invalid: must be an "
+                                 "integer in [2, 1000]")
         self.params = params
         self.max_strain = float(max_strain)
         self.strains = np.linspace(0.0, self.max_strain, int(n_sigma))

@@ -1,15 +1,12 @@
 """Kernel benchmark: median wall time of the seed firing per mode (the whole ``simulate`` call and
 the compiled call alone), and kernel steps per second.
 
-The dissertation-style plain-Python baseline lives in the repository's ``benchmarks/`` folder (not in
-the package); :func:`load_reference` finds it when running from a checkout.
+The dissertation-style plain-Python baseline is :mod:`.reference_loop`.
 """
 from __future__ import annotations
 
-import importlib.util
 import statistics
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -54,15 +51,3 @@ def _kernel_time(sim: Simulator, sched: Schedule, repeats: int) -> float:
         K.run(*args)
         walls.append(time.perf_counter() - t0)
     return statistics.median(walls)
-
-
-def load_reference():
-    """The ``benchmarks/dissertation_reference.py`` module of a checkout, or None."""
-    for root in (Path.cwd(), Path(__file__).resolve().parents[2]):
-        path = root / "benchmarks" / "dissertation_reference.py"
-        if path.is_file():
-            spec = importlib.util.spec_from_file_location("dissertation_reference", path)
-            mod = importlib.util.module_from_spec(spec)
-            spec.loader.exec_module(mod)
-            return mod
-    return None

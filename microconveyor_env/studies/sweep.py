@@ -55,21 +55,45 @@ class Scene:
         return sim.simulate(Schedule.single(self.freq, self.stroke), x0=self.x0, record=record)
 
 
-def parse_values(spec: str, param: str) -> list:
-    """``"200:1500:25"`` (start:stop:step, stop included) or ``"a,b,c"``."""
+MAX_POINTS = 10_000  # default cap on the points of one sweep (each is a full simulation)
+
+
+def parse_values(spec: str, param: str, max_points: int = MAX_POINTS) -> list:
+    """``"200:1500:25"`` (start:stop:step, stop included) or ``"a,b,c"``; at least one and at most
+    ``max_points`` finite values (else :class:`ParameterError`, before anything is built)."""
+    usage = (f"--{param} {spec!r} is invalid: use start:stop:step (finite numbers, step > 0, "
+             "stop >= start) or a comma-separated list of finite numbers")
     if param == "profile":
-        return [s.strip() for s in spec.split(",") if s.strip()]
-    try:
-        if ":" in spec:
+        values = [s.strip() for s in spec.split(",") if s.strip()]
+    elif ":" in spec:
+        try:
             a, b, c = (float(v) for v in spec.split(":"))
-            if not c > 0 or b < a:
-                raise ValueError
-            n = int(np.floor((b - a) / c + 1e-9)) + 1
-            return [a + i * c for i in range(n)]
-        return [float(v) for v in spec.split(",") if v.strip()]
-    except ValueError:
-        raise ParameterError(f"--{param} {spec!r} is invalid: use start:stop:step (step > 0, "
-                             "stop >= start) or a comma-separated list") from None
+        except ValueError:
+            raise ParameterError(usage) from None
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            count = np.floor((np.float64(b) - a) / c + 1e-9) + 1
+        if not (np.isfinite([a, b, c]).all() and c > 0 and b >= a):
+            raise ParameterError(usage)
+        _check_count(param, spec, float(count) if np.isfinite(count) else np.inf, max_points)
+        values = [a + i * c for i in range(int(count))]
+    else:
+        try:
+            values = [float(v) for v in spec.split(",") if v.strip()]
+        except ValueError:
+            raise ParameterError(usage) from None
+        if not np.isfinite(values).all():
+            raise ParameterError(usage)
+    if not values:
+        raise ParameterError(f"--{param} {spec!r} is invalid: it gives no values")
+    _check_count(param, spec, len(values), max_points)
+    return values
+
+
+def _check_count(param: str, spec: str, count: float, max_points: int) -> None:
+    if count > max_points:
+        raise ParameterError(f"--{param} {spec!r} gives {count:.4g} points, more than the sweep "
+                             f"limit of {max_points} (each is a full simulation); use a coarser "
+                             "step, or raise the limit (--max-points) if you mean it")
 
 
 def feasible_window(values, travel, outcomes) -> list | None:
@@ -85,10 +109,16 @@ def feasible_window(values, travel, outcomes) -> list | None:
     return None if lo is None else [lo, hi]
 
 
-def sweep(scene: Scene, param: str, values, progress: bool = True) -> dict:
-    """Run the scene for each value of ``param``; travel, outcomes and (for freq) the window."""
+def sweep(scene: Scene, param: str, values, progress: bool = True,
+          max_points: int = MAX_POINTS) -> dict:
+    """Run the scene for each value of ``param``; travel, outcomes and (for freq) the window.
+    More than ``max_points`` values are refused."""
     if param not in SWEEPABLE:
         raise ParameterError(f"cannot sweep {param!r}; sweepable: {sorted(SWEEPABLE)}")
+    values = list(values)
+    if not values:
+        raise ParameterError(f"sweep of {param!r}: no values given")
+    _check_count(param, f"{len(values)} values", len(values), max_points)
     from tqdm import tqdm
 
     rows = []

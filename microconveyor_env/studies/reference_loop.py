@@ -26,7 +26,8 @@ API
 ``reference_firing(contact, freq, stroke, x0, dt, wavelength) -> dict``
 ``converged_dt(contact, target_m=1e-6, reference_m=None, **kw) -> dict``
 
-Run ``python benchmarks/dissertation_reference.py`` to print ``converged_dt`` for the seed preset.
+``microconveyor bench`` runs it beside the kernel; ``python -m
+microconveyor_env.studies.reference_loop`` prints ``converged_dt`` for the seed preset.
 """
 from __future__ import annotations
 
@@ -190,8 +191,8 @@ def converged_dt(contact, target_m=1e-6, reference_m=None, *, dt_start=DEFAULT_D
 
     Returns ``converged``, ``dt_s``, ``displacement_m``, ``error_m`` and ``wall_time_s`` of the
     chosen step (if not converged: the tried step with the smallest error), ``reference_m``,
-    ``target_m``, ``tried`` (list of ``(dt, displacement, error, wall)``), ``search_wall_s`` and
-    ``stopped_by`` (why the search ended).
+    ``target_m``, ``tried`` (one dict per step: ``dt_s``, ``displacement_m``, ``error_m``,
+    ``wall_time_s``), ``search_wall_s`` and ``stopped_by`` (why the search ended).
     """
     t_start = time.perf_counter()
     if reference_m is None:
@@ -226,9 +227,9 @@ def converged_dt(contact, target_m=1e-6, reference_m=None, *, dt_start=DEFAULT_D
     converged = chosen is not None
     if not converged:
         chosen = min(tried, key=lambda e: abs(e[2]))
-    return {"converged": converged, "dt_s": chosen[0], "displacement_m": chosen[1],
-            "error_m": chosen[2], "wall_time_s": chosen[3], "reference_m": reference_m,
-            "target_m": target_m, "tried": tried,
+    keys = ("dt_s", "displacement_m", "error_m", "wall_time_s")
+    return {"converged": converged, **dict(zip(keys, chosen)), "reference_m": reference_m,
+            "target_m": target_m, "tried": [dict(zip(keys, row)) for row in tried],
             "search_wall_s": time.perf_counter() - t_start, "stopped_by": stopped_by}
 
 
