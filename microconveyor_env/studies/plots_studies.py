@@ -40,8 +40,8 @@ def plot_sensitivity(table: dict | None, sobol: dict | None, path) -> str:
                        fontsize=7)
         ax1.axvline(0, color="k", lw=0.8)
         ax1.invert_yaxis()
-        ax1.set_xlabel(f"estimate on Box-Cox(distance [um]), lambda = {table['boxcox_lambda']:.3f}")
-        ax1.set_title(f"OLS (eq. 3-48 analogue), R^2 = {table['r_squared']:.3f}, n = {table['n']}"
+        ax1.set_xlabel(f"estimate on Box-Cox(distance [µm]), lambda = {table['boxcox_lambda']:.3f}")
+        ax1.set_title(f"Box-Cox + OLS on indicator variables and log f, R^2 = {table['r_squared']:.3f}, n = {table['n']}"
                       "\ngreen: sign as the dissertation, red: opposite, grey: no claim",
                       fontsize=9)
     else:
@@ -51,7 +51,7 @@ def plot_sensitivity(table: dict | None, sobol: dict | None, path) -> str:
         _sobol_bars(ax2, sobol, f"Sobol' indices of the distance ({sobol['n_runs']} runs, "
                                 f"{pct} % CI)")
         if "log10_distance" in sobol:
-            _sobol_bars(ax3, sobol["log10_distance"], "Sobol' indices of log10(distance + 1 um)")
+            _sobol_bars(ax3, sobol["log10_distance"], "Sobol' indices of log10(distance + 1 µm)")
         else:
             ax3.axis("off")
     else:
@@ -102,7 +102,7 @@ def plot_engage(map_rows, two_rows, path) -> str:
             _heat(fig, ax, xs, ys, Z, D, "RdBu_r", label, sy=1e3, sz=1e3)
             ax.set_xlabel("initial velocity v0 [m/s]")
             ax.set_ylabel("start position x0 - x_actuator [mm]")
-            ax.set_title(f"{f:g} Hz, h = {rows[0]['stroke_m'] * 1e6:g} um: "
+            ax.set_title(f"{f:g} Hz, h = {rows[0]['stroke_m'] * 1e6:g} µm: "
                          f"{'travel' if row == 0 else 'gain'} (hatched: detached)", fontsize=9)
     if two_rows:
         r0 = two_rows[0]
@@ -115,7 +115,7 @@ def plot_engage(map_rows, two_rows, path) -> str:
                   sy=1e3, sz=1e3)
             ax.set_xlabel("delay [ms]")
             ax.set_ylabel("spacing [mm]")
-            ax.set_title(f"two actuators, {r0['freq_hz']:g} Hz, h = {r0['stroke_m'] * 1e6:g} um"
+            ax.set_title(f"two actuators, {r0['freq_hz']:g} Hz, h = {r0['stroke_m'] * 1e6:g} µm"
                          f", start {-r0['x0_m'] * 1e3:g} mm upstream", fontsize=9)
     return str(_save(fig, path))
 
@@ -153,10 +153,10 @@ def plot_fidelity(assessed: dict, path) -> str:
                                if not r["outcome_matches_faithful"]]
                         if bad:
                             ax.plot(*zip(*bad), "kx", ms=9)
-            ax.axhline(assessed["tolerance_m"] * 1e6, color="r", ls=":", lw=0.8, label="1 um")
-            ax.set_xlabel("wall time per run [us]")
-            ax.set_ylabel("|position - most faithful| [um] (x: other outcome)" if row == 0
-                          else "|position - same level converged| [um]")
+            ax.axhline(assessed["tolerance_m"] * 1e6, color="r", ls=":", lw=0.8, label="1 µm")
+            ax.set_xlabel("wall time per run [µs]")
+            ax.set_ylabel("|position - most faithful| [µm] (x: other outcome)" if row == 0
+                          else "|position - same level converged| [µm]")
             if row == 0:
                 ax.set_title(f"{sc}: physics + numerics\n"
                              + textwrap.fill(assessed["scenes"][sc], 70), fontsize=7)
@@ -179,8 +179,8 @@ def plot_stretch(study: dict, path) -> str:
             ax1.plot(f[det], d[det], "x", color="r" if level == "stretch" else "k",
                      label=f"{level}: detached")
     ax1.set_xlabel("frequency [Hz]")
-    ax1.set_ylabel("travel [um]")
-    ax1.set_title("travel with and without stretch (cf. ch. 5)", fontsize=9)
+    ax1.set_ylabel("travel [µm]")
+    ax1.set_title("travel of the seed scene with constant and stretched roughness", fontsize=9)
     ax1.legend(fontsize=8)
     c = {r["freq_hz"]: r for r in study["rows"] if r["roughness"] == "constant"}
     pairs = [(r["freq_hz"], abs(r["displacement_m"]), abs(c[r["freq_hz"]]["displacement_m"]))
