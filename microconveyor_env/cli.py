@@ -194,6 +194,8 @@ def _scene_args(p, sweep=False):
             p.add_argument(f"--{name}", default=None, help=f"sweep {name} (SI units)")
     p.add_argument("--mode", default="event", choices=("event", "karnopp"))
     p.add_argument("--kinematics", default="seed", choices=("seed", "exact"))
+    p.add_argument("--roughness", default="constant", choices=("constant", "stretch"),
+                   help="stretch: sigma follows the strain of the active zone (physics.md §4)")
     p.add_argument("--dt", type=float, default=None, help="largest RK4 step [s]")
     p.add_argument("--max-steps", type=_count(1), default=None,
                    help="refuse a firing needing more RK4 steps (default 1e7; raise it if you "
@@ -205,6 +207,8 @@ def _sim_kw(args) -> dict:
     kw = {"mode": args.mode, "kinematics": args.kinematics}
     if args.dt is not None:
         kw["dt"] = args.dt
+    if args.roughness != "constant":
+        kw["roughness"] = args.roughness
     if args.max_steps is not None:
         kw["max_steps"] = args.max_steps
     return kw
@@ -365,6 +369,10 @@ def _bench_args(p):
 
 _ARGS = {"contact": _contact_args, "demo": _demo_args, "simulate": _scene_args,
          "sweep": _sweep_args, "accuracy": _accuracy_args, "bench": _bench_args}
+
+from .studies.cli_studies import register as _register_studies  # noqa: E402  (studies: issue #9)
+
+_register_studies(command, _ARGS, _emit)
 
 
 class UsageError(ValueError):

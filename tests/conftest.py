@@ -27,3 +27,16 @@ def seed_table(seed):
     from microconveyor_env.physics.contact_table import ContactTable
 
     return ContactTable(seed.contact)
+
+
+@pytest.fixture(scope="session")
+def dask_client(_isolated_cache):
+    """A local Dask cluster of 2 single-threaded worker processes, started once per session (the
+    studies' parallel = serial tests); the workers inherit the isolated cache directory."""
+    distributed = pytest.importorskip("distributed")
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                       dashboard_address=":0")
+    client = distributed.Client(cluster)
+    yield client
+    client.close()
+    cluster.close()

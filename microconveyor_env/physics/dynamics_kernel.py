@@ -17,6 +17,10 @@ Friction in slip is ``F = -s Q(N)`` with the slip direction ``s`` fixed over a s
 mode stops the step where ``s v`` reaches 0). Sticking needs ``|N tan(theta)| <= Q(N)``.
 Detachment: ``N < -F_pull``. ``Q(N)`` is the contact table's cubic Hermite in
 ``u = sqrt(N + F_pull)``.
+With stretch-dependent roughness (physics.md §4) Q and the pull-off force follow the strain of the
+active zone under the part: :func:`.forces.friction_at`, :func:`.forces.n_min_at` and
+:func:`.forces.shifted_load` select that lookup at compile time from the tables' dimension, so the
+constant-roughness code is unchanged.
 """
 from __future__ import annotations
 
@@ -24,8 +28,8 @@ import math
 
 from numba import njit
 
-from .forces import EVENT, I_MASS, I_MODE, I_NMAX, I_NMIN, accel, friction_of_load, normal_load, rk4, \
-    stick_state
+from .forces import EVENT, I_MASS, I_MODE, I_NMAX, I_NMIN, accel, friction_at, n_min_at, \
+    normal_load, rk4, shifted_load, stick_state
 from .jit_cache import refresh as refresh_jit_cache
 
 # ---- outcome codes ----
@@ -52,7 +56,8 @@ def _record(rec, out, t, x, v, s, xa, f, h, tl, P, tu, tq, tqu):
     if k >= rec.shape[0]:
         return
     N, Yx, c, Y = normal_load(x, v, tl, xa, f, h, P)
-    Q = friction_of_load(N, tu, tq, tqu, P[I_NMIN]) if N >= P[I_NMIN] else 0.0
+    Q = (friction_at(N, x, tl, xa, f, h, P, tu, tq, tqu) if N >= n_min_at(x, tl, xa, f, h, P, tu)
+         else 0.0)
     rec[k, R_T] = t
     rec[k, R_X] = x
     rec[k, R_V] = v
@@ -72,7 +77,7 @@ def coast(x, v, duration, P, tu, tq, tqu):
     used, whether the part is at rest, and when it came to rest (relative, or -1).
     """
     N0, Yx, c, _ = normal_load(x, 0.0, -1.0, 0.0, 1.0, 0.0, P)
-    Q0 = friction_of_load(N0, tu, tq, tqu, P[I_NMIN])
+    Q0 = friction_at(N0, x, -1.0, 0.0, 1.0, 0.0, P, tu, tq, tqu)  # still surface: no strain
     m = P[I_MASS]
     t_used = 0.0
     for _ in range(3):  # at most: decelerate, stop, slide the other way
@@ -123,6 +128,7 @@ def _slip_event(x0, v0, tl, tau, s, vscale, xa, f, h, P, tu, tq, tqu):
     """min(s v / vscale, (N - N_min) / F_pull) after an RK4 sub-step tau: > 0 while sliding on."""
     x, v = rk4(x0, v0, tl, tau, s, xa, f, h, P, tu, tq, tqu)
     N = normal_load(x, v, tl + tau, xa, f, h, P)[0]
+    N = shifted_load(N, x, tl + tau, xa, f, h, P, tu)
     return min(s * v / vscale, (N - P[I_NMIN]) / -P[I_NMIN])
 
 
@@ -154,7 +160,7 @@ def _illinois_slip(x0, v0, tl, hmax, s, xa, f, h, P, tu, tq, tqu):
 
 
 @njit(cache=True)
-def _hidden_pull_off(x0, v0, x1, v1, tl, hs, N1, xa, f, h, P):
+def _hidden_pull_off(x0, v0, x1, v1, tl, hs, N1, xa, f, h, P, tu):
     """A dip of the load below pull-off *inside* an accepted sliding step (both ends above it).
 
     Checked only while the load is tensile at an end of the step, and searched only where a
@@ -164,11 +170,11 @@ def _hidden_pull_off(x0, v0, x1, v1, tl, hs, N1, xa, f, h, P):
     below pull-off, else -1.
     """
     n_min = P[I_NMIN]
-    N0 = normal_load(x0, v0, tl, xa, f, h, P)[0]
+    N0 = shifted_load(normal_load(x0, v0, tl, xa, f, h, P)[0], x0, tl, xa, f, h, P, tu)
     if min(N0, N1) >= 0.0:
         return -1.0
     # cheap screen: the parabola through the ends and the midpoint stays well above pull-off
-    Nm = _load_on_hermite(0.5, x0, v0, x1, v1, tl, hs, xa, f, h, P)
+    Nm = _load_on_hermite(0.5, x0, v0, x1, v1, tl, hs, xa, f, h, P, tu)
     curv = N0 - 2.0 * Nm + N1
     low = min(N0, Nm, N1)
     if curv > 0.0:
@@ -180,17 +186,17 @@ def _hidden_pull_off(x0, v0, x1, v1, tl, hs, N1, xa, f, h, P):
     a, b = 0.0, 1.0
     g = 0.6180339887498949
     c, d = b - g * (b - a), a + g * (b - a)
-    fc = _load_on_hermite(c, x0, v0, x1, v1, tl, hs, xa, f, h, P)
-    fd = _load_on_hermite(d, x0, v0, x1, v1, tl, hs, xa, f, h, P)
+    fc = _load_on_hermite(c, x0, v0, x1, v1, tl, hs, xa, f, h, P, tu)
+    fd = _load_on_hermite(d, x0, v0, x1, v1, tl, hs, xa, f, h, P, tu)
     for _ in range(GOLDEN_ITERATIONS):
         if fc < fd:
             b, d, fd = d, c, fc
             c = b - g * (b - a)
-            fc = _load_on_hermite(c, x0, v0, x1, v1, tl, hs, xa, f, h, P)
+            fc = _load_on_hermite(c, x0, v0, x1, v1, tl, hs, xa, f, h, P, tu)
         else:
             a, c, fc = c, d, fd
             d = a + g * (b - a)
-            fd = _load_on_hermite(d, x0, v0, x1, v1, tl, hs, xa, f, h, P)
+            fd = _load_on_hermite(d, x0, v0, x1, v1, tl, hs, xa, f, h, P, tu)
         if min(fc, fd) < n_min:
             break
     if fc < fd:
@@ -199,7 +205,7 @@ def _hidden_pull_off(x0, v0, x1, v1, tl, hs, N1, xa, f, h, P):
 
 
 @njit(cache=True)
-def _load_on_hermite(th, x0, v0, x1, v1, tl, hs, xa, f, h, P):
+def _load_on_hermite(th, x0, v0, x1, v1, tl, hs, xa, f, h, P, tu):
     """Normal load at fraction ``th`` of a step, on the cubic Hermite interpolant of x(t)."""
     t2 = th * th
     t3 = t2 * th
@@ -207,7 +213,8 @@ def _load_on_hermite(th, x0, v0, x1, v1, tl, hs, xa, f, h, P):
          + (t3 - t2) * hs * v1)
     v = ((6 * t2 - 6 * th) * x0 / hs + (3 * t2 - 4 * th + 1) * v0 + (-6 * t2 + 6 * th) * x1 / hs
          + (3 * t2 - 2 * th) * v1)
-    return normal_load(x, v, tl + th * hs, xa, f, h, P)[0]
+    return shifted_load(normal_load(x, v, tl + th * hs, xa, f, h, P)[0], x, tl + th * hs, xa, f,
+                        h, P, tu)
 
 
 @njit(cache=True)
@@ -285,11 +292,11 @@ def stroke(x, v, t0, xa, f, h, n_steps, t_lim, P, tu, tq, tqu, rec, out):
         if not event:  # ---------------------------------------------- Karnopp threshold
             out[O_STEPS] += 1
             N, Yx, c, _ = normal_load(x, v, tl, xa, f, h, P)
-            if N < n_min:
+            if shifted_load(N, x, tl, xa, f, h, P, tu) < n_min:
                 out[O_EVENT_T] = t0 + tl
                 out[O_EVENT_X] = x
                 return x, v, DETACHED
-            Q = friction_of_load(N, tu, tq, tqu, n_min)
+            Q = friction_at(N, x, tl, xa, f, h, P, tu, tq, tqu)
             if abs(v) < Q * dt / m:
                 sv = 1.0 if v > 0.0 else -1.0
                 decreasing = v != 0.0 and v * accel(x, v, tl, sv, xa, f, h, P, tu, tq, tqu) < 0.0
@@ -338,10 +345,11 @@ def stroke(x, v, t0, xa, f, h, n_steps, t_lim, P, tu, tq, tqu, rec, out):
                 hs = t_end - tl
                 out[O_STEPS] += 1
                 xn, vn = rk4(x, v, tl, hs, s, xa, f, h, P, tu, tq, tqu)
-                Nn = normal_load(xn, vn, t_end, xa, f, h, P)[0]
+                Nn = shifted_load(normal_load(xn, vn, t_end, xa, f, h, P)[0], xn, t_end, xa, f,
+                                  h, P, tu)
                 h_ev = hs
                 if s * vn > 0.0 and Nn >= n_min:
-                    tm = _hidden_pull_off(x, v, xn, vn, tl, hs, Nn, xa, f, h, P)
+                    tm = _hidden_pull_off(x, v, xn, vn, tl, hs, Nn, xa, f, h, P, tu)
                     if tm <= 0.0 or _slip_event(x, v, tl, tm, s, 1.0, xa, f, h, P, tu, tq,
                                                 tqu) > 0.0:
                         x, v, tl = xn, vn, t_end
@@ -354,7 +362,7 @@ def stroke(x, v, t0, xa, f, h, n_steps, t_lim, P, tu, tq, tqu, rec, out):
                     x, v = rk4(x, v, tl, tau, s, xa, f, h, P, tu, tq, tqu)
                     tl = tl + tau
                 Nc = normal_load(x, v, tl, xa, f, h, P)[0]
-                if Nc <= n_min:  # the load reached pull-off (before the velocity reached 0)
+                if shifted_load(Nc, x, tl, xa, f, h, P, tu) <= n_min:  # pull-off before v = 0
                     out[O_EVENT_T] = t0 + tl
                     out[O_EVENT_X] = x
                     return x, v, DETACHED

@@ -9,13 +9,20 @@ from __future__ import annotations
 import math
 
 from numba import njit
+from numba.extending import overload
 
 from .jit_cache import refresh as refresh_jit_cache
-from .kinematics import surface_eval
+from .kinematics import stroke_eval, surface_eval
 
 # ---- model constants array P ----
 I_MASS, I_G0, I_NMIN, I_EXACT, I_SLOPE, I_WL, I_SHAPE, I_MODE, I_NMAX = range(9)
-N_PARAMS = 9  # I_NMIN: -F_pull [N]; I_NMAX: largest tabulated load [N]
+# stretch-dependent roughness (physics.md §4): I_STRETCH = 1 selects the sigma-dependent lookup;
+# then P also holds the zone half-length [m], the strain table step in amplitude^2 [m^2], the
+# number of strain-table nodes and of sigma nodes, the largest tabulated strain, and from
+# I_SDATA on: table offsets (n_sig + 1), -F_pull per sigma node (n_sig) [N], strain nodes.
+I_STRETCH, I_ZONE, I_A2STEP, I_NSTRAIN, I_NSIG, I_EMAX = range(9, 15)
+N_PARAMS = 15  # I_NMIN: -F_pull [N] (unstretched); I_NMAX: largest tabulated load [N]
+I_SDATA = N_PARAMS
 KARNOPP, EVENT = 0, 1  # integration modes (used by the kernel)
 
 
@@ -46,6 +53,101 @@ def friction_of_load(N, tu, tq, tqu, n_min):
 
 
 @njit(cache=True)
+def stretch_node(x, tl, xa, f, h, P):
+    """(k, a): the sigma node and weight of the stretched zone under the part (k = 0, a = 0: no
+    strain, outside the active zone or on the still surface)."""
+    if abs(x - xa) > P[I_ZONE]:
+        return 0, 0.0
+    amp = stroke_eval(tl, f, h)[0]
+    if amp <= 0.0:
+        return 0, 0.0
+    n_e = int(P[I_NSTRAIN])
+    n_sig = int(P[I_NSIG])
+    base = I_SDATA + 2 * n_sig + 1
+    s = amp * amp / P[I_A2STEP]
+    j = min(int(s), n_e - 2)
+    b = s - j
+    e = (1.0 - b) * P[base + j] + b * P[base + j + 1]
+    g = e / P[I_EMAX] * (n_sig - 1)
+    k = min(int(g), n_sig - 2)
+    return k, g - k
+
+
+@njit(cache=True)
+def stretch_n_min(x, tl, xa, f, h, P):
+    """-F_pull [N] at the stretched roughness under the part (linear in sigma)."""
+    k, a = stretch_node(x, tl, xa, f, h, P)
+    nb = I_SDATA + int(P[I_NSIG]) + 1
+    return (1.0 - a) * P[nb + k] + a * P[nb + k + 1]
+
+
+@njit(cache=True)
+def stretch_friction(N, x, tl, xa, f, h, P, tu, tq, tqu):
+    """Q(N) [N] at the stretched roughness under the part: linear in sigma between the two
+    neighbouring sigma-node tables (rows of the (1, L) arrays, cut at the offsets in P)."""
+    k, a = stretch_node(x, tl, xa, f, h, P)
+    nb = I_SDATA + int(P[I_NSIG]) + 1
+    o0, o1 = int(P[I_SDATA + k]), int(P[I_SDATA + k + 1])
+    u, q_, qu = tu[0], tq[0], tqu[0]
+    q = friction_of_load(N, u[o0:o1], q_[o0:o1], qu[o0:o1], P[nb + k])
+    if a == 0.0:
+        return q
+    o2 = int(P[I_SDATA + k + 2])
+    q1 = friction_of_load(N, u[o1:o2], q_[o1:o2], qu[o1:o2], P[nb + k + 1])
+    return (1.0 - a) * q + a * q1
+
+
+# The three lookups below are resolved at *compile time* from the table arrays' dimension:
+# 1-D tables (constant roughness) compile to exactly the constant-roughness code (no flag test,
+# no stretch code); 2-D tables of shape (1, L) (stretch, see Simulator) to the sigma-dependent
+# lookup. The plain-Python bodies are the same dispatch, for calls outside compiled code.
+def friction_at(N, x, tl, xa, f, h, P, tu, tq, tqu):
+    """Q(N) [N] at the roughness under the part."""
+    if tu.ndim == 1:
+        return friction_of_load(N, tu, tq, tqu, P[I_NMIN])
+    return stretch_friction(N, x, tl, xa, f, h, P, tu, tq, tqu)
+
+
+def n_min_at(x, tl, xa, f, h, P, tu):
+    """-F_pull [N] at the roughness under the part (P[I_NMIN] for constant roughness)."""
+    if tu.ndim == 1:
+        return P[I_NMIN]
+    return stretch_n_min(x, tl, xa, f, h, P)
+
+
+def shifted_load(N, x, tl, xa, f, h, P, tu):
+    """N [N] shifted so that it meets the constant pull-off P[I_NMIN] where the true load meets
+    the local (stretch-dependent) one: the kernel's detachment tests compare it with P[I_NMIN].
+    For constant roughness it is N itself."""
+    if tu.ndim == 1:
+        return N
+    return N + (P[I_NMIN] - stretch_n_min(x, tl, xa, f, h, P))
+
+
+@overload(friction_at, inline="always", jit_options={"cache": True})
+def _ov_friction_at(N, x, tl, xa, f, h, P, tu, tq, tqu):
+    if tu.ndim == 1:
+        return lambda N, x, tl, xa, f, h, P, tu, tq, tqu: friction_of_load(N, tu, tq, tqu,
+                                                                             P[I_NMIN])
+    return lambda N, x, tl, xa, f, h, P, tu, tq, tqu: stretch_friction(N, x, tl, xa, f, h, P, tu,
+                                                                         tq, tqu)
+
+
+@overload(n_min_at, inline="always", jit_options={"cache": True})
+def _ov_n_min_at(x, tl, xa, f, h, P, tu):
+    if tu.ndim == 1:
+        return lambda x, tl, xa, f, h, P, tu: P[I_NMIN]
+    return lambda x, tl, xa, f, h, P, tu: stretch_n_min(x, tl, xa, f, h, P)
+
+
+@overload(shifted_load, inline="always", jit_options={"cache": True})
+def _ov_shifted_load(N, x, tl, xa, f, h, P, tu):
+    if tu.ndim == 1:
+        return lambda N, x, tl, xa, f, h, P, tu: N
+    return lambda N, x, tl, xa, f, h, P, tu: N + (P[I_NMIN] - stretch_n_min(x, tl, xa, f, h, P))
+
+
+@njit(cache=True)
 def normal_load(x, v, tl, xa, f, h, P):
     """(N, Y_x, cos(theta), Y) at position x, velocity v, time tl into the stroke."""
     Y, Yx, Yt, Ytt, Yxt, Yxx = surface_eval(x, tl, xa, f, h, int(P[I_SHAPE]), P[I_WL])
@@ -61,7 +163,7 @@ def normal_load(x, v, tl, xa, f, h, P):
 @njit(cache=True)
 def accel(x, v, tl, s, xa, f, h, P, tu, tq, tqu):
     N, Yx, c, _ = normal_load(x, v, tl, xa, f, h, P)
-    Q = friction_of_load(N, tu, tq, tqu, P[I_NMIN])
+    Q = friction_at(N, x, tl, xa, f, h, P, tu, tq, tqu)
     return (-s * Q * c - N * Yx * c) / P[I_MASS]
 
 
@@ -82,9 +184,9 @@ def rk4(x, v, tl, dt, s, xa, f, h, P, tu, tq, tqu):
 def stick_state(x, tl, xa, f, h, P, tu, tq, tqu):
     """(margin Q - |N tan|, N - N_min, break-away direction) of a part at rest at x."""
     N, Yx, c, _ = normal_load(x, 0.0, tl, xa, f, h, P)
-    Q = friction_of_load(N, tu, tq, tqu, P[I_NMIN])
+    Q = friction_at(N, x, tl, xa, f, h, P, tu, tq, tqu)
     drive = -N * Yx
-    return Q - abs(drive), N - P[I_NMIN], 1.0 if drive > 0.0 else -1.0
+    return Q - abs(drive), N - n_min_at(x, tl, xa, f, h, P, tu), 1.0 if drive > 0.0 else -1.0
 
 
 refresh_jit_cache(globals())

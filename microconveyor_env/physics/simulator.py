@@ -14,12 +14,13 @@ import numpy as np
 from . import dynamics_kernel as K
 from . import forces as F
 from .contact_table import ContactTable, TableRangeError
-from .kinematics import SHAPES
+from .kinematics import SHAPES, zone_strain
 from .materials import G0, ContactParams, ParameterError, check_range
 from .schedule import Schedule
 
 MODES = {"karnopp": F.KARNOPP, "event": F.EVENT}
 KINEMATICS = ("seed", "exact")
+ROUGHNESS = ("constant", "stretch")
 DEFAULT_MODE = "event"
 DEFAULT_DT = 5e-5          # s; the accuracy study's pick (event mode, within 1 um; docs/validation.md)
 MIN_STEPS_PER_STROKE = 20  # default floor on steps per stroke; below it a warning is issued
@@ -122,6 +123,12 @@ class Simulator:
         resolved whatever dt is); fewer than 20 steps per stroke gives a StepSizeWarning.
     slope : constant tilt of the carrier, tan(angle) [-] (0: horizontal).
     max_time : simulated-time limit [s].
+    roughness : ``constant`` (the preset's sigma) or ``stretch`` (physics.md §4: the strain of the
+        active zone under the part sets sigma, and Q(N) and the pull-off force follow it; tables
+        over ``n_sigma`` strains in [0, ``max_strain``], see :mod:`.stretch`).
+    zone_length : length of the active zone centred on the firing actuator [m] (default: the
+        wavelength); outside it the surface under the part is unstrained.
+    max_strain, n_sigma : the strain range [-] and number of sigma nodes of the stretch tables.
     max_steps : cap on the RK4 steps of one :meth:`simulate` call (default ``MAX_STEPS``, 1e7:
         seconds of computing); a schedule needing more is refused up front. Raise it if you mean it.
     """
@@ -129,7 +136,9 @@ class Simulator:
     def __init__(self, contact="seed", shape: str = "gaussian", wavelength: float = 0.6e-3,
                  kinematics: str | None = None, mode: str = DEFAULT_MODE, dt: float = DEFAULT_DT,
                  slope: float = 0.0, max_time: float = 10.0,
-                 min_steps: int = MIN_STEPS_PER_STROKE, max_steps: int = MAX_STEPS):
+                 min_steps: int = MIN_STEPS_PER_STROKE, max_steps: int = MAX_STEPS,
+                 roughness: str = "constant", zone_length: float | None = None,
+                 max_strain: float = 0.4, n_sigma: int = 21):
         defaults = {}
         if not isinstance(contact, ContactParams):
             from ..presets import load_preset
@@ -144,6 +153,10 @@ class Simulator:
                                  f"{KINEMATICS}")
         if mode not in MODES:
             raise ParameterError(f"mode = {mode!r} is invalid: must be one of {sorted(MODES)}")
+        if roughness not in ROUGHNESS:
+            raise ParameterError(f"roughness = {roughness!r} is invalid: must be one of "
+                                 f"{ROUGHNESS}")
+        self.roughness = roughness
         self.contact = contact
         self.shape, self.kinematics, self.mode = shape, kinematics, mode
         self.wavelength = check_range("Simulator", "wavelength", wavelength, MIN_WAVELENGTH, 1.0,
@@ -170,6 +183,47 @@ class Simulator:
         self.params = P
         tu, tq, tqu, _ = self.table.kernel_arrays()
         self.tables = (np.ascontiguousarray(tu), np.ascontiguousarray(tq), np.ascontiguousarray(tqu))
+        self.stretch = None
+        if roughness == "stretch":
+            self._setup_stretch(zone_length, max_strain, n_sigma)
+
+    # ------------------------------------------------------------------ stretch
+    def _setup_stretch(self, zone_length, max_strain, n_sigma) -> None:
+        from .stretch import StretchContact, pack_tables, strain_table
+
+        zone = self.wavelength if zone_length is None else check_range(
+            "Simulator", "zone_length", zone_length, 0, 1.0, True, unit="m")
+        self.zone_length = zone
+        self.stretch = StretchContact(self.contact, max_strain=max_strain, n_sigma=n_sigma)
+        pk = pack_tables(self.stretch)
+        shape = SHAPES[self.shape]
+        # amplitude at which the zone reaches max_strain (strain grows monotonically with it)
+        lo, hi = 0.0, self.wavelength
+        while zone_strain(hi, shape, self.wavelength, zone) < pk["max_strain"]:
+            hi *= 2.0
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if zone_strain(mid, shape, self.wavelength, zone) < pk[
+                "max_strain"] else (lo, mid)
+        self.max_stretch_amplitude = lo
+        step, e = strain_table(shape, self.wavelength, zone, hi)
+        n_sig = pk["n_sigma"]
+        P = np.concatenate([self.params, pk["offsets"], pk["n_min"], e])
+        P[F.I_STRETCH], P[F.I_ZONE], P[F.I_A2STEP] = 1.0, 0.5 * zone, step
+        P[F.I_NSTRAIN], P[F.I_NSIG], P[F.I_EMAX] = e.size, n_sig, pk["max_strain"]
+        P[F.I_NMIN] = pk["n_min"][0]
+        P[F.I_NMAX] = self.stretch_max_load = pk["max_load"]
+        self.params = P
+        # (1, L) arrays: their dimension selects the stretch lookup when the kernel is compiled
+        # (forces.friction_at), so the constant-roughness code carries no stretch test at all
+        self.tables = tuple(np.ascontiguousarray(pk[k]).reshape(1, -1) for k in ("u", "q", "q_u"))
+
+    def peak_strain(self, stroke: float) -> float:
+        """Strain of the active zone at full stroke ``stroke`` [m] (0 without stretch) [-]."""
+        if self.stretch is None:
+            return 0.0
+        return float(zone_strain(float(stroke), SHAPES[self.shape], self.wavelength,
+                                 self.zone_length))
 
     # ------------------------------------------------------------------ checks
     def check_firings(self, f: np.ndarray, h: np.ndarray) -> None:
@@ -181,13 +235,19 @@ class Simulator:
             warnings.warn(f"dt = {self.dt:g} s resolves the fastest stroke (f = {f.max():g} Hz) "
                           f"with {int(steps.min())} steps (< {MIN_STEPS_PER_STROKE}); results may "
                           "be inaccurate: reduce dt", StepSizeWarning, stacklevel=3)
+        if self.stretch is not None and h.max() > self.max_stretch_amplitude:
+            raise ParameterError(f"a stroke of {h.max():g} m strains the active zone beyond the "
+                                 f"stretch tables' max_strain = {self.stretch.max_strain}: raise "
+                                 "max_strain")
         peak = self.mass * (G0 + PEAK_QUINTIC_ACCEL * h * (2 * f) ** 2)
         if self.kinematics == "exact":
             peak = peak * 4.0  # generous room for the velocity terms
-        if peak.max() > self.table.max_load:
+        # the tables' range (with stretch: the smallest over the sigma nodes)
+        max_load = self.table.max_load if self.stretch is None else self.stretch_max_load
+        if peak.max() > max_load:
             raise TableRangeError(f"a stroke (f = {f.max():g} Hz, h = {h.max():g} m) can load the "
                                   f"part up to {peak.max():.3g} N, beyond the contact table "
-                                  f"({self.table.max_load:.3g} N)")
+                                  f"({max_load:.3g} N)")
 
     # ------------------------------------------------------------------ runs
     def simulate(self, schedule: Schedule, x0: float, v0: float = 0.0, record: bool = False,

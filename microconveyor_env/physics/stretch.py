@@ -95,3 +95,50 @@ class StretchContact:
             worst_f = max(worst_f, abs(float(self.pull_off_force(sig)) - direct.pull_off_force)
                           / direct.pull_off_force)
         return {"max_rel_error_Q": worst_q, "max_rel_error_pull_off": worst_f}
+
+
+# ----------------------------------------------------------------------------- for the kernel
+N_STRAIN_NODES = 129  # strain-of-amplitude table, uniform in amplitude^2
+
+
+def strain_table(shape_code: int, wavelength: float, zone_length: float, max_amplitude: float,
+                 n: int = N_STRAIN_NODES):
+    """Zone strain e(A) of the active zone (length ``zone_length`` [m], centred on the actuator)
+    deflected to amplitude A [m], on nodes uniform in A^2 from 0 to ``max_amplitude``^2.
+
+    Returns ``(a2_step [m^2], e_nodes [-])``; e is close to linear in A^2 (e ~ c A^2 for small A),
+    so linear interpolation in A^2 is accurate (measured by :func:`strain_table_error`)."""
+    from .kinematics import zone_strain
+
+    a_max = max(float(max_amplitude), 1e-12)
+    a2 = np.linspace(0.0, a_max * a_max, int(n))
+    e = np.array([zone_strain(math.sqrt(v), shape_code, wavelength, zone_length) for v in a2])
+    return a2[1] - a2[0], e
+
+
+def strain_table_error(shape_code: int, wavelength: float, zone_length: float,
+                       max_amplitude: float, samples: int = 400) -> float:
+    """Largest absolute error [-] of the interpolated zone strain over [0, max_amplitude]."""
+    from .kinematics import zone_strain
+
+    step, e = strain_table(shape_code, wavelength, zone_length, max_amplitude)
+    a = np.linspace(0.0, max_amplitude, samples)
+    grid = np.arange(e.size) * step
+    interp = np.interp(a * a, grid, e)
+    exact = np.array([zone_strain(v, shape_code, wavelength, zone_length) for v in a])
+    return float(np.max(np.abs(interp - exact)))
+
+
+def pack_tables(stretch: StretchContact) -> dict:
+    """The sigma-node tables as flat arrays for a compiled lookup: node arrays of table k are
+    ``u[o_k:o_k+1]`` etc. with ``o = offsets``; ``n_min[k] = -F_pull`` of table k [N]; the strain
+    nodes are uniform from 0 to ``max_strain``."""
+    parts = [t.kernel_arrays() for t in stretch.tables]
+    sizes = [p[0].size for p in parts]
+    offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(float)
+    return {"u": np.concatenate([p[0] for p in parts]),
+            "q": np.concatenate([p[1] for p in parts]),
+            "q_u": np.concatenate([p[2] for p in parts]),
+            "offsets": offsets, "n_min": np.array([p[3] for p in parts]),
+            "max_load": min(t.max_load for t in stretch.tables),
+            "max_strain": stretch.max_strain, "n_sigma": len(stretch.tables)}

@@ -1,0 +1,240 @@
+"""The study subcommands of ``microconveyor`` (registered into :mod:`..cli` by :func:`register`).
+
+Each takes ``--json`` (one JSON object on stdout), ``--plot FILE.png``, ``--out FILE.csv`` or
+``.parquet`` (the tidy table, one row per simulation), ``--workers N`` (local Dask cluster) or
+``--scheduler ADDRESS`` (an existing one), and shows a progress bar on stderr.
+"""
+from __future__ import annotations
+
+import time
+
+
+def _engine_args(p, out_default: str) -> None:
+    p.add_argument("--out", default=out_default,
+                   help="result table, .csv or .parquet (one row per simulation)")
+    p.add_argument("--plot", metavar="FILE.png", help="write the chart")
+    p.add_argument("--workers", type=int, default=0,
+                   help="run on a local Dask cluster of N worker processes (0: serial)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run on an existing Dask cluster, e.g. tcp://10.0.0.5:8786")
+    p.add_argument("--chunk-size", type=int, default=None, help="tasks per scattered chunk")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+
+
+def _engine_kw(args) -> dict:
+    return {"workers": args.workers or None, "scheduler": args.scheduler,
+            "chunk_size": args.chunk_size, "progress": not args.no_progress}
+
+
+def _with_engine(args, body):
+    """``body(engine keywords, cluster start-up time [s])`` with one Dask client for all of a
+    command's runs when ``--workers``/``--scheduler`` is given."""
+    kw = _engine_kw(args)
+    workers, scheduler = kw.pop("workers"), kw.pop("scheduler")
+    if not (workers or scheduler):
+        return body(kw, 0.0)
+    from .engine import dask_client
+
+    t0 = time.perf_counter()
+    with dask_client(workers, scheduler) as client:
+        return body({**kw, "client": client}, time.perf_counter() - t0)
+
+
+def _values(spec, name):
+    from .sweep import parse_values
+
+    return tuple(parse_values(spec, name))
+
+
+# ----------------------------------------------------------------------------- sensitivity
+QUICK_LEVELS = {"dgamma_J_m2": (1.0,), "sigma_m": (20e-9, 30e-9), "stroke_m": (150e-6, 200e-6),
+                "mass_kg": (2e-9,), "wavelength_m": (0.6e-3,), "x0_wl": (0.2, 0.25)}
+
+
+def _sensitivity_args(p):
+    _engine_args(p, "sensitivity.csv")
+    p.add_argument("--n-freq", type=int, default=8, help="design frequencies per combination")
+    p.add_argument("--sobol-n", type=int, default=128,
+                   help="Sobol' base sample size N (power of 2; N (2D+2) runs); 0: skip")
+    p.add_argument("--quick", action="store_true",
+                   help="a 8-combination design and N = 4 Sobol' sample (smoke test)")
+
+
+def cmd_sensitivity(args, emit):
+    from .sensitivity import LEVELS
+
+    levels = QUICK_LEVELS if args.quick else LEVELS
+    n_freq = 4 if args.quick else args.n_freq
+    sobol_n = (4 if args.sobol_n else 0) if args.quick else args.sobol_n
+    _with_engine(args, lambda kw, startup: _sensitivity(args, emit, levels, n_freq, sobol_n, kw,
+                                                         startup))
+
+
+def _sensitivity(args, emit, levels, n_freq, sobol_n, kw, startup):
+    from . import regression, sobol
+    from .engine import write_table
+    from .sensitivity import sensitivity_rows, windows
+
+    t0 = time.perf_counter()
+    rows = sensitivity_rows(levels, n_freq=n_freq, preset=args.preset, **kw)
+    design_wall = time.perf_counter() - t0
+    table = regression.table34(rows)
+    out = {"preset": args.preset, "levels": levels, "combinations": len(windows(rows)),
+           "runs": len(rows), "design_runs": sum(r["phase"] == "design" for r in rows),
+           "empty_windows": sum(w["window_hz"] is None for w in windows(rows)),
+           "wall_time_s": design_wall, "workers": args.workers, "scheduler": args.scheduler,
+           "cluster_startup_s": startup,
+           "table34": table, "table": str(write_table(rows, args.out))}
+    sob = None
+    if sobol_n:
+        t0 = time.perf_counter()
+        srows = sobol.sobol_rows(sobol_n, preset=args.preset, **kw)
+        sob = sobol.indices(srows)
+        sob["wall_time_s"] = time.perf_counter() - t0
+        out["sobol"] = sob
+        stem = args.out.rsplit(".", 1)
+        out["sobol_table"] = str(write_table(srows, f"{stem[0]}_sobol.{stem[1]}"))
+    if args.plot:
+        from .plots_studies import plot_sensitivity
+
+        out["plot"] = plot_sensitivity(table, sob, args.plot)
+    text = regression.table34_text(table)
+    if sob:
+        text += "\nSobol' indices (S1 +- CI, ST +- CI):\n" + "\n".join(
+            f"  {i['name']:16s} S1 {i['S1']:6.3f} +- {i['S1_conf']:.3f}   ST {i['ST']:6.3f} +- "
+            f"{i['ST_conf']:.3f}" for i in sob["indices"])
+        text += f"\ninteracting: {', '.join(sob['interacting']) or 'none'}"
+    emit(args, out, text)
+
+
+# ----------------------------------------------------------------------------- engage
+def _engage_args(p):
+    _engine_args(p, "engage.csv")
+    p.add_argument("--freqs", default="300,500,700", help="map frequencies [Hz], list or a:b:c")
+    p.add_argument("--stroke", type=float, default=150e-6, help="map stroke h [m]")
+    p.add_argument("--x0", default="-0.6e-3:0.6e-3:0.025e-3",
+                   help="map start positions [m] relative to the actuator (use --x0=-...)")
+    p.add_argument("--v0", default="-0.5:0.5:0.01", help="map initial velocities [m/s]")
+    p.add_argument("--two-freq", type=float, default=950.0, help="two-actuator frequency [Hz]")
+    p.add_argument("--two-stroke", type=float, default=200e-6, help="two-actuator stroke [m]")
+    p.add_argument("--start-offset", type=float, default=0.125e-3,
+                   help="two actuators: start this far upstream of the first [m]")
+    p.add_argument("--spacing", default="0.2e-3:1.5e-3:0.05e-3", help="spacings [m]")
+    p.add_argument("--delay", default="0:8e-3:0.2e-3", help="delays of the second firing [s]")
+
+
+def cmd_engage(args, emit):
+    _with_engine(args, lambda kw, startup: _engage(args, emit, kw))
+
+
+def _engage(args, emit, kw):
+    from .engage import (check_speed_statement, engage_map_rows, summarise_two,
+                         two_actuator_rows)
+    from .engine import write_table
+
+    t0 = time.perf_counter()
+    mrows = engage_map_rows(_values(args.freqs, "freq"), args.stroke, _values(args.x0, "x0"),
+                            _values(args.v0, "v0"), preset=args.preset, **kw)
+    trows = two_actuator_rows(args.two_freq, args.two_stroke, args.start_offset,
+                              spacings=_values(args.spacing, "spacing"),
+                              delays=_values(args.delay, "delay"), preset=args.preset, **kw)
+    wall = time.perf_counter() - t0
+    stem = args.out.rsplit(".", 1)
+    check = check_speed_statement(mrows)
+    for m in ("travel_along_m", "gain_along_m"):
+        if m in check:
+            check[m].pop("per_start", None)
+    out = {"preset": args.preset, "map_runs": len(mrows),
+           "map_detached": sum(r["detached"] for r in mrows), "speed_statement": check,
+           "two_actuators": summarise_two(trows), "wall_time_s": wall,
+           "table": str(write_table(mrows, args.out)),
+           "two_table": str(write_table(trows, f"{stem[0]}_two.{stem[1]}"))}
+    if args.plot:
+        from .plots_studies import plot_engage
+
+        out["plot"] = plot_engage(mrows, trows, args.plot)
+    emit(args, out)
+
+
+# ----------------------------------------------------------------------------- fidelity
+def _fidelity_args(p):
+    _engine_args(p, "fidelity.csv")
+    p.add_argument("--repeats", type=int, default=3, help="timed repeats per level")
+    p.add_argument("--scenes", default="single,episode_near,episode_far",
+                   help="comma-separated scenes")
+
+
+def cmd_fidelity(args, emit):
+    from .engine import write_table
+    from .fidelity import SCENES, assess, fidelity_rows
+
+    scenes = tuple(s.strip() for s in args.scenes.split(",") if s.strip())
+    bad = [s for s in scenes if s not in SCENES]
+    if bad:
+        raise ValueError(f"unknown scenes {bad}; available: {sorted(SCENES)}")
+    t0 = time.perf_counter()
+    rows = fidelity_rows(scenes, repeats=args.repeats, preset=args.preset, **_engine_kw(args))
+    res = assess(rows)
+    res["wall_time_s"] = time.perf_counter() - t0
+    res["table"] = str(write_table(res["rows"], args.out))
+    if args.plot:
+        from .plots_studies import plot_fidelity
+
+        res["plot"] = plot_fidelity(res, args.plot)
+    res.pop("rows")
+    emit(args, res)
+
+
+# ----------------------------------------------------------------------------- stretch
+def _stretch_args(p):
+    _engine_args(p, "stretch.csv")
+    p.add_argument("--freq", default="200:1500:25", help="frequencies [Hz], list or a:b:c")
+    p.add_argument("--stroke", type=float, default=200e-6, help="stroke h [m]")
+    p.add_argument("--x0", type=float, default=0.125e-3, help="start position [m]")
+    p.add_argument("--profile", default="gaussian", help="gaussian, sinusoidal, clamped_beam")
+    p.add_argument("--wavelength", type=float, default=0.6e-3, help="wavelength WL [m]")
+    p.add_argument("--kinematics", default="seed", choices=("seed", "exact"))
+    p.add_argument("--repeats", type=int, default=3, help="timed repeats per run")
+    p.add_argument("--n-sigma", type=int, default=21, help="sigma nodes of the stretch tables")
+
+
+def cmd_stretch(args, emit):
+    from ..physics.simulator import Simulator
+    from .engine import write_table
+    from .stretch_study import compare, stretch_rows
+
+    t0 = time.perf_counter()
+    sim = Simulator(args.preset, shape=args.profile, wavelength=args.wavelength,
+                    roughness="stretch", n_sigma=args.n_sigma)  # build/load the tables once
+    setup = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    rows = stretch_rows(_values(args.freq, "freq"), args.stroke, args.x0, args.profile,
+                        args.wavelength, args.repeats, args.preset,
+                        {"kinematics": args.kinematics, "n_sigma": args.n_sigma},
+                        **_engine_kw(args))
+    out = {"preset": args.preset, "stroke_m": args.stroke, "x0_m": args.x0,
+           "profile": args.profile, "kinematics": args.kinematics,
+           "peak_strain": sim.peak_strain(args.stroke), "stretch_setup_s": setup,
+           "sigma_nodes": len(sim.stretch.tables), "max_strain": sim.stretch.max_strain,
+           **compare(rows), "wall_time_s": time.perf_counter() - t0,
+           "table": str(write_table(rows, args.out))}
+    if args.plot:
+        from .plots_studies import plot_stretch
+
+        out["plot"] = plot_stretch({"rows": rows}, args.plot)
+    emit(args, out)
+
+
+def register(command, args_table, emit) -> None:
+    """Add the study subcommands to the CLI's registry (``command``) and argument table."""
+    for name, help_, fn, add in (
+            ("sensitivity", "Table 3.2 design: Box-Cox + OLS (Table 3.4) and Sobol' indices",
+             cmd_sensitivity, _sensitivity_args),
+            ("engage", "engaging velocity/position maps and the two-actuator map (ch. 4)",
+             cmd_engage, _engage_args),
+            ("fidelity", "which model level a scene needs: error against the most faithful "
+                         "level and cost", cmd_fidelity, _fidelity_args),
+            ("stretch", "travel versus frequency with constant and stretch-dependent roughness "
+                        "(ch. 5), and its cost", cmd_stretch, _stretch_args)):
+        command(name, help_)(lambda args, _fn=fn: _fn(args, emit))
+        args_table[name] = add
