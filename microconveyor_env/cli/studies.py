@@ -1,4 +1,4 @@
-"""The study subcommands of ``microconveyor`` (registered into :mod:`..cli` by :func:`register`).
+"""``microconveyor sensitivity | engage | fidelity | stretch``: the studies (``..studies``).
 
 Each takes ``--json`` (one JSON object on stdout), ``--plot FILE.png``, ``--out FILE.csv`` or
 ``.parquet`` (the tidy table, one row per simulation), ``--workers N`` (local Dask cluster) or
@@ -7,6 +7,8 @@ Each takes ``--json`` (one JSON object on stdout), ``--plot FILE.png``, ``--out 
 from __future__ import annotations
 
 import time
+
+from .base import command, emit
 
 
 def _engine_args(p, out_default: str) -> None:
@@ -33,7 +35,7 @@ def _with_engine(args, body):
     workers, scheduler = kw.pop("workers"), kw.pop("scheduler")
     if not (workers or scheduler):
         return body(kw, 0.0)
-    from .engine import dask_client
+    from ..studies.engine import dask_client
 
     t0 = time.perf_counter()
     with dask_client(workers, scheduler) as client:
@@ -41,7 +43,7 @@ def _with_engine(args, body):
 
 
 def _values(spec, name):
-    from .sweep import parse_values
+    from ..studies.sweep import parse_values
 
     return tuple(parse_values(spec, name))
 
@@ -60,20 +62,20 @@ def _sensitivity_args(p):
                    help="a 8-combination design and N = 4 Sobol' sample (smoke test)")
 
 
-def cmd_sensitivity(args, emit):
-    from .sensitivity import LEVELS
+def cmd_sensitivity(args):
+    from ..studies.sensitivity import LEVELS
 
     levels = QUICK_LEVELS if args.quick else LEVELS
     n_freq = 4 if args.quick else args.n_freq
     sobol_n = (4 if args.sobol_n else 0) if args.quick else args.sobol_n
-    _with_engine(args, lambda kw, startup: _sensitivity(args, emit, levels, n_freq, sobol_n, kw,
+    _with_engine(args, lambda kw, startup: _sensitivity(args, levels, n_freq, sobol_n, kw,
                                                          startup))
 
 
-def _sensitivity(args, emit, levels, n_freq, sobol_n, kw, startup):
-    from . import regression, sobol
-    from .engine import write_table
-    from .sensitivity import sensitivity_rows, windows
+def _sensitivity(args, levels, n_freq, sobol_n, kw, startup):
+    from ..studies import regression, sobol
+    from ..studies.engine import write_table
+    from ..studies.sensitivity import sensitivity_rows, windows
 
     t0 = time.perf_counter()
     rows = sensitivity_rows(levels, n_freq=n_freq, preset=args.preset, **kw)
@@ -95,7 +97,7 @@ def _sensitivity(args, emit, levels, n_freq, sobol_n, kw, startup):
         stem = args.out.rsplit(".", 1)
         out["sobol_table"] = str(write_table(srows, f"{stem[0]}_sobol.{stem[1]}"))
     if args.plot:
-        from .plots_studies import plot_sensitivity
+        from ..studies.plots_studies import plot_sensitivity
 
         out["plot"] = plot_sensitivity(table, sob, args.plot)
     text = regression.table34_text(table)
@@ -123,14 +125,14 @@ def _engage_args(p):
     p.add_argument("--delay", default="0:8e-3:0.2e-3", help="delays of the second firing [s]")
 
 
-def cmd_engage(args, emit):
-    _with_engine(args, lambda kw, startup: _engage(args, emit, kw))
+def cmd_engage(args):
+    _with_engine(args, lambda kw, startup: _engage(args, kw))
 
 
-def _engage(args, emit, kw):
-    from .engage import (check_speed_statement, engage_map_rows, summarise_two,
+def _engage(args, kw):
+    from ..studies.engage import (check_speed_statement, engage_map_rows, summarise_two,
                          two_actuator_rows)
-    from .engine import write_table
+    from ..studies.engine import write_table
 
     t0 = time.perf_counter()
     mrows = engage_map_rows(_values(args.freqs, "freq"), args.stroke, _values(args.x0, "x0"),
@@ -150,7 +152,7 @@ def _engage(args, emit, kw):
            "table": str(write_table(mrows, args.out)),
            "two_table": str(write_table(trows, f"{stem[0]}_two.{stem[1]}"))}
     if args.plot:
-        from .plots_studies import plot_engage
+        from ..studies.plots_studies import plot_engage
 
         out["plot"] = plot_engage(mrows, trows, args.plot)
     emit(args, out)
@@ -164,9 +166,9 @@ def _fidelity_args(p):
                    help="comma-separated scenes")
 
 
-def cmd_fidelity(args, emit):
-    from .engine import write_table
-    from .fidelity import SCENES, assess, fidelity_rows
+def cmd_fidelity(args):
+    from ..studies.engine import write_table
+    from ..studies.fidelity import SCENES, assess, fidelity_rows
 
     scenes = tuple(s.strip() for s in args.scenes.split(",") if s.strip())
     bad = [s for s in scenes if s not in SCENES]
@@ -178,7 +180,7 @@ def cmd_fidelity(args, emit):
     res["wall_time_s"] = time.perf_counter() - t0
     res["table"] = str(write_table(res["rows"], args.out))
     if args.plot:
-        from .plots_studies import plot_fidelity
+        from ..studies.plots_studies import plot_fidelity
 
         res["plot"] = plot_fidelity(res, args.plot)
     res.pop("rows")
@@ -198,10 +200,10 @@ def _stretch_args(p):
     p.add_argument("--n-sigma", type=int, default=21, help="sigma nodes of the stretch tables")
 
 
-def cmd_stretch(args, emit):
+def cmd_stretch(args):
     from ..physics.simulator import Simulator
-    from .engine import write_table
-    from .stretch_study import compare, stretch_rows
+    from ..studies.engine import write_table
+    from ..studies.stretch_study import compare, stretch_rows
 
     t0 = time.perf_counter()
     sim = Simulator(args.preset, shape=args.profile, wavelength=args.wavelength,
@@ -219,22 +221,19 @@ def cmd_stretch(args, emit):
            **compare(rows), "wall_time_s": time.perf_counter() - t0,
            "table": str(write_table(rows, args.out))}
     if args.plot:
-        from .plots_studies import plot_stretch
+        from ..studies.plots_studies import plot_stretch
 
         out["plot"] = plot_stretch({"rows": rows}, args.plot)
     emit(args, out)
 
 
-def register(command, args_table, emit) -> None:
-    """Add the study subcommands to the CLI's registry (``command``) and argument table."""
-    for name, help_, fn, add in (
-            ("sensitivity", "Table 3.2 design: Box-Cox + OLS (Table 3.4) and Sobol' indices",
-             cmd_sensitivity, _sensitivity_args),
-            ("engage", "engaging velocity/position maps and the two-actuator map (ch. 4)",
-             cmd_engage, _engage_args),
-            ("fidelity", "which model level a scene needs: error against the most faithful "
-                         "level and cost", cmd_fidelity, _fidelity_args),
-            ("stretch", "travel versus frequency with constant and stretch-dependent roughness "
-                        "(ch. 5), and its cost", cmd_stretch, _stretch_args)):
-        command(name, help_)(lambda args, _fn=fn: _fn(args, emit))
-        args_table[name] = add
+for _name, _help, _fn, _add in (
+        ("sensitivity", "the dissertation's sensitivity design: Box-Cox + OLS and Sobol' indices",
+         cmd_sensitivity, _sensitivity_args),
+        ("engage", "engaging velocity/position maps and the two-actuator map",
+         cmd_engage, _engage_args),
+        ("fidelity", "which model level a scene needs: error against the most faithful level "
+                     "and cost", cmd_fidelity, _fidelity_args),
+        ("stretch", "travel versus frequency with constant and stretch-dependent roughness, and "
+                    "its cost", cmd_stretch, _stretch_args)):
+    command(_name, _help, _add)(_fn)

@@ -1,0 +1,149 @@
+"""The ``microconveyor`` command line's machinery: the command registry, JSON output, argument
+types and the error contract (see :mod:`microconveyor_env.cli`)."""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import traceback
+from typing import Any, Callable
+
+from ..physics.materials import ParameterError
+
+# name -> (function(args), help); ARGS: name -> function(parser) adding the command's options
+COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], Any], str]] = {}
+ARGS: dict[str, Callable[[argparse.ArgumentParser], None]] = {}
+
+
+def command(name: str, help_: str, add_args: Callable[[argparse.ArgumentParser], None] | None = None):
+    """Register ``fn(args)`` as subcommand ``name`` (its options added by ``add_args``)."""
+    def deco(fn):
+        COMMANDS[name] = (fn, help_)
+        if add_args is not None:
+            ARGS[name] = add_args
+        return fn
+    return deco
+
+
+def emit(args, result: dict, human: str = "") -> None:
+    if args.json:
+        print(json.dumps(result, indent=None, default=json_default, allow_nan=False))
+    else:
+        print(human or "\n".join(f"{k:32s} {v}" for k, v in result.items()))
+
+
+def json_default(o):
+    import numpy as np
+
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(type(o))
+
+
+# ----------------------------------------------------------------------------- value parsing
+def plot_path(text: str) -> str:
+    """``--plot`` value: a non-empty file name; without an extension ``.png`` is added (the
+    reported path is the one written); the extension must be a format matplotlib writes."""
+    from pathlib import Path
+
+    if not text.strip():
+        raise argparse.ArgumentTypeError("empty file name")
+    path = Path(text)
+    if text.endswith(("/", "\\")) or path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text!r} is a folder; give a file name")
+    if not path.suffix:
+        path = path.with_name(path.name + ".png")
+    fmt = path.suffix[1:].lower()
+    if fmt not in _plot_formats():
+        raise argparse.ArgumentTypeError(f"unsupported chart format {fmt!r}; use one of "
+                                         f"{', '.join(sorted(_plot_formats()))}")
+    return str(path)
+
+
+def _plot_formats() -> set:
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    return set(FigureCanvasBase.get_supported_filetypes())
+
+
+def count(lo: int, hi: int | None = None):
+    """An integer option in [lo, hi] (hi None: the library checks the upper bound)."""
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if v < lo or (hi is not None and v > hi):
+            raise argparse.ArgumentTypeError(f"must be an integer in [{lo}, "
+                                             f"{'...' if hi is None else f'{hi:g}'}], got {v}")
+        return v
+    return parse
+
+
+def common_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("--preset", default="seed", help="preset name (seed, ke) or YAML path")
+
+
+
+DESCRIPTION = "microconveyor-env: micropart conveyor simulator, studies and agents"
+
+
+class UsageError(ValueError):
+    """A command line argparse refused (raised instead of printing usage and exiting)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):
+        raise UsageError(f"{self.prog}: {message} (see --help)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="microconveyor", description=DESCRIPTION)
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    for name, (fn, help_) in COMMANDS.items():
+        p = sub.add_parser(name, help=help_, description=help_)
+        common_args(p)
+        ARGS.get(name, lambda _p: None)(p)
+        p.set_defaults(func=fn)
+    return parser
+
+
+# Errors that user input can cause: reported in one line, never with a traceback.
+USER_ERRORS = (ParameterError, ValueError, RuntimeError, OSError, OverflowError, MemoryError,
+               RecursionError)
+
+
+def fail(argv: list, command: str, exc: BaseException) -> int:
+    """The error contract: ``--json``: one ``{"error": ...}`` object on stdout; always one line on
+    stderr; exit status 2."""
+    expected = isinstance(exc, USER_ERRORS)
+    text = " ".join(str(exc).split()) or type(exc).__name__  # one line
+    if not expected:
+        text += " (internal error: please report it; MICROCONVEYOR_DEBUG=1 shows the traceback)"
+    msg = f"{type(exc).__name__}: {text}"
+    if any(a.startswith("--j") and "--json".startswith(a) for a in argv):  # argparse abbrevs
+        print(json.dumps({"error": msg, "error_type": type(exc).__name__}), flush=True)
+    print(f"microconveyor{' ' + command if command else ''}: {msg}", file=sys.stderr)
+    if not expected and os.environ.get("MICROCONVEYOR_DEBUG"):
+        traceback.print_exception(exc)
+    return 2
+
+
+def main(argv: list | None = None) -> int:
+    """Run the command line (``argv``: the arguments, default ``sys.argv[1:]``); exit status."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    command = ""
+    try:
+        args = build_parser().parse_args(argv)
+        command = args.command
+        args.func(args)
+    except KeyboardInterrupt:
+        raise
+    except Exception as exc:  # noqa: BLE001 - the error contract covers every failure
+        return fail(argv, command, exc)
+    return 0
+

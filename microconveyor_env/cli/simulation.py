@@ -1,0 +1,198 @@
+"""``microconveyor simulate | sweep | accuracy | bench``: one firing, sweeps, the accuracy studies
+and the kernel benchmark."""
+from __future__ import annotations
+
+from .base import ARGS, command, count, emit, plot_path
+
+
+def _scene_args(p, sweep=False):
+    num = str if sweep else float
+    p.add_argument("--freq", type=num, default=None if sweep else 950.0,
+                   help="stroke frequency f [Hz] (stroke lasts 1/f)")
+    p.add_argument("--stroke", type=num, default=None if sweep else 200e-6, help="stroke height h [m]")
+    p.add_argument("--x0", type=num, default=None if sweep else 0.125e-3,
+                   help="start position [m] (actuator at 0)")
+    p.add_argument("--wavelength", type=num, default=None if sweep else 0.6e-3,
+                   help="deformation wavelength WL [m]")
+    p.add_argument("--profile", default=None if sweep else "gaussian",
+                   help="shape: gaussian, sinusoidal, clamped_beam")
+    if sweep:
+        for name in ("mass", "sigma", "dgamma"):
+            p.add_argument(f"--{name}", default=None, help=f"sweep {name} (SI units)")
+    p.add_argument("--mode", default="event", choices=("event", "karnopp"))
+    p.add_argument("--kinematics", default="seed", choices=("seed", "exact"))
+    p.add_argument("--roughness", default="constant", choices=("constant", "stretch"),
+                   help="stretch: sigma follows the strain of the active zone (physics.md §4)")
+    p.add_argument("--dt", type=float, default=None, help="largest RK4 step [s]")
+    p.add_argument("--max-steps", type=count(1), default=None,
+                   help="refuse a firing needing more RK4 steps (default 1e7; raise it if you "
+                        "mean it)")
+    p.add_argument("--plot", metavar="FILE.png", type=plot_path, help="write a chart")
+
+
+def _sim_kw(args) -> dict:
+    kw = {"mode": args.mode, "kinematics": args.kinematics}
+    if args.dt is not None:
+        kw["dt"] = args.dt
+    if args.roughness != "constant":
+        kw["roughness"] = args.roughness
+    if args.max_steps is not None:
+        kw["max_steps"] = args.max_steps
+    return kw
+
+
+@command("simulate", "one firing of one actuator: travel, outcome, timing")
+def cmd_simulate(args):
+    from ..studies.sweep import Scene
+
+    scene = Scene(preset=args.preset, freq=args.freq, stroke=args.stroke, x0=args.x0,
+                  wavelength=args.wavelength, profile=args.profile, sim_kw=_sim_kw(args))
+    sim = scene.simulator()
+    scene.run()  # load the compiled kernel first, so wall_time_s is the steady-state figure
+    res = scene.run(record=bool(args.plot))
+    out = {"preset": args.preset, "freq_hz": args.freq, "stroke_m": args.stroke, "x0_m": args.x0,
+           "profile": args.profile, "mode": args.mode, "kinematics": args.kinematics,
+           "dt_s": sim.dt, "steps_per_stroke": sim.steps_per_stroke(args.freq),
+           **res.to_dict(), "rest_time_s": res.rest_time_s}
+    if args.plot:
+        from ..plots import plot_firing
+
+        out["plot"] = str(plot_firing(res, args.freq, args.plot, stroke=args.stroke))
+    emit(args, out)
+
+
+@command("sweep", "travel versus one parameter (frequency by default) and the feasible window")
+def cmd_sweep(args):
+    from ..studies.sweep import SWEEPABLE, Scene, parse_values, sweep
+
+    given = {k: getattr(args, k) for k in SWEEPABLE if getattr(args, k, None) is not None}
+    swept = [k for k, v in given.items() if k != "profile" and (":" in v or "," in v)]
+    if "profile" in given and "," in given["profile"]:
+        swept.append("profile")
+    if len(swept) != 1:
+        raise ValueError(f"give exactly one swept parameter as start:stop:step or a list "
+                         f"(got {swept or 'none'}); e.g. --freq 200:1500:25")
+    param = swept[0]
+    base = {}
+    for k, v in given.items():
+        if k != param:
+            base[k] = v if k == "profile" else parse_values(v, k, 1)[0]
+    scene = Scene(preset=args.preset, sim_kw=_sim_kw(args), **base)
+    limit = {} if args.max_points is None else {"max_points": args.max_points}
+    values = parse_values(given[param], param, **limit)
+    res = sweep(scene, param, values, progress=not args.no_progress, **limit)
+    keyed = {"freq": "freq_hz", "stroke": "stroke_m", "x0": "x0_m", "wavelength": "wavelength_m",
+             "mass": "mass_kg", "sigma": "sigma_m", "dgamma": "dgamma_J_m2", "profile": "profile"}
+    out = {"preset": args.preset,
+           **{keyed[k]: getattr(scene, k) for k in SWEEPABLE if k != param}, **res}
+    if args.plot:
+        from ..plots import plot_sweep
+
+        out["plot"] = str(plot_sweep(res, args.plot))
+    emit(args, out, _sweep_text(res))
+
+
+def _sweep_text(res) -> str:
+    lines = [f"{res['param']:>12s}  travel [um]  outcome"]
+    for v, d, o in zip(res["values"], res["displacement_m"], res["outcome"]):
+        lines.append(f"{v!s:>12s}  {d * 1e6:11.2f}  {o}")
+    if res.get("window") is not None:
+        lines.append(f"feasible window: {res['window']} {res['unit']}")
+    return "\n".join(lines)
+
+
+def _sweep_args(p):
+    _scene_args(p, sweep=True)
+    p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    p.add_argument("--max-points", type=count(1, 10 ** 9), default=None,
+                   help="refuse sweeps of more points (default 10000; raise it if you mean it)")
+
+
+@command("accuracy", "speed versus accuracy of the integrator settings (chart + default choice)")
+def cmd_accuracy(args):
+    if args.episode:
+        return _accuracy_episode(args)
+    from ..studies.accuracy import accuracy_study
+
+    study = accuracy_study(args.preset, repeats=args.repeats, progress=True)
+    if args.plot:
+        from ..plots import plot_accuracy
+
+        study["plot"] = str(plot_accuracy(study, args.plot))
+    d = study["default"]
+    emit(args, study, f"default: {d}" if d else "no setting within tolerance")
+
+
+def _accuracy_episode(args):
+    from ..studies.episodes import episode_study
+
+    if args.preset != "seed":
+        raise ValueError("--episode runs MicroConveyor-v0's own preset (seed); drop --preset")
+    study = episode_study(n_per_category=args.per_category, seed=args.seed,
+                          repeats=min(args.repeats, 5), progress=True)
+    if args.plot:
+        from ..plots import plot_episode_accuracy
+
+        study["plot"] = str(plot_episode_accuracy(study, args.plot))
+    emit(args, study, _episode_text(study))
+
+
+def _episode_text(study) -> str:
+    lines = [f"{study['episodes']} episodes {study['counts']}, reference event dt = "
+             f"{study['reference_dt_s']:g} s (halving it moves no final position by more than "
+             f"{study['reference_half_dt_check']['max_error_m']:.1e} m)",
+             f"{'mode':>8} {'dt [s]':>9} {'min':>4} {'median':>9} {'p95':>9} {'max':>9} "
+             f"{'outc.':>5} {'succ.':>5} {'steps':>6} {'us/ep':>7}"]
+    for r in study["rows"]:
+        lines.append(f"{r['mode']:>8} {r['dt_s']:9.3g} {r['min_steps']:4d} "
+                     f"{r['median_error_m']:9.2e} {r['p95_error_m']:9.2e} {r['max_error_m']:9.2e} "
+                     f"{r['outcome_disagreements']:5d} {r['success_disagreements']:5d} "
+                     f"{r['rk4_steps_per_episode']:6.0f} "
+                     f"{r['wall_per_episode_s'] * 1e6:7.1f}")
+    rec = study["recommended"]
+    lines.append("recommended default: " + (f"{rec['mode']}, dt = {rec['dt_s']:g} s, min_steps = "
+                                            f"{rec['min_steps']}" if rec else "none meets the bar"))
+    return "\n".join(lines)
+
+
+def _accuracy_args(p):
+    p.add_argument("--plot", metavar="FILE.png", type=plot_path, help="write the chart")
+    p.add_argument("--repeats", type=count(1, 10_000), default=30,
+                   help="timed repeats per setting")
+    p.add_argument("--episode", action="store_true",
+                   help="whole MicroConveyor-v0 episodes (final position and outcome) instead of "
+                        "the single seed firing")
+    p.add_argument("--per-category", type=count(1, 10_000), default=60,
+                   help="--episode: episodes per category (4 categories)")
+    p.add_argument("--seed", type=int, default=0, help="--episode: seed of the episode set")
+
+
+@command("bench", "kernel speed on the seed firing, against the dissertation-style loop")
+def cmd_bench(args):
+    from ..studies.bench import bench_modes
+
+    out = {"modes": bench_modes(args.preset, repeats=args.repeats)}
+    if args.skip_reference:
+        out["reference"] = None
+        out["reference_note"] = "skipped"
+    else:
+        from ..presets import load_preset
+        from ..studies.reference_loop import converged_dt
+
+        contact = load_preset(args.preset).contact
+        ref = converged_dt(contact)
+        out["reference"] = ref
+        default = out["modes"]["event"]["median_wall_time_s"]
+        out["speedup_vs_reference"] = ref["wall_time_s"] / default
+    emit(args, out)
+
+
+def _bench_args(p):
+    p.add_argument("--repeats", type=count(1, 1_000_000), default=500,
+                   help="timed repeats per mode")
+    p.add_argument("--skip-reference", action="store_true",
+                   help="do not run the (slow) plain-Python reference")
+
+
+ARGS.update({"simulate": _scene_args, "sweep": _sweep_args, "accuracy": _accuracy_args,
+             "bench": _bench_args})
