@@ -205,9 +205,14 @@ def test_episode_end_to_end_and_reward_sum_is_potential_based(policy):
     for seed in range(3):
         x0, total, info, e = _episode(env, pol, seed, options={"target": 2e-3})
         cfg = e.config
-        expected = (-abs(e.x - e.target) + abs(x0 - e.target)) / cfg.progress_scale \
-            - cfg.time_cost * e.t + cfg.success_bonus * info["is_success"] \
-            - cfg.detach_penalty * (info["outcome"] == "detached")
+        h = task.HORIZON
+        if info["outcome"] == "detached":  # forfeits all progress and pays time up to max_time
+            expected = (-h + min(abs(x0 - e.target), h)) / cfg.progress_scale \
+                - cfg.time_cost * max(cfg.max_time, e.t) - cfg.detach_penalty
+        else:
+            expected = (-min(abs(e.x - e.target), h) + min(abs(x0 - e.target), h)) \
+                / cfg.progress_scale - cfg.time_cost * e.t \
+                + cfg.success_bonus * info["is_success"]
         assert total == pytest.approx(expected, rel=1e-9, abs=1e-9)
         assert info["outcome"] in ("rest", "detached", "max_time")
         assert e.target == 2e-3 and info["sim_time_s"] == e.t

@@ -22,7 +22,7 @@ _RANGES = {  # field -> (lo, hi, lo_open, unit)
     "start_offset": (0.0, 1.0, False, "m"), "start_jitter": (0.0, 1.0, False, "m"),
     "tolerance": (MIN_LENGTH, 1.0, False, "m"),
     "time_cost": (0.0, 1e6, False, "1/s"), "success_bonus": (0.0, 1e6, False, "-"),
-    "detach_penalty": (0.0, 1e6, False, "-"), "max_time": (1e-6, 1e6, False, "s"),
+    "detach_penalty": (0.0, 1e6, True, "-"), "max_time": (1e-6, 1e6, False, "s"),
     "dt": (MIN_DT, 1.0, False, "s"),
 }
 _PAIRS = {"target_range": (0.0, MAX_TARGET, "m"), "freq_range": (0.0, 1e6, "Hz"),

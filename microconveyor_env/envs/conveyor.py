@@ -87,8 +87,11 @@ class MicroConveyorEnv(gym.Env):
     | 5 | target (distance beyond actuator 1) | / 10 mm |
 
     ## Reward
-    ``Phi(s') - Phi(s) - time_cost * (t' - t) + success_bonus * [success] - detach_penalty *
-    [detached]`` with the potential ``Phi = -|x - target| / progress_scale``.
+    ``Phi(s') - Phi(s) - time_cost * (t' - t) + success_bonus * [success]`` with the potential
+    ``Phi = -min(|x - target|, 0.1 m) / progress_scale`` (0.1 m: the observable distance). On
+    detachment the part forfeits all progress (it takes the potential of 0.1 m), pays the time
+    cost up to ``max_time`` and ``detach_penalty``: any episode ending at rest returns more than
+    any detaching one, and at equal time a closer rest returns more (:mod:`.task`).
 
     ## Episode end
     ``terminated``: at rest after the last firing, or detachment. ``truncated``: the simulated

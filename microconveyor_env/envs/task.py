@@ -7,6 +7,21 @@ constants travel as one float array ``TC`` (:func:`constants`).
 
 Success (at rest within ``tolerance`` of the target) is decided here and only here: the compiled
 step reports it, and the envs read it from there.
+
+Reward ranking (the task is well posed). An episode's return telescopes to
+``Phi(end) - Phi(start) - time_cost * T + success_bonus * [success] - ...`` with the potential
+``Phi(x) = -min(|x - target|, HORIZON) / progress_scale`` saturating at the observable distance
+``HORIZON`` (the observation clips the position error there). Detachment ends the episode in the
+worst state there is: the detached part takes the potential of the horizon (it forfeits all
+progress, ``-HORIZON / progress_scale``), pays the time cost up to ``max_time`` and then
+``detach_penalty`` (> 0). Hence, for every configuration validation accepts:
+
+* any episode that ends at rest returns more than any episode that detaches (its potential is
+  >= the horizon's and its time cost <= ``time_cost * max_time``; the penalty is > 0);
+* at equal simulated time, resting closer to the target returns more (strictly, within the
+  horizon), and resting within tolerance adds ``success_bonus`` on top.
+
+``tests/properties/test_reward_ranking.py`` checks both as hypothesis properties.
 """
 from __future__ import annotations
 
@@ -20,6 +35,7 @@ OBS_DIM = 6
 OBS_BOUND = 10.0          # observations are clipped to [-OBS_BOUND, OBS_BOUND]
 LENGTH_SCALE = 10e-3      # m: position error and target are divided by this
 VELOCITY_SCALE = 0.5      # m/s
+HORIZON = OBS_BOUND * LENGTH_SCALE  # m: the observable distance; the potential saturates there
 
 T_NACT, T_SPACING, T_TMAX, T_PSCALE, T_TCOST, T_BONUS, T_PENALTY, T_TOL = range(8)
 N_T = 8
@@ -45,8 +61,8 @@ def initial_state(cfg, rng: np.random.Generator, target: float | None = None) ->
 
 @njit(cache=True)
 def potential(x, target, TC):
-    """Phi = -|x - target| / progress_scale."""
-    return -abs(x - target) / TC[T_PSCALE]
+    """Phi = -min(|x - target|, HORIZON) / progress_scale."""
+    return -min(abs(x - target), HORIZON) / TC[T_PSCALE]
 
 
 @njit(cache=True)
@@ -57,14 +73,16 @@ def is_success(code, x, target, TC):
 
 @njit(cache=True)
 def reward(code, x_old, x_new, t_old, t_new, target, TC):
-    """Potential-based progress, minus the time cost, plus the success bonus, minus the
-    detachment penalty."""
+    """Potential-based progress, minus the time cost, plus the success bonus; on detachment the
+    part takes the horizon's potential, pays the time cost up to ``max_time`` and the detachment
+    penalty (see the module docstring for why)."""
+    if code == K.DETACHED:
+        return -HORIZON / TC[T_PSCALE] - potential(x_old, target, TC) \
+            - TC[T_TCOST] * (max(TC[T_TMAX], t_new) - t_old) - TC[T_PENALTY]
     r = potential(x_new, target, TC) - potential(x_old, target, TC) \
         - TC[T_TCOST] * (t_new - t_old)
     if is_success(code, x_new, target, TC):
         r += TC[T_BONUS]
-    if code == K.DETACHED:
-        r -= TC[T_PENALTY]
     return r
 
 
