@@ -40,7 +40,7 @@ class EnvConfig:
     wavelength: float = 0.6e-3
     start_offset: float = 0.15e-3
     start_jitter: float = 0.0
-    target_range: tuple = (1e-3, 10e-3)
+    target_range: tuple = (0.5e-3, 3e-3)
     tolerance: float = 50e-6
     freq_range: tuple = (200.0, 10000.0)
     stroke_range: tuple = (100e-6, 200e-6)
