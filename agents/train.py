@@ -99,6 +99,9 @@ def train(out, steps: int | None = None, seed: int = 0, conf_file: str | None = 
           max_minutes: float | None = None):
     """Train (or resume) PPO into ``out`` for ``steps`` (or until ``max_minutes`` of wall time,
     resumed runs included); returns the metadata written there."""
+    import torch
+
+    torch.set_num_threads(1)  # small nets: one thread is fastest, and 2 cores are shared with the env
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     hp = hyperparams.load(conf_file)

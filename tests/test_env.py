@@ -205,7 +205,7 @@ def test_episode_end_to_end_and_reward_sum_is_potential_based(policy):
     for seed in range(3):
         x0, total, info, e = _episode(env, pol, seed, options={"target": 2e-3})
         cfg = e.config
-        h = task.HORIZON
+        h = cfg.progress_horizon
         if info["outcome"] == "detached":  # forfeits all progress and pays time up to max_time
             expected = (-h + min(abs(x0 - e.target), h)) / cfg.progress_scale \
                 - cfg.time_cost * max(cfg.max_time, e.t) - cfg.detach_penalty

@@ -13,6 +13,12 @@ def _demo_args(p):
 @command("demo", "the main job: contact report, a firing, a frequency sweep and an env episode, "
                  "charts written to --out")
 def cmd_demo(args):
+    summary = demo_summary(args)
+    emit(args, summary, "\n".join(f"wrote {c}" for c in summary["charts"] + [summary["summary_json"]]))
+
+
+def demo_summary(args) -> dict:
+    """Run the demo into ``args.out``; the summary (also written to ``summary.json``)."""
     from pathlib import Path
 
     from ..physics.contact_table import ContactTable
@@ -42,7 +48,7 @@ def cmd_demo(args):
                "charts": [str(c) for c in charts]}
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2, default=json_default))
     summary["summary_json"] = str(out_dir / "summary.json")
-    emit(args, summary, "\n".join(f"wrote {c}" for c in summary["charts"] + [summary["summary_json"]]))
+    return summary
 
 
 def _demo_episode(path):

@@ -46,6 +46,7 @@ class EnvConfig:
     stroke_range: tuple = (100e-6, 200e-6)
     delay_range: tuple = (0.0, 0.1)
     progress_scale: float | None = None  # None: the tolerance
+    progress_horizon: float | None = None  # None: twice the farthest start-to-target distance
     time_cost: float = 1.0
     success_bonus: float = 10.0
     detach_penalty: float = 10.0
@@ -100,6 +101,16 @@ class EnvConfig:
         if self.freq_range[0] <= 0:
             raise ParameterError(f"EnvConfig.freq_range = {self.freq_range!r} is invalid: "
                                  "frequencies must be > 0 Hz")
+        far = self.target_range[1] + self.start_offset + self.start_jitter
+        if self.progress_horizon is None:
+            object.__setattr__(self, "progress_horizon", 2.0 * far)
+        object.__setattr__(self, "progress_horizon", check_range(
+            "EnvConfig", "progress_horizon", self.progress_horizon, MIN_LENGTH, 10.0, unit="m"))
+        if self.progress_horizon < far:
+            raise ParameterError(f"EnvConfig.progress_horizon = {self.progress_horizon!r} is "
+                                 f"invalid: must be >= the farthest start-to-target distance "
+                                 f"target_range[1] + start_offset + start_jitter = {far!r} m, so "
+                                 "all progress from the start is paid")
         object.__setattr__(self, "max_steps", check_max_steps("EnvConfig", self.max_steps))
         # the slowest strokes of a whole episode must fit the step budget
         check_step_budget("EnvConfig (dt, freq_range, n_actuators)",

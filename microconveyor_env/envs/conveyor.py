@@ -88,8 +88,9 @@ class MicroConveyorEnv(gym.Env):
 
     ## Reward
     ``Phi(s') - Phi(s) - time_cost * (t' - t) + success_bonus * [success]`` with the potential
-    ``Phi = -min(|x - target|, 0.1 m) / progress_scale`` (0.1 m: the observable distance). On
-    detachment the part forfeits all progress (it takes the potential of 0.1 m), pays the time
+    ``Phi = -min(|x - target|, progress_horizon) / progress_scale`` (the horizon: default twice the
+    farthest start-to-target distance). On detachment the part forfeits all progress (it takes
+    the potential of the horizon), pays the time
     cost up to ``max_time`` and ``detach_penalty``: any episode ending at rest returns more than
     any detaching one, and at equal time a closer rest returns more (:mod:`.task`).
 

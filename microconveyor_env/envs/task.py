@@ -10,11 +10,12 @@ step reports it, and the envs read it from there.
 
 Reward ranking (the task is well posed). An episode's return telescopes to
 ``Phi(end) - Phi(start) - time_cost * T + success_bonus * [success] - ...`` with the potential
-``Phi(x) = -min(|x - target|, HORIZON) / progress_scale`` saturating at the observable distance
-``HORIZON`` (the observation clips the position error there). Detachment ends the episode in the
-worst state there is: the detached part takes the potential of the horizon (it forfeits all
-progress, ``-HORIZON / progress_scale``), pays the time cost up to ``max_time`` and then
-``detach_penalty`` (> 0). Hence, for every configuration validation accepts:
+``Phi(x) = -min(|x - target|, H) / progress_scale`` saturating at ``H = progress_horizon``
+(validated >= the farthest start-to-target distance, so all progress from the start is paid;
+default twice that). Detachment ends the episode in the worst state there is: the detached part
+takes the potential of the horizon (it forfeits all progress, ``-H / progress_scale``), pays the
+time cost up to ``max_time`` and then ``detach_penalty`` (> 0). Hence, for every configuration
+validation accepts:
 
 * any episode that ends at rest returns more than any episode that detaches (its potential is
   >= the horizon's and its time cost <= ``time_cost * max_time``; the penalty is > 0);
@@ -35,10 +36,9 @@ OBS_DIM = 6
 OBS_BOUND = 10.0          # observations are clipped to [-OBS_BOUND, OBS_BOUND]
 LENGTH_SCALE = 10e-3      # m: position error and target are divided by this
 VELOCITY_SCALE = 0.5      # m/s
-HORIZON = OBS_BOUND * LENGTH_SCALE  # m: the observable distance; the potential saturates there
 
-T_NACT, T_SPACING, T_TMAX, T_PSCALE, T_TCOST, T_BONUS, T_PENALTY, T_TOL = range(8)
-N_T = 8
+T_NACT, T_SPACING, T_TMAX, T_PSCALE, T_TCOST, T_BONUS, T_PENALTY, T_TOL, T_HORIZON = range(9)
+N_T = 9
 
 
 def constants(cfg) -> np.ndarray:
@@ -47,6 +47,7 @@ def constants(cfg) -> np.ndarray:
     TC[T_NACT], TC[T_SPACING], TC[T_TMAX] = cfg.n_actuators, cfg.spacing, cfg.max_time
     TC[T_PSCALE], TC[T_TCOST] = cfg.progress_scale, cfg.time_cost
     TC[T_BONUS], TC[T_PENALTY], TC[T_TOL] = cfg.success_bonus, cfg.detach_penalty, cfg.tolerance
+    TC[T_HORIZON] = cfg.progress_horizon
     return TC
 
 
@@ -61,8 +62,8 @@ def initial_state(cfg, rng: np.random.Generator, target: float | None = None) ->
 
 @njit(cache=True)
 def potential(x, target, TC):
-    """Phi = -min(|x - target|, HORIZON) / progress_scale."""
-    return -min(abs(x - target), HORIZON) / TC[T_PSCALE]
+    """Phi = -min(|x - target|, progress_horizon) / progress_scale."""
+    return -min(abs(x - target), TC[T_HORIZON]) / TC[T_PSCALE]
 
 
 @njit(cache=True)
@@ -77,7 +78,7 @@ def reward(code, x_old, x_new, t_old, t_new, target, TC):
     part takes the horizon's potential, pays the time cost up to ``max_time`` and the detachment
     penalty (see the module docstring for why)."""
     if code == K.DETACHED:
-        return -HORIZON / TC[T_PSCALE] - potential(x_old, target, TC) \
+        return -TC[T_HORIZON] / TC[T_PSCALE] - potential(x_old, target, TC) \
             - TC[T_TCOST] * (max(TC[T_TMAX], t_new) - t_old) - TC[T_PENALTY]
     r = potential(x_new, target, TC) - potential(x_old, target, TC) \
         - TC[T_TCOST] * (t_new - t_old)

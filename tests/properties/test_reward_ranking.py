@@ -24,6 +24,7 @@ CONFIGS = st.fixed_dictionaries({
     "detach_penalty": log_uniform(1e-3, 1e6),
     "max_time": log_uniform(1e-2, 1e3),
     "start_offset": log_uniform(1e-6, 1e-2),
+    "progress_horizon": st.none() | log_uniform(1e-5, 1.0),
 })
 POS = st.floats(-0.5, 0.5)
 FRAC = st.floats(0.0, 1.0)
@@ -72,8 +73,9 @@ def test_closer_rest_returns_more_and_success_most(kw, u, d1, d2, s1, s2, t):
     TC = task.constants(cfg)
     target = cfg.target_range[0] + u * (cfg.target_range[1] - cfg.target_range[0])
     x0 = -cfg.start_offset
-    near, far = sorted((d1 * task.HORIZON, d2 * task.HORIZON))
-    assume(far - near > 1e-9 * task.HORIZON)
+    h = cfg.progress_horizon
+    near, far = sorted((d1 * h, d2 * h))
+    assume(far - near > 1e-9 * h)
     sign1, sign2 = (1 if s1 else -1), (1 if s2 else -1)
     g_near = _episode(TC, x0, target, [], target + sign1 * near, t, K.REST, cfg.max_time)
     g_far = _episode(TC, x0, target, [], target + sign2 * far, t, K.REST, cfg.max_time)

@@ -1,0 +1,102 @@
+"""The agents package: PPO end to end (train, save, load, resume), the shipped policy, the
+evaluate command's errors, the reach study and the demo."""
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+pytest.importorskip("stable_baselines3")
+
+from agents import hyperparams  # noqa: E402
+from agents.evaluate import PolicyError, evaluate, load_policy  # noqa: E402
+from agents.policy import shipped_path  # noqa: E402
+from agents.reach import reach_study, widest_robust_range  # noqa: E402
+from agents.train import train  # noqa: E402
+
+SMALL = {"n_envs": 16, "n_steps": 32, "batch_size": 256, "n_epochs": 1}
+
+
+def run(*args):
+    return subprocess.run([sys.executable, "-m", "microconveyor_env.cli", *args],
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_ppo_config_is_rl_zoo_format():
+    hp = hyperparams.load()
+    assert hp["n_steps"] * hp["n_envs"] <= 4096  # a short rollout
+    assert hp["normalize"]["norm_obs"] and hp["policy_kwargs"]["net_arch"]
+    assert "n_steps" in hyperparams.ppo_kwargs(hp) and "n_envs" not in hyperparams.ppo_kwargs(hp)
+
+
+def test_ppo_trains_saves_loads_and_resumes(tmp_path):
+    meta = train(tmp_path, steps=1024, seed=1, overrides=SMALL, checkpoint_freq=512,
+                 eval_freq=512, eval_targets=8, progress_bar=False)
+    assert meta["steps"] >= 1024 and meta["wall_time_s"] > 0
+    for name in ("model.zip", "vecnormalize.pkl", "metadata.json"):
+        assert (tmp_path / name).is_file() and (tmp_path / "checkpoint" / name).is_file()
+    assert list((tmp_path / "tb").iterdir())  # tensorboard logs
+    evals = [json.loads(line) for line in (tmp_path / "evaluations.jsonl").read_text().splitlines()]
+    assert len(evals) >= 2 and {"success_rate_50um", "success_rate_250um"} <= set(evals[0])
+    ckpt = json.loads((tmp_path / "checkpoint" / "metadata.json").read_text())["steps"]
+    resumed = train(tmp_path, steps=2048, seed=1, overrides=SMALL, resume=True,
+                    checkpoint_freq=512, eval_freq=0, eval_targets=8, progress_bar=False)
+    assert resumed["steps"] >= 2048 and resumed["steps"] - ckpt <= 2048 - ckpt + 512
+    assert resumed["wall_time_s"] > meta["wall_time_s"]  # wall time carried over
+    pol = load_policy(tmp_path)
+    res = evaluate(pol, 8, seed=3)
+    assert res["n_targets"] == 8 and 0 <= res["success_rate"] <= 1
+    assert np.isfinite(res["median_abs_error_m"])
+
+
+def test_shipped_policy_loads_and_reproduces_its_metadata():
+    pol = load_policy(shipped_path())
+    meta = pol.metadata
+    ev = meta["evaluation"]
+    assert meta["steps"] > 0 and meta["wall_time_s"] <= 15 * 60 + 60 and meta["config_hash"]
+    res = evaluate(pol, ev["n_targets"], ev["seed"])
+    for key in ("success_rate_50um", "success_rate_100um", "success_rate_250um", "detach_rate"):
+        assert res[key] == ev[key], key
+    assert res["median_abs_error_m"] == pytest.approx(ev["median_abs_error_m"], rel=1e-9)
+
+
+def test_evaluate_cli_on_the_shipped_policy():
+    r = run("evaluate", "--targets", "20", "--seed", "5", "--json")
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["n_targets"] == 20 and 0 <= out["success_rate"] <= 1
+    assert out["median_abs_error_m"] >= 0
+
+
+def test_evaluate_cli_missing_or_incompatible_policy(tmp_path):
+    r = run("evaluate", "--policy", str(tmp_path / "nope"), "--json")
+    assert r.returncode == 2 and "no policy at" in json.loads(r.stdout)["error"]
+    assert len(r.stderr.strip().splitlines()) == 1
+    (tmp_path / "junk.zip").write_bytes(b"not a zip")
+    r = run("evaluate", "--policy", str(tmp_path / "junk.zip"), "--json")
+    assert r.returncode == 2 and "not a stable-baselines3 PPO model" in r.stdout
+    import gymnasium as gym
+    from stable_baselines3 import PPO
+
+    PPO("MlpPolicy", gym.make("Pendulum-v1"), n_steps=64, batch_size=64).save(tmp_path / "pend")
+    r = run("evaluate", "--policy", str(tmp_path / "pend.zip"), "--json")
+    assert r.returncode == 2 and "trained for observations (3,)" in r.stdout, r.stdout
+    assert len(r.stderr.strip().splitlines()) == 1
+    with pytest.raises(PolicyError):
+        load_policy(tmp_path / "pend.zip")
+
+
+def test_reach_study_small():
+    study = reach_study([0.5e-3, 4.5e-3], budget=300, robust_budget=0, n_noisy=20, seed=0)
+    near, far = study["rows"]
+    assert near["reachable"] and near["best_abs_error_m"] <= 50e-6
+    assert not far["reachable"] and not far["robust"]
+    assert len(near["schedule"]) == 5 and study["tolerance_m"] == 50e-6
+
+
+def test_widest_robust_range():
+    rows = [{"target_m": t, "robust": r} for t, r in
+            [(1, True), (2, False), (3, True), (4, True), (5, True), (6, False)]]
+    assert widest_robust_range(rows) == [3, 5]
+    assert widest_robust_range([{"target_m": 1, "robust": False}]) is None
