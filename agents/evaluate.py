@@ -62,6 +62,8 @@ def load_policy(path, config: EnvConfig | None = None) -> Policy:
                           f"({ACTION_DIM},)")
     obs_rms, clip_obs = None, 10.0
     stats = folder / STATS
+    if not stats.is_file() and (folder / model_file.stem / STATS).is_file():
+        stats = folder / model_file.stem / STATS  # rl-zoo3's layout: ENV_ID.zip + ENV_ID/
     if stats.is_file():
         with open(stats, "rb") as fh:
             vn = pickle.load(fh)

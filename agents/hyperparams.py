@@ -30,6 +30,13 @@ def load(path: str | None = None, env_id: str = ENV_ID) -> dict:
     return hp
 
 
+def linear_schedule(value: float):
+    """rl-zoo3's ``lin_<value>``: decays linearly from ``value`` to 0 over the run."""
+    def schedule(progress_remaining: float) -> float:
+        return progress_remaining * value
+    return schedule
+
+
 def _eval_dict(text: str) -> dict:
     import torch.nn as nn
 
@@ -40,4 +47,10 @@ def _eval_dict(text: str) -> dict:
 
 
 def ppo_kwargs(hp: dict) -> dict:
-    return {k: v for k, v in hp.items() if k not in RUN_KEYS}
+    """PPO(...) keyword arguments; ``lin_<value>`` strings (learning_rate, clip_range) become
+    linear schedules as in rl-zoo3."""
+    out = {k: v for k, v in hp.items() if k not in RUN_KEYS}
+    for key in ("learning_rate", "clip_range"):
+        if isinstance(out.get(key), str) and out[key].startswith("lin_"):
+            out[key] = linear_schedule(float(out[key][4:]))
+    return out

@@ -27,7 +27,10 @@ def test_ppo_config_is_rl_zoo_format():
     hp = hyperparams.load()
     assert hp["n_steps"] * hp["n_envs"] <= 4096  # a short rollout
     assert hp["normalize"]["norm_obs"] and hp["policy_kwargs"]["net_arch"]
-    assert "n_steps" in hyperparams.ppo_kwargs(hp) and "n_envs" not in hyperparams.ppo_kwargs(hp)
+    kw = hyperparams.ppo_kwargs(hp)
+    assert "n_steps" in kw and "n_envs" not in kw
+    if isinstance(hp["learning_rate"], str):  # rl-zoo3's lin_<value>
+        assert kw["learning_rate"](1.0) == float(hp["learning_rate"][4:]) and kw["learning_rate"](0.0) == 0
 
 
 def test_ppo_trains_saves_loads_and_resumes(tmp_path):
