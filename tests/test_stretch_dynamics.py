@@ -1,4 +1,4 @@
-"""Stretch-dependent roughness in the dynamics (physics.md §4): the compiled sigma-dependent
+"""Stretch-dependent roughness in the dynamics (docs/physics.md §4): the compiled sigma-dependent
 lookup against the Python stretch tables, zero strain = constant roughness, the study and CLI."""
 import json
 

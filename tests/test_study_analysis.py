@@ -55,7 +55,7 @@ def test_regression_recovers_known_coefficients():
     assert est["C(dgamma)[T.2.0]"]["estimate"] == pytest.approx(-3.0, rel=0.05)
     assert est["C(stroke_um)[T.250.0]"]["estimate"] == pytest.approx(3.1, rel=0.05)
     assert t["r_squared"] > 0.99
-    # signs: the synthetic data follow physics.md's trends, so every claimed sign agrees
+    # signs: the synthetic data follow docs/physics.md's trends, so every claimed sign agrees
     assert all(r["sign_agrees"] in (True, None) for r in t["terms"])
     assert all(r["dissertation_estimate"] is None for r in t["terms"])  # never invented
     text = regression.table34_text(t)
@@ -140,7 +140,7 @@ def test_cli_studies_json_table_plot(tmp_path):
 @pytest.mark.slow
 def test_full_sensitivity_design():
     """The whole Table 3.2 design (432 combinations): every combination scanned, the fit made,
-    and physics.md's three stated travel trends (energy -, roughness +, stroke +) recovered."""
+    and docs/physics.md's three stated travel trends (energy -, roughness +, stroke +) recovered."""
     from microconveyor_env.studies.sensitivity import sensitivity_rows, windows
 
     rows = sensitivity_rows(progress=False)

@@ -22,7 +22,7 @@ def _scene_args(p, sweep=False):
     p.add_argument("--mode", default="event", choices=("event", "karnopp"))
     p.add_argument("--kinematics", default="seed", choices=("seed", "exact"))
     p.add_argument("--roughness", default="constant", choices=("constant", "stretch"),
-                   help="stretch: sigma follows the strain of the active zone (physics.md §4)")
+                   help="stretch: sigma follows the strain of the active zone (docs/physics.md §4)")
     p.add_argument("--dt", type=float, default=None, help="largest RK4 step [s]")
     p.add_argument("--max-steps", type=count(1), default=None,
                    help="refuse a firing needing more RK4 steps (default 1e7; raise it if you "

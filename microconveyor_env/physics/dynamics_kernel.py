@@ -17,7 +17,7 @@ Friction in slip is ``F = -s Q(N)`` with the slip direction ``s`` fixed over a s
 mode stops the step where ``s v`` reaches 0). Sticking needs ``|N tan(theta)| <= Q(N)``.
 Detachment: ``N < -F_pull``. ``Q(N)`` is the contact table's cubic Hermite in
 ``u = sqrt(N + F_pull)``.
-With stretch-dependent roughness (physics.md §4) Q and the pull-off force follow the strain of the
+With stretch-dependent roughness (docs/physics.md §4) Q and the pull-off force follow the strain of the
 active zone under the part: :func:`.forces.friction_at`, :func:`.forces.n_min_at` and
 :func:`.forces.shifted_load` select that lookup at compile time from the tables' dimension, so the
 constant-roughness code is unchanged.

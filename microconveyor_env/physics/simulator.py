@@ -4,6 +4,8 @@ The Python layer validates inputs and builds plain arrays; :mod:`.dynamics_kerne
 """
 from __future__ import annotations
 
+from typing import Any
+
 import math
 import time
 import warnings
@@ -123,7 +125,7 @@ class Simulator:
         resolved whatever dt is); fewer than 20 steps per stroke gives a StepSizeWarning.
     slope : constant tilt of the carrier, tan(angle) [-] (0: horizontal).
     max_time : simulated-time limit [s].
-    roughness : ``constant`` (the preset's sigma) or ``stretch`` (physics.md §4: the strain of the
+    roughness : ``constant`` (the preset's sigma) or ``stretch`` (docs/physics.md §4: the strain of the
         active zone under the part sets sigma, and Q(N) and the pull-off force follow it; tables
         over ``n_sigma`` strains in [0, ``max_strain``], see :mod:`.stretch`).
     zone_length : length of the active zone centred on the firing actuator [m] (default: the
@@ -182,8 +184,9 @@ class Simulator:
         P[F.I_NMAX] = self.table.max_load
         self.params = P
         tu, tq, tqu, _ = self.table.kernel_arrays()
-        self.tables = (np.ascontiguousarray(tu), np.ascontiguousarray(tq), np.ascontiguousarray(tqu))
-        self.stretch = None
+        self.tables: tuple = (np.ascontiguousarray(tu), np.ascontiguousarray(tq),
+                              np.ascontiguousarray(tqu))
+        self.stretch: Any = None  # StretchContact with roughness='stretch'
         if roughness == "stretch":
             self._setup_stretch(zone_length, max_strain, n_sigma)
 
@@ -266,8 +269,8 @@ class Simulator:
         rec = np.zeros((cap, K.N_REC))
         out = np.zeros(K.N_OUT)
         t0 = time.perf_counter()
-        K.run(xa, f, h, d, x0, v0, 0.0, self.dt, self.min_steps, to_rest, self.max_time, self.params,
-              *self.tables, rec, out)
+        K.run(xa, f, h, d, x0, v0, 0.0, self.dt, self.min_steps, to_rest,  # type: ignore[call-arg]
+              self.max_time, self.params, *self.tables, rec, out)
         wall = time.perf_counter() - t0
         return self._result(out, x0, rec, wall, record)
 

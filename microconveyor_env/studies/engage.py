@@ -14,6 +14,8 @@ the second actuator carries the part on (accelerates it), < 0 where it brakes it
 """
 from __future__ import annotations
 
+from typing import Any
+
 import math
 
 import numpy as np
@@ -44,7 +46,7 @@ def map_column(task: dict) -> list:
         r = _run(sim, sched, x0, v0)
         coast = math.copysign(v0 * v0 / (2 * a), v0)
         if r is None:
-            out = {"outcome": "load_beyond_table", "travel_m": math.nan}
+            out: dict[str, Any] = {"outcome": "load_beyond_table", "travel_m": math.nan}
         else:
             out = {"outcome": r.outcome, "travel_m": r.displacement_m}
         along = out["travel_m"] * (1.0 if v0 >= 0 else -1.0)

@@ -16,6 +16,8 @@ contact tables are cached on each worker's disk (``$MICROCONVEYOR_CACHE_DIR``).
 """
 from __future__ import annotations
 
+from typing import Any
+
 import functools
 import sys
 import time
@@ -77,7 +79,7 @@ def dask_client(workers: int | None = None, scheduler: str | None = None):
         finally:
             client.close()
         return
-    cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
+    cluster = LocalCluster(n_workers=int(workers or 1), threads_per_worker=1, processes=True,
                            dashboard_address=":0")
     client = Client(cluster)
     try:
@@ -130,7 +132,7 @@ def _run_dask(client, func, tasks, chunk_size, bar) -> list:
     data = client.scatter(chunks)
     futures = client.map(functools.partial(_run_chunk, func), data, pure=False)
     index = {f.key: i for i, f in enumerate(futures)}
-    results = [None] * len(chunks)
+    results: list[Any] = [None] * len(chunks)
     for fut in as_completed(futures):
         i = index[fut.key]
         results[i] = fut.result()

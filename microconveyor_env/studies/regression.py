@@ -9,7 +9,7 @@ variables of every factor level (the lowest level is the reference) and on ``log
 statsmodels' formula API.
 
 The dissertation's numeric Table 3.4 is not available to us: the comparison column is the *sign*
-each trend in physics.md §5 implies (:data:`DISSERTATION_SIGNS`), never a number.
+each trend in docs/physics.md §5 implies (:data:`DISSERTATION_SIGNS`), never a number.
 """
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ FACTORS = {  # column -> (formula name, unit scale, label)
 }
 FORMULA = ("bc ~ C(dgamma) + C(sigma_nm) + C(stroke_um) + C(mass_kg) + C(wl_mm) + C(x0_wl)"
            " + np.log(freq_hz)")
-# The dissertation's signs as physics.md §5 states them (or as they follow from it); "" = no claim
+# The dissertation's signs as docs/physics.md §5 states them (or as they follow from it); "" = no claim
 DISSERTATION_SIGNS = {
     "dgamma": ("-", "less surface energy -> more travel"),
     "sigma_nm": ("+", "more roughness -> more travel"),
@@ -111,7 +111,7 @@ def _term_factor(term: str) -> str:
 
 def table34(rows, formula: str | None = None) -> dict:
     """Our Table 3.4: per term estimate, standard error, t, p, the dissertation's sign (from
-    physics.md §5), whether ours agrees; plus R^2, lambda and n."""
+    docs/physics.md §5), whether ours agrees; plus R^2, lambda and n."""
     df = design_frame(rows)
     formula = formula or formula_for(df)
     res, lam = fit(df, formula)
@@ -130,7 +130,7 @@ def table34(rows, formula: str | None = None) -> dict:
             "boxcox_lambda": lam, "n": int(res.nobs), "r_squared": float(res.rsquared),
             "adj_r_squared": float(res.rsquared_adj), "terms": terms,
             "note": "the dissertation's numeric Table 3.4 estimates are not available to us; "
-                    "'dissertation_sign' is the trend physics.md §5 states (or implies)"}
+                    "'dissertation_sign' is the trend docs/physics.md §5 states (or implies)"}
 
 
 def table34_text(t: dict) -> str:
@@ -142,5 +142,5 @@ def table34_text(t: dict) -> str:
         agree = {True: "yes", False: "NO", None: ""}[r["sign_agrees"]]
         lines.append(f"{r['term']:30s} {r['estimate']:10.4g} {r['std_error']:9.3g} {r['t']:8.2f} "
                      f"{r['p']:9.2e}  {'n/a':>9s} {r['dissertation_sign'] or 'no claim':>9s}  {agree}")
-    lines.append("dissertation estimates: not available (signs from physics.md §5)")
+    lines.append("dissertation estimates: not available (signs from docs/physics.md §5)")
     return "\n".join(lines)

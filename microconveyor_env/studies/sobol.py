@@ -12,6 +12,8 @@ is the share of variance a factor explains only through interactions; ``S2`` nam
 """
 from __future__ import annotations
 
+from typing import Any
+
 import math
 
 import numpy as np
@@ -19,7 +21,7 @@ import numpy as np
 from .engine import run_tasks, simulator
 from .sensitivity import SCAN_HZ, fire, find_window
 
-PROBLEM = {
+PROBLEM: dict[str, Any] = {
     "num_vars": 7,
     "names": ["dgamma_J_m2", "sigma_m", "stroke_m", "log10_mass_kg", "wavelength_m", "x0_wl",
               "freq_pos"],
@@ -81,7 +83,7 @@ def _analyze(Y, seed, conf_level) -> dict:
         per.append({"name": name, "S1": float(Si["S1"][i]), "S1_conf": float(Si["S1_conf"][i]),
                     "ST": float(Si["ST"][i]), "ST_conf": float(Si["ST_conf"][i]),
                     "interaction": float(Si["ST"][i] - Si["S1"][i])})
-    pairs = []
+    pairs: list[dict[str, Any]] = []
     for i in range(len(names)):
         for j in range(i + 1, len(names)):
             s2, c2 = float(Si["S2"][i, j]), float(Si["S2_conf"][i, j])

@@ -2,11 +2,13 @@
 constant and with stretched roughness, and what the stretched level costs.
 
 With ``roughness="stretch"`` the simulator looks up Q(N) and the pull-off force at the roughness
-of the stretched active zone under the part (physics.md §4; :mod:`..physics.stretch`). The study
+of the stretched active zone under the part (docs/physics.md §4; :mod:`..physics.stretch`). The study
 fires the seed scene over a frequency grid at both levels; per row the outcome, the travel, the
 peak zone strain of the stroke and the wall time of the ``simulate`` call (median of repeats).
 """
 from __future__ import annotations
+
+from typing import Any
 
 import math
 import statistics
@@ -55,7 +57,7 @@ def run_freq(task: dict) -> list:
     return rows
 
 
-def stretch_rows(freqs=tuple(float(f) for f in np.arange(200.0, 1500.0 + 1e-9, 25.0)),
+def stretch_rows(freqs=tuple(np.arange(200.0, 1500.0 + 1e-9, 25.0).tolist()),
                  stroke: float = 200e-6, x0: float = 0.125e-3, profile: str = "gaussian",
                  wavelength: float = 0.6e-3, repeats: int = 3, preset: str = "seed",
                  sim_kw=None, **engine_kw) -> list:
@@ -69,7 +71,7 @@ def stretch_rows(freqs=tuple(float(f) for f in np.arange(200.0, 1500.0 + 1e-9, 2
 
 def compare(rows) -> dict:
     """Windows, travel differences (where both rest) and the cost ratio of the two levels."""
-    out = {}
+    out: dict[str, Any] = {}
     by = {lv: sorted((r for r in rows if r["roughness"] == lv), key=lambda r: r["freq_hz"])
           for lv in LEVELS}
     for lv, rs in by.items():
