@@ -129,7 +129,7 @@ def plot_sweep(sweep: dict, path, title: str = "") -> Path:
 def plot_accuracy(study: dict, path) -> Path:
     """Error of the final position versus wall time per firing, per mode and kinematics level."""
     fig, ax = _subplots(figsize=(10, 5))
-    styles = {("event", "seed"): "o-", ("karnopp", "seed"): "s-",
+    styles = {("event", "reduced"): "o-", ("karnopp", "reduced"): "s-",
               ("event", "exact"): "o--", ("karnopp", "exact"): "s--"}
     floor = 1e-12  # m: errors below are drawn at the floor, marked with a downward triangle
     clipped_any = False

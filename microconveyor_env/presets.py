@@ -1,11 +1,15 @@
 """Named parameter presets (YAML files in the repository's ``configs/``, shipped with the package).
 
-``load_preset("seed")`` reads ``configs/seed.yaml``, validates it, applies its ``calibration`` block
-(if any) and returns a :class:`Preset`. A path to a YAML file works as well as a name.
+``load_preset("dissertation")`` reads ``configs/dissertation.yaml``, validates it, applies its
+``calibration`` block (if any) and returns a :class:`Preset`. A path to a YAML file works as well as
+a name. :func:`simulator` builds a :class:`~.physics.simulator.Simulator` from a preset (the
+physics layer itself takes parameters, never names). The former preset name ``seed`` still works
+with a DeprecationWarning.
 """
 from __future__ import annotations
 
 import functools
+import warnings
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -14,6 +18,7 @@ import yaml
 
 from .physics.calibration import Calibration, calibrate
 from .physics.materials import ContactParams, Materials, ParameterError, Part, Surface
+from .physics.simulator import Simulator
 
 _TOP_KEYS = {"name", "description", "materials", "surface", "part", "friction_scale",
              "calibration", "dynamics"}
@@ -112,10 +117,32 @@ def params_from_dict(data: dict) -> ContactParams:
                          friction_scale=data.get("friction_scale", 1.0))
 
 
+DEFAULT_PRESET = "dissertation"
+RENAMED_PRESETS = {"seed": "dissertation"}  # old name -> new name (deprecated, still accepted)
+
+
+def load_preset(name_or_path: str = DEFAULT_PRESET) -> Preset:
+    """Load, validate and calibrate a preset by name (``dissertation``, ``ke``) or YAML path."""
+    name = str(name_or_path)
+    if name in RENAMED_PRESETS:
+        warnings.warn(f"preset {name!r} is now called {RENAMED_PRESETS[name]!r}",
+                      DeprecationWarning, stacklevel=2)
+        name = RENAMED_PRESETS[name]
+    return _load_preset(name)
+
+
+def simulator(preset: str = DEFAULT_PRESET, contact: ContactParams | None = None,
+              **kw) -> Simulator:
+    """A :class:`Simulator` of a preset (name or YAML path): its contact parameters (or
+    ``contact``, if given), its dynamics defaults (e.g. ``kinematics``), then ``kw`` (any
+    Simulator argument, SI units)."""
+    p = load_preset(preset)
+    return Simulator(p.contact if contact is None else contact, **{**p.dynamics, **kw})
+
+
 @functools.lru_cache(maxsize=32)
-def load_preset(name_or_path: str = "seed") -> Preset:
-    """Load, validate and calibrate a preset by name (``seed``, ``ke``) or YAML path."""
-    data = _read(str(name_or_path))
+def _load_preset(name_or_path: str) -> Preset:
+    data = _read(name_or_path)
     params = params_from_dict(data)
     report: dict = {}
     cal = data.get("calibration")

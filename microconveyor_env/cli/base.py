@@ -85,7 +85,8 @@ def count(lo: int, hi: int | None = None):
 
 def common_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    p.add_argument("--preset", default="seed", help="preset name (seed, ke) or YAML path")
+    p.add_argument("--preset", default="dissertation",
+                   help="preset name (dissertation, ke) or YAML path")
 
 
 

@@ -20,7 +20,8 @@ def _scene_args(p, sweep=False):
         for name in ("mass", "sigma", "dgamma"):
             p.add_argument(f"--{name}", default=None, help=f"sweep {name} (SI units)")
     p.add_argument("--mode", default="event", choices=("event", "karnopp"))
-    p.add_argument("--kinematics", default="seed", choices=("seed", "exact"))
+    p.add_argument("--kinematics", default="reduced", choices=("reduced", "exact", "seed"),
+                   help="reduced (the dissertation's model) or exact; 'seed' is the former name")
     p.add_argument("--roughness", default="constant", choices=("constant", "stretch"),
                    help="stretch: sigma follows the strain of the active zone (docs/physics.md §4)")
     p.add_argument("--dt", type=float, default=None, help="largest RK4 step [s]")
@@ -126,7 +127,7 @@ def cmd_accuracy(args):
 def _accuracy_episode(args):
     from ..studies.episodes import episode_study
 
-    if args.preset != "seed":
+    if args.preset not in ("dissertation", "seed"):
         raise ValueError("--episode runs MicroConveyor-v0's own preset (seed); drop --preset")
     study = episode_study(n_per_category=args.per_category, seed=args.seed,
                           repeats=min(args.repeats, 5), progress=True)

@@ -195,18 +195,19 @@ def _stretch_args(p):
     p.add_argument("--x0", type=float, default=0.125e-3, help="start position [m]")
     p.add_argument("--profile", default="gaussian", help="gaussian, sinusoidal, clamped_beam")
     p.add_argument("--wavelength", type=float, default=0.6e-3, help="wavelength WL [m]")
-    p.add_argument("--kinematics", default="seed", choices=("seed", "exact"))
+    p.add_argument("--kinematics", default="reduced", choices=("reduced", "exact", "seed"),
+                   help="reduced (the dissertation's model) or exact; 'seed' is the former name")
     p.add_argument("--repeats", type=int, default=3, help="timed repeats per run")
     p.add_argument("--n-sigma", type=int, default=21, help="sigma nodes of the stretch tables")
 
 
 def cmd_stretch(args):
-    from ..physics.simulator import Simulator
+    from ..presets import simulator
     from ..studies.engine import write_table
     from ..studies.stretch_study import compare, stretch_rows
 
     t0 = time.perf_counter()
-    sim = Simulator(args.preset, shape=args.profile, wavelength=args.wavelength,
+    sim = simulator(args.preset, shape=args.profile, wavelength=args.wavelength,
                     roughness="stretch", n_sigma=args.n_sigma)  # build/load the tables once
     setup = time.perf_counter() - t0
     t0 = time.perf_counter()

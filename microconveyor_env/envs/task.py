@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..physics import dynamics_kernel as K
+from ..physics import dynamics_kernel as kernel
 from ..physics.jit_cache import refresh as refresh_jit_cache
 
 OBS_DIM = 6
@@ -52,7 +52,7 @@ def potential(x, target, TC):
 @njit(cache=True)
 def is_success(code, x, target, TC):
     """At rest within the tolerance of the target."""
-    return code == K.REST and abs(x - target) <= TC[T_TOL]
+    return code == kernel.REST and abs(x - target) <= TC[T_TOL]
 
 
 @njit(cache=True)
@@ -63,7 +63,7 @@ def reward(code, x_old, x_new, t_old, t_new, target, TC):
         - TC[T_TCOST] * (t_new - t_old)
     if is_success(code, x_new, target, TC):
         r += TC[T_BONUS]
-    if code == K.DETACHED:
+    if code == kernel.DETACHED:
         r -= TC[T_PENALTY]
     return r
 

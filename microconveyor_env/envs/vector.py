@@ -11,7 +11,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from ..physics import dynamics_kernel as K
+from ..physics import dynamics_kernel as kernel
 from . import actions as act, step as kstep, task
 from .config import EnvConfig
 from .conveyor import check_render_mode, check_target, make_simulator, raise_if_beyond_table
@@ -70,7 +70,7 @@ class MicroConveyorVectorEnv(VectorEnv):
         self.done: np.ndarray = np.zeros(n, dtype=bool)
         self.rngs: list[np.random.Generator] = [seeding.np_random(None)[0] for _ in range(n)]
         self._AC, self._TC = act.constants(self.config), task.constants(self.config)
-        self._kout: np.ndarray = np.zeros((n, K.N_OUT))
+        self._kout: np.ndarray = np.zeros((n, kernel.N_OUT))
         self._res = np.zeros((n, kstep.N_S))
         self._obs_buf = np.zeros((n, task.OBS_DIM), dtype=np.float32)
         self.threads = ThreadChooser(self.config.num_threads, n)
@@ -112,7 +112,7 @@ class MicroConveyorVectorEnv(VectorEnv):
             self._reset_one(i, None)
         active = ~resetting
         self._res[resetting] = 0.0
-        self._res[resetting, kstep.S_OUTCOME] = K.MOVING
+        self._res[resetting, kstep.S_OUTCOME] = kernel.MOVING
         args = (a, self.x, self.v, self.t, self.fired, self.target, active, self._AC, self._TC,
                 self.sim.dt, self.sim.min_steps, self.positions, self.sim.params, *self.sim.tables,
                 kstep.NO_RECORD, self._kout, self._res, self._obs_buf)
@@ -126,14 +126,14 @@ class MicroConveyorVectorEnv(VectorEnv):
         self.threads.record(k, time.perf_counter() - t0, int(active.sum()))
         res = self._res
         codes = res[:, kstep.S_OUTCOME].astype(np.int64)
-        if (codes == K.BEYOND_TABLE).any():
+        if (codes == kernel.BEYOND_TABLE).any():
             raise_if_beyond_table("load_beyond_table", self.sim)
-        terminated = active & ((codes == K.REST) | (codes == K.DETACHED))
-        truncated = active & ((codes == K.MAX_TIME) | (codes == K.TOO_MANY_EVENTS))
+        terminated = active & ((codes == kernel.REST) | (codes == kernel.DETACHED))
+        truncated = active & ((codes == kernel.MAX_TIME) | (codes == kernel.TOO_MANY_EVENTS))
         rew = np.where(active, res[:, kstep.S_REWARD], 0.0)
         self.done = terminated | truncated
         obs = self._obs_buf.copy()
-        infos = self._infos(np.array(K.OUTCOMES, dtype=object)[codes],
+        infos = self._infos(np.array(kernel.OUTCOMES, dtype=object)[codes],
                             active & (res[:, kstep.S_SUCCESS] > 0.5))
         for key, col in (("frequency_hz", kstep.S_F), ("stroke_m", kstep.S_H),
                          ("delay_s", kstep.S_D)):

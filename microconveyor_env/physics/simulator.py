@@ -13,15 +13,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import dynamics_kernel as K
-from . import forces as F
+from . import dynamics_kernel as kernel
+from . import forces
 from .contact_table import ContactTable, TableRangeError
 from .kinematics import SHAPES, zone_strain
 from .materials import G0, ContactParams, ParameterError, check_range
 from .schedule import Schedule
 
-MODES = {"karnopp": F.KARNOPP, "event": F.EVENT}
-KINEMATICS = ("seed", "exact")
+MODES = {"karnopp": forces.KARNOPP, "event": forces.EVENT}
+KINEMATICS = ("reduced", "exact")
+RENAMED_KINEMATICS = {"seed": "reduced"}  # old name -> new name (deprecated, still accepted)
 ROUGHNESS = ("constant", "stretch")
 DEFAULT_MODE = "event"
 DEFAULT_DT = 5e-5          # s; the accuracy study's pick (event mode, within 1 um; docs/validation.md)
@@ -69,6 +70,18 @@ def check_max_steps(owner: str, value) -> int:
     return int(value)
 
 
+def kinematics_level(name: str, owner: str) -> str:
+    """A kinematics level: ``reduced`` (the dissertation's model: the velocity terms of the normal
+    load dropped) or ``exact``; the former name ``seed`` still works with a DeprecationWarning."""
+    if name in RENAMED_KINEMATICS:
+        warnings.warn(f"{owner}: kinematics {name!r} is now called "
+                      f"{RENAMED_KINEMATICS[name]!r}", DeprecationWarning, stacklevel=3)
+        name = RENAMED_KINEMATICS[name]
+    if name not in KINEMATICS:
+        raise ParameterError(f"kinematics = {name!r} is invalid: must be one of {KINEMATICS}")
+    return name
+
+
 class StepSizeWarning(UserWarning):
     """The time step resolves a stroke with fewer than MIN_STEPS_PER_STROKE steps."""
 
@@ -113,7 +126,7 @@ class Simulator:
 
     Parameters
     ----------
-    contact : ContactParams, or a preset name/path (default ``"seed"``).
+    contact : ContactParams (a preset by name: :func:`microconveyor_env.presets.simulator`).
     shape : deformation shape, one of ``gaussian``, ``sinusoidal``, ``clamped_beam``.
     wavelength : deformation wavelength WL [m] (> 0).
     kinematics : ``seed`` (drops the velocity terms of the normal load, the dissertation's model)
@@ -135,24 +148,19 @@ class Simulator:
         seconds of computing); a schedule needing more is refused up front. Raise it if you mean it.
     """
 
-    def __init__(self, contact="seed", shape: str = "gaussian", wavelength: float = 0.6e-3,
-                 kinematics: str | None = None, mode: str = DEFAULT_MODE, dt: float = DEFAULT_DT,
+    def __init__(self, contact: ContactParams, shape: str = "gaussian", wavelength: float = 0.6e-3,
+                 kinematics: str = "reduced", mode: str = DEFAULT_MODE, dt: float = DEFAULT_DT,
                  slope: float = 0.0, max_time: float = 10.0,
                  min_steps: int = MIN_STEPS_PER_STROKE, max_steps: int = MAX_STEPS,
                  roughness: str = "constant", zone_length: float | None = None,
                  max_strain: float = 0.4, n_sigma: int = 21):
-        defaults = {}
         if not isinstance(contact, ContactParams):
-            from ..presets import load_preset
-
-            preset = load_preset(contact)
-            contact, defaults = preset.contact, preset.dynamics
+            raise ParameterError(f"contact = {contact!r} is invalid: Simulator takes ContactParams; "
+                                 "for a preset by name use microconveyor_env.presets.simulator("
+                                 "name, ...)")
         if shape not in SHAPES:
             raise ParameterError(f"shape = {shape!r} is invalid: must be one of {sorted(SHAPES)}")
-        kinematics = kinematics or defaults.get("kinematics", "seed")
-        if kinematics not in KINEMATICS:
-            raise ParameterError(f"kinematics = {kinematics!r} is invalid: must be one of "
-                                 f"{KINEMATICS}")
+        kinematics = kinematics_level(kinematics, "Simulator")
         if mode not in MODES:
             raise ParameterError(f"mode = {mode!r} is invalid: must be one of {sorted(MODES)}")
         if roughness not in ROUGHNESS:
@@ -175,13 +183,13 @@ class Simulator:
         self.table = ContactTable(contact)
         self.table.check_weight()
         self.mass = contact.part.mass
-        P = np.zeros(F.N_PARAMS)
-        P[F.I_MASS], P[F.I_G0] = self.mass, G0
-        P[F.I_NMIN] = -self.table.pull_off_force
-        P[F.I_EXACT] = 1.0 if kinematics == "exact" else 0.0
-        P[F.I_SLOPE], P[F.I_WL] = self.slope, self.wavelength
-        P[F.I_SHAPE], P[F.I_MODE] = SHAPES[shape], MODES[mode]
-        P[F.I_NMAX] = self.table.max_load
+        P = np.zeros(forces.N_PARAMS)
+        P[forces.I_MASS], P[forces.I_G0] = self.mass, G0
+        P[forces.I_NMIN] = -self.table.pull_off_force
+        P[forces.I_EXACT] = 1.0 if kinematics == "exact" else 0.0
+        P[forces.I_SLOPE], P[forces.I_WL] = self.slope, self.wavelength
+        P[forces.I_SHAPE], P[forces.I_MODE] = SHAPES[shape], MODES[mode]
+        P[forces.I_NMAX] = self.table.max_load
         self.params = P
         tu, tq, tqu, _ = self.table.kernel_arrays()
         self.tables: tuple = (np.ascontiguousarray(tu), np.ascontiguousarray(tq),
@@ -212,10 +220,10 @@ class Simulator:
         step, e = strain_table(shape, self.wavelength, zone, hi)
         n_sig = pk["n_sigma"]
         P = np.concatenate([self.params, pk["offsets"], pk["n_min"], e])
-        P[F.I_STRETCH], P[F.I_ZONE], P[F.I_A2STEP] = 1.0, 0.5 * zone, step
-        P[F.I_NSTRAIN], P[F.I_NSIG], P[F.I_EMAX] = e.size, n_sig, pk["max_strain"]
-        P[F.I_NMIN] = pk["n_min"][0]
-        P[F.I_NMAX] = self.stretch_max_load = pk["max_load"]
+        P[forces.I_STRETCH], P[forces.I_ZONE], P[forces.I_A2STEP] = 1.0, 0.5 * zone, step
+        P[forces.I_NSTRAIN], P[forces.I_NSIG], P[forces.I_EMAX] = e.size, n_sig, pk["max_strain"]
+        P[forces.I_NMIN] = pk["n_min"][0]
+        P[forces.I_NMAX] = self.stretch_max_load = pk["max_load"]
         self.params = P
         # (1, L) arrays: their dimension selects the stretch lookup when the kernel is compiled
         # (forces.friction_at), so the constant-roughness code carries no stretch test at all
@@ -265,42 +273,42 @@ class Simulator:
         cap = 0
         if record:
             cap = (int(stroke_steps(f, self.dt, self.min_steps).sum()) * 2
-                   + (12 + 2 * K.COAST_POINTS) * len(f) + 64)
-        rec = np.zeros((cap, K.N_REC))
-        out = np.zeros(K.N_OUT)
+                   + (12 + 2 * kernel.COAST_POINTS) * len(f) + 64)
+        rec = np.zeros((cap, kernel.N_REC))
+        out = np.zeros(kernel.N_OUT)
         t0 = time.perf_counter()
-        K.run(xa, f, h, d, x0, v0, 0.0, self.dt, self.min_steps, to_rest,  # type: ignore[call-arg]
+        kernel.run(xa, f, h, d, x0, v0, 0.0, self.dt, self.min_steps, to_rest,  # type: ignore[call-arg]
               self.max_time, self.params, *self.tables, rec, out)
         wall = time.perf_counter() - t0
         return self._result(out, x0, rec, wall, record)
 
     def _result(self, out, x0, rec, wall, record) -> Result:
-        outcome = K.OUTCOMES[int(out[K.O_OUTCOME])]
+        outcome = kernel.OUTCOMES[int(out[kernel.O_OUTCOME])]
         if outcome == "load_beyond_table":
             raise TableRangeError(f"the normal load exceeded the contact table "
-                                  f"({self.table.max_load:.3g} N) at t = {out[K.O_EVENT_T]:.6g} s, "
-                                  f"x = {out[K.O_EVENT_X]:.6g} m; rebuild it with a larger load_ratio")
+                                  f"({self.table.max_load:.3g} N) at t = {out[kernel.O_EVENT_T]:.6g} s, "
+                                  f"x = {out[kernel.O_EVENT_X]:.6g} m; rebuild it with a larger load_ratio")
         detached = outcome == "detached"
         traj = None
         if record:
-            n = int(out[K.O_NREC])
+            n = int(out[kernel.O_NREC])
             r = rec[:n]
-            traj = {"t_s": r[:, K.R_T], "x_m": r[:, K.R_X], "v_m_s": r[:, K.R_V],
-                    "y_m": r[:, K.R_Y], "N_N": r[:, K.R_N], "Q_N": r[:, K.R_Q],
-                    "F_N": r[:, K.R_F], "stick": r[:, K.R_STICK] > 0.5}
+            traj = {"t_s": r[:, kernel.R_T], "x_m": r[:, kernel.R_X], "v_m_s": r[:, kernel.R_V],
+                    "y_m": r[:, kernel.R_Y], "N_N": r[:, kernel.R_N], "Q_N": r[:, kernel.R_Q],
+                    "F_N": r[:, kernel.R_F], "stick": r[:, kernel.R_STICK] > 0.5}
         return Result(
-            x0_m=x0, final_position_m=float(out[K.O_X]), final_velocity_m_s=float(out[K.O_V]),
-            outcome=outcome, end_time_s=float(out[K.O_T]),
-            rest_time_s=float(out[K.O_T]) if outcome == "rest" else None,
-            detach_time_s=float(out[K.O_EVENT_T]) if detached else None,
-            detach_position_m=float(out[K.O_EVENT_X]) if detached else None,
-            steps=int(out[K.O_STEPS]), events=int(out[K.O_EVENTS]), wall_time_s=wall,
+            x0_m=x0, final_position_m=float(out[kernel.O_X]), final_velocity_m_s=float(out[kernel.O_V]),
+            outcome=outcome, end_time_s=float(out[kernel.O_T]),
+            rest_time_s=float(out[kernel.O_T]) if outcome == "rest" else None,
+            detach_time_s=float(out[kernel.O_EVENT_T]) if detached else None,
+            detach_position_m=float(out[kernel.O_EVENT_X]) if detached else None,
+            steps=int(out[kernel.O_STEPS]), events=int(out[kernel.O_EVENTS]), wall_time_s=wall,
             trajectory=traj)
 
     def steps_per_stroke(self, frequency: float) -> int:
         f = check_range("Simulator", "frequency", frequency, 0, math.inf, True, unit="Hz")
         check_step_budget("Simulator", f, self.dt, self.min_steps, self.max_steps)
-        return int(K.steps_for(f, self.dt, self.min_steps))
+        return int(kernel.steps_for(f, self.dt, self.min_steps))
 
     def flat_deceleration(self) -> float:
         """Deceleration of a sliding part on the flat, still surface, Q(m g0)/m [m/s^2]."""

@@ -14,6 +14,7 @@ import time
 
 from ..physics.schedule import Schedule
 from ..physics.simulator import MIN_STEPS_PER_STROKE, Simulator
+from ..presets import simulator
 
 DTS = (5e-5, 2.5e-5, 1.25e-5, 6.25e-6, 3.125e-6, 1.5625e-6, 7.8125e-7)
 REFERENCE_DT = 1e-7
@@ -30,7 +31,7 @@ def time_firing(sim: Simulator, schedule: Schedule, x0: float, repeats: int) -> 
     return res, statistics.median(walls)
 
 
-def accuracy_study(preset: str = "seed", freq: float = 950.0, stroke: float = 200e-6,
+def accuracy_study(preset: str = "dissertation", freq: float = 950.0, stroke: float = 200e-6,
                    x0: float = 0.125e-3, dts=DTS, repeats: int = 30, tolerance_m: float = 1e-6,
                    progress: bool = True) -> dict:
     from tqdm import tqdm
@@ -38,16 +39,16 @@ def accuracy_study(preset: str = "seed", freq: float = 950.0, stroke: float = 20
     schedule = Schedule.single(freq, stroke)
     rows = []
     refs = {}
-    combos = [(m, k) for k in ("seed", "exact") for m in ("event", "karnopp")]
+    combos = [(m, k) for k in ("reduced", "exact") for m in ("event", "karnopp")]
     bar = tqdm(total=len(combos) * len(dts) + 2, desc="accuracy", file=sys.stderr,
                disable=not progress, leave=False)
-    for kin in ("seed", "exact"):
-        ref = Simulator(preset, kinematics=kin, mode="event", dt=REFERENCE_DT, min_steps=2)
+    for kin in ("reduced", "exact"):
+        ref = simulator(preset, kinematics=kin, mode="event", dt=REFERENCE_DT, min_steps=2)
         refs[kin] = ref.simulate(schedule, x0=x0).final_position_m
         bar.update()
     for mode, kin in combos:
         for dt in dts:
-            sim = Simulator(preset, kinematics=kin, mode=mode, dt=dt, min_steps=MIN_STEPS_PER_STROKE)
+            sim = simulator(preset, kinematics=kin, mode=mode, dt=dt, min_steps=MIN_STEPS_PER_STROKE)
             res, wall = time_firing(sim, schedule, x0, repeats)
             rows.append({"mode": mode, "kinematics": kin, "dt_s": dt,
                          "steps_per_stroke": sim.steps_per_stroke(freq),
@@ -55,7 +56,7 @@ def accuracy_study(preset: str = "seed", freq: float = 950.0, stroke: float = 20
                          "wall_time_s": wall, "outcome": res.outcome})
             bar.update()
     bar.close()
-    default = pick_default(rows, "seed", tolerance_m)
+    default = pick_default(rows, "reduced", tolerance_m)
     return {"freq_hz": freq, "stroke_m": stroke, "x0_m": x0, "tolerance_m": tolerance_m,
             "reference_dt_s": REFERENCE_DT, "reference_final_position_m": refs,
             "rows": rows, "default": default}

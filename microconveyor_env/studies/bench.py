@@ -12,15 +12,16 @@ import numpy as np
 
 from ..physics.schedule import Schedule
 from ..physics.simulator import Simulator
+from ..presets import simulator
 
 SEED_FIRING = {"freq": 950.0, "stroke": 200e-6, "x0": 0.125e-3}
 
 
-def bench_modes(preset: str = "seed", repeats: int = 500) -> dict:
+def bench_modes(preset: str = "dissertation", repeats: int = 500) -> dict:
     sched = Schedule.single(SEED_FIRING["freq"], SEED_FIRING["stroke"])
     out = {}
     for mode in ("event", "karnopp"):
-        sim = Simulator(preset, mode=mode)
+        sim = simulator(preset, mode=mode)
         res = sim.simulate(sched, x0=SEED_FIRING["x0"])  # warm-up (compile/load)
         walls = []
         for _ in range(repeats):
@@ -38,16 +39,16 @@ def bench_modes(preset: str = "seed", repeats: int = 500) -> dict:
 
 def _kernel_time(sim: Simulator, sched: Schedule, repeats: int) -> float:
     """Median time of the compiled call alone (no Python-side validation or result objects)."""
-    from ..physics import dynamics_kernel as K
+    from ..physics import dynamics_kernel as kernel
 
     xa, f, h, d = sched.arrays()
-    rec, out = np.zeros((0, K.N_REC)), np.zeros(K.N_OUT)
+    rec, out = np.zeros((0, kernel.N_REC)), np.zeros(kernel.N_OUT)
     args = (xa, f, h, d, SEED_FIRING["x0"], 0.0, 0.0, sim.dt, sim.min_steps, True, sim.max_time,
             sim.params, *sim.tables, rec, out)
-    K.run(*args)
+    kernel.run(*args)
     walls = []
     for _ in range(repeats):
         t0 = time.perf_counter()
-        K.run(*args)
+        kernel.run(*args)
         walls.append(time.perf_counter() - t0)
     return statistics.median(walls)

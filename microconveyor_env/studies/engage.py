@@ -37,7 +37,7 @@ def _run(sim, schedule, x0, v0=0.0, to_rest=True):
 
 def map_column(task: dict) -> list:
     """Rows of one (freq, x0) column of the engaging map over the task's ``v0s``."""
-    sim = simulator(task.get("preset", "seed"), **task.get("sim_kw", {}))
+    sim = simulator(task.get("preset", "dissertation"), **task.get("sim_kw", {}))
     f, h, x0 = task["freq_hz"], task["stroke_m"], task["x0_m"]
     a = sim.flat_deceleration()
     sched = Schedule.single(f, h)
@@ -61,7 +61,7 @@ def map_column(task: dict) -> list:
 def engage_map_rows(freqs=(300.0, 500.0, 700.0), stroke: float = 150e-6,
                     x0s=tuple(np.round(np.arange(-0.6e-3, 0.6e-3 + 1e-9, 0.05e-3), 9)),
                     v0s=tuple(np.round(np.arange(-0.5, 0.5 + 1e-9, 0.01), 6)),
-                    preset: str = "seed", sim_kw=None, **engine_kw) -> list:
+                    preset: str = "dissertation", sim_kw=None, **engine_kw) -> list:
     """The engaging map: frequencies [Hz] x start positions [m] x initial velocities [m/s]."""
     tasks = [{"freq_hz": float(f), "stroke_m": float(stroke), "x0_m": float(x0),
               "v0s": tuple(float(v) for v in v0s), "preset": preset, "sim_kw": sim_kw or {}}
@@ -132,7 +132,7 @@ def check_speed_statement(rows, tol_m_s: float = 0.05, statement=SPEED_STATEMENT
 # ----------------------------------------------------------------------------- two actuators
 def two_column(task: dict) -> list:
     """Rows of one spacing of the two-actuator map over the task's delays."""
-    sim = simulator(task.get("preset", "seed"), **task.get("sim_kw", {}))
+    sim = simulator(task.get("preset", "dissertation"), **task.get("sim_kw", {}))
     f, h, sp, x0 = task["freq_hz"], task["stroke_m"], task["spacing_m"], task["x0_m"]
     arr = ActuatorArray((0.0, sp))
     one = _run(sim, Schedule(arr, (Firing(0, f, h),)), x0)
@@ -161,7 +161,7 @@ def two_column(task: dict) -> list:
 def two_actuator_rows(freq: float = 950.0, stroke: float = 200e-6, start_offset: float = 0.125e-3,
                       spacings=tuple(np.round(np.arange(0.2e-3, 1.5e-3 + 1e-9, 0.05e-3), 9)),
                       delays=tuple(np.round(np.arange(0.0, 8e-3 + 1e-12, 0.2e-3), 9)),
-                      preset: str = "seed", sim_kw=None, **engine_kw) -> list:
+                      preset: str = "dissertation", sim_kw=None, **engine_kw) -> list:
     """Final position over (delay [s], spacing [m]) at ``freq`` [Hz] and ``stroke`` [m]."""
     tasks = [{"freq_hz": float(freq), "stroke_m": float(stroke), "spacing_m": float(s),
               "x0_m": -float(start_offset), "delays_s": tuple(float(d) for d in delays),

@@ -38,7 +38,7 @@ def _simulator(preset, mass, sigma, dgamma, profile, wavelength, sim_items):
                  wavelength=wavelength, sim_kw=dict(sim_items)).simulator()
 
 
-def simulator(preset: str = "seed", mass: float | None = None, sigma: float | None = None,
+def simulator(preset: str = "dissertation", mass: float | None = None, sigma: float | None = None,
               dgamma: float | None = None, profile: str = "gaussian", wavelength: float = 0.6e-3,
               **sim_kw):
     """A :class:`Simulator` for these contact/scene values, cached per process.

@@ -130,8 +130,8 @@ def plot_fidelity(assessed: dict, path) -> str:
     fig, axes = _subplots(2, len(scenes), figsize=(5.4 * len(scenes), 8.8), squeeze=False)
     floor = 1e-12
     markers = {"event": "o", "karnopp": "s"}
-    colors = {("seed", "constant"): "tab:blue", ("exact", "constant"): "tab:orange",
-              ("seed", "stretch"): "tab:green", ("exact", "stretch"): "tab:red"}
+    colors = {("reduced", "constant"): "tab:blue", ("exact", "constant"): "tab:orange",
+              ("reduced", "stretch"): "tab:green", ("exact", "stretch"): "tab:red"}
     for k, sc in enumerate(scenes):
         rows = [r for r in assessed["rows"] if r["scene"] == sc]
         for row, key in enumerate(("error_vs_faithful_m", "numerical_error_m")):

@@ -55,7 +55,7 @@ def reference_firing(contact, freq=950.0, stroke=200e-6, x0=0.125e-3, dt=1e-6,
                      wavelength=0.6e-3, *, x_act=0.0, max_time=MAX_TIME, _tables=None) -> dict:
     """One firing integrated with plain-Python fixed-step RK4 + Karnopp, stroke and coast.
 
-    Parameters: ``contact`` a ContactParams (e.g. ``load_preset("seed").contact``), ``freq`` [Hz],
+    Parameters: ``contact`` a ContactParams (e.g. ``load_preset("dissertation").contact``), ``freq`` [Hz],
     ``stroke`` height h [m], ``x0`` start position [m] (part at rest), ``dt`` nominal step [s]
     (adjusted to ``T/n``, ``n = ceil(T/dt)``), ``wavelength`` WL [m], ``x_act`` actuator [m].
 
@@ -237,4 +237,4 @@ def converged_dt(contact, target_m=1e-6, reference_m=None, *, dt_start=DEFAULT_D
 if __name__ == "__main__":
     from microconveyor_env.presets import load_preset
 
-    print(json.dumps(converged_dt(load_preset("seed").contact), indent=2))
+    print(json.dumps(converged_dt(load_preset("dissertation").contact), indent=2))

@@ -124,7 +124,7 @@ def design(levels: dict | None = None) -> list:
 def run_combination(task: dict) -> list:
     """All rows of one design combination (task keys: :data:`LEVELS`, plus optional ``preset``,
     ``n_freq``, ``scan_hz``, ``refine``, ``profile``)."""
-    sim = simulator(task.get("preset", "seed"), mass=task["mass_kg"], sigma=task["sigma_m"],
+    sim = simulator(task.get("preset", "dissertation"), mass=task["mass_kg"], sigma=task["sigma_m"],
                     dgamma=task["dgamma_J_m2"], profile=task.get("profile", "gaussian"),
                     wavelength=task["wavelength_m"])
     x0 = task["x0_wl"] * task["wavelength_m"]
@@ -144,7 +144,7 @@ def run_combination(task: dict) -> list:
              "window_capped": capped, **res} for phase, f, res in runs]
 
 
-def sensitivity_rows(levels: dict | None = None, n_freq: int = N_FREQ, preset: str = "seed",
+def sensitivity_rows(levels: dict | None = None, n_freq: int = N_FREQ, preset: str = "dissertation",
                      scan_hz=SCAN_HZ, **engine_kw) -> list:
     """Run the design (see :func:`run_combination`); ``engine_kw`` go to :func:`run_tasks`."""
     tasks = [{**t, "n_freq": n_freq, "preset": preset, "scan_hz": tuple(scan_hz)}

@@ -44,7 +44,7 @@ def run_sample(task: dict) -> list:
     """One row: the sample's parameters, its window [Hz], the firing frequency and the travel."""
     p = {k: task[k] for k in PROBLEM["names"]}
     mass = 10.0 ** p["log10_mass_kg"]
-    sim = simulator(task.get("preset", "seed"), mass=mass, sigma=p["sigma_m"],
+    sim = simulator(task.get("preset", "dissertation"), mass=mass, sigma=p["sigma_m"],
                     dgamma=p["dgamma_J_m2"], wavelength=p["wavelength_m"])
     x0 = p["x0_wl"] * p["wavelength_m"]
     window, runs = find_window(sim, p["stroke_m"], x0, task.get("scan_hz", SOBOL_SCAN_HZ))
@@ -60,7 +60,7 @@ def run_sample(task: dict) -> list:
              "outcome": res["outcome"], "distance_m": d, "runs": len(runs) + 1}]
 
 
-def sobol_rows(n_base: int = 128, seed: int = 0, preset: str = "seed", scan_hz=SOBOL_SCAN_HZ,
+def sobol_rows(n_base: int = 128, seed: int = 0, preset: str = "dissertation", scan_hz=SOBOL_SCAN_HZ,
                **engine_kw) -> list:
     X = samples(n_base, seed)
     tasks = [{"sample": i, **dict(zip(PROBLEM["names"], map(float, x))), "preset": preset,

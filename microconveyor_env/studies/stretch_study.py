@@ -33,7 +33,7 @@ def run_freq(task: dict) -> list:
             kw["roughness"] = level
         else:
             kw.pop("n_sigma", None)  # a stretch-table setting
-        sim = simulator(task.get("preset", "seed"), wavelength=task["wavelength_m"],
+        sim = simulator(task.get("preset", "dissertation"), wavelength=task["wavelength_m"],
                         profile=task["profile"], **kw)
         sched = Schedule.single(task["freq_hz"], task["stroke_m"])
         row = {"freq_hz": task["freq_hz"], "stroke_m": task["stroke_m"], "x0_m": task["x0_m"],
@@ -59,7 +59,7 @@ def run_freq(task: dict) -> list:
 
 def stretch_rows(freqs=tuple(np.arange(200.0, 1500.0 + 1e-9, 25.0).tolist()),
                  stroke: float = 200e-6, x0: float = 0.125e-3, profile: str = "gaussian",
-                 wavelength: float = 0.6e-3, repeats: int = 3, preset: str = "seed",
+                 wavelength: float = 0.6e-3, repeats: int = 3, preset: str = "dissertation",
                  sim_kw=None, **engine_kw) -> list:
     """Both levels over ``freqs`` [Hz] for the single-firing scene (stroke [m], start x0 [m])."""
     tasks = [{"freq_hz": float(f), "stroke_m": float(stroke), "x0_m": float(x0),
