@@ -104,7 +104,7 @@ def plot_firing(result, freq: float, path, delay: float = 0.0, title: str = "",
 
 def plot_sweep(sweep: dict, path, title: str = "") -> Path:
     """Travel versus the swept parameter, detachment and the feasible window marked."""
-    vals = np.asarray(sweep["values"], dtype=object)
+    vals = np.asarray(sweep[sweep["values_key"]], dtype=object)
     fig, ax = _subplots(figsize=(8, 4.5))
     numeric = sweep["param"] != "profile"
     x = np.asarray(vals, float) if numeric else np.arange(len(vals))
@@ -113,7 +113,7 @@ def plot_sweep(sweep: dict, path, title: str = "") -> Path:
     ax.plot(x[~det], d[~det], "o-", ms=3, label="travel |x_final - x0|")
     if det.any():
         ax.plot(x[det], d[det], "rx", label="detached (travel until detachment)")
-    win = sweep.get("window")
+    win = sweep.get("window" + sweep["values_key"][len(sweep["param"]):])
     if win:
         ax.axvspan(win[0], win[1], color="tab:green", alpha=0.1,
                    label=f"feasible window {win[0]:g} .. {win[1]:g} {sweep['unit']}")

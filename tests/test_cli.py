@@ -81,3 +81,10 @@ def test_demo_writes_charts_and_summary(tmp_path):
         assert (tmp_path / name).stat().st_size > 1000, name
     assert out["window_hz"][0] < out["window_hz"][1]
     assert out["episode"]["outcome"] in ("rest", "detached", "max_time")
+    # the charted numbers are the validated ones (docs/validation.md), not just non-empty files
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    firing = summary["reference_firing"]
+    assert firing["outcome"] == "rest"
+    assert abs(firing["displacement_m"] + 1164e-6) < 2e-6       # 1164 µm towards the actuator
+    assert firing["wall_time_s"] < 0.05                         # steady state, not the compile
+    assert summary["window_hz"] == [225.0, 1250.0]

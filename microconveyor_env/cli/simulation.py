@@ -64,7 +64,7 @@ def cmd_simulate(args):
 
 @command("sweep", "travel versus one parameter (frequency by default) and the feasible window")
 def cmd_sweep(args):
-    from ..studies.sweep import SWEEPABLE, Scene, parse_values, sweep
+    from ..studies.sweep import SWEEPABLE, Scene, parse_values, sweep, value_key
 
     given = {k: getattr(args, k) for k in SWEEPABLE if getattr(args, k, None) is not None}
     swept = [k for k, v in given.items() if k != "profile" and (":" in v or "," in v)]
@@ -82,10 +82,8 @@ def cmd_sweep(args):
     limit = {} if args.max_points is None else {"max_points": args.max_points}
     values = parse_values(given[param], param, **limit)
     res = sweep(scene, param, values, progress=not args.no_progress, **limit)
-    keyed = {"freq": "freq_hz", "stroke": "stroke_m", "x0": "x0_m", "wavelength": "wavelength_m",
-             "mass": "mass_kg", "sigma": "sigma_m", "dgamma": "dgamma_J_m2", "profile": "profile"}
     out = {"preset": args.preset,
-           **{keyed[k]: getattr(scene, k) for k in SWEEPABLE if k != param}, **res}
+           **{value_key(k): getattr(scene, k) for k in SWEEPABLE if k != param}, **res}
     if args.plot:
         from ..plots import plot_sweep
 
@@ -94,11 +92,12 @@ def cmd_sweep(args):
 
 
 def _sweep_text(res) -> str:
-    lines = [f"{res['param']:>12s}  travel [um]  outcome"]
-    for v, d, o in zip(res["values"], res["displacement_m"], res["outcome"]):
+    lines = [f"{res['param']:>12s}  travel [µm]  outcome"]
+    for v, d, o in zip(res[res["values_key"]], res["displacement_m"], res["outcome"]):
         lines.append(f"{v!s:>12s}  {d * 1e6:11.2f}  {o}")
-    if res.get("window") is not None:
-        lines.append(f"feasible window: {res['window']} {res['unit']}")
+    window = res.get("window" + res["values_key"][len(res["param"]):])
+    if window is not None:
+        lines.append(f"feasible window: {window} {res['unit']}")
     return "\n".join(lines)
 
 

@@ -14,19 +14,19 @@ from ..physics.schedule import Schedule
 from ..physics.simulator import Simulator
 from ..presets import simulator
 
-SEED_FIRING = {"freq": 950.0, "stroke": 200e-6, "x0": 0.125e-3}
+REFERENCE_FIRING = {"freq": 950.0, "stroke": 200e-6, "x0": 0.125e-3}
 
 
 def bench_modes(preset: str = "dissertation", repeats: int = 500) -> dict:
-    sched = Schedule.single(SEED_FIRING["freq"], SEED_FIRING["stroke"])
+    sched = Schedule.single(REFERENCE_FIRING["freq"], REFERENCE_FIRING["stroke"])
     out = {}
     for mode in ("event", "karnopp"):
         sim = simulator(preset, mode=mode)
-        res = sim.simulate(sched, x0=SEED_FIRING["x0"])  # warm-up (compile/load)
+        res = sim.simulate(sched, x0=REFERENCE_FIRING["x0"])  # warm-up (compile/load)
         walls = []
         for _ in range(repeats):
             t0 = time.perf_counter()
-            sim.simulate(sched, x0=SEED_FIRING["x0"])
+            sim.simulate(sched, x0=REFERENCE_FIRING["x0"])
             walls.append(time.perf_counter() - t0)
         med = statistics.median(walls)
         kern = _kernel_time(sim, sched, repeats)
@@ -43,7 +43,7 @@ def _kernel_time(sim: Simulator, sched: Schedule, repeats: int) -> float:
 
     xa, f, h, d = sched.arrays()
     rec, out = np.zeros((0, kernel.N_REC)), np.zeros(kernel.N_OUT)
-    args = (xa, f, h, d, SEED_FIRING["x0"], 0.0, 0.0, sim.dt, sim.min_steps, True, sim.max_time,
+    args = (xa, f, h, d, REFERENCE_FIRING["x0"], 0.0, 0.0, sim.dt, sim.min_steps, True, sim.max_time,
             sim.params, *sim.tables, rec, out)
     kernel.run(*args)
     walls = []

@@ -129,18 +129,27 @@ def sweep(scene: Scene, param: str, values, progress: bool = True,
         rows.append(r)
     travel = [r.displacement_m for r in rows]
     outcomes = [r.outcome for r in rows]
-    out = {"param": param, "unit": SWEEPABLE[param][0], "values": list(values),
+    key = value_key(param)
+    out = {"param": param, "unit": SWEEPABLE[param][0], "values_key": key, key: list(values),
            "displacement_m": travel, "outcome": outcomes,
            "rest_time_s": [r.rest_time_s for r in rows],
            "detach_time_s": [r.detach_time_s for r in rows],
            "wall_time_s": float(sum(r.wall_time_s for r in rows))}
     if param != "profile":
-        out["window"] = feasible_window(values, travel, outcomes)
-        if param == "freq":
-            out["window_hz"] = out["window"]
+        suffix = key[len(param):]
+        out["window" + suffix] = feasible_window(values, travel, outcomes)
         ok = [i for i, o in enumerate(outcomes) if o != "detached"]
         if ok:
             best = max(ok, key=lambda i: abs(travel[i]))
             out["max_travel_m"] = abs(travel[best])
-            out["max_travel_at"] = values[best]
+            out["max_travel_at" + suffix] = values[best]
     return out
+
+
+_SUFFIX = {"Hz": "_hz", "m": "_m", "kg": "_kg", "J/m^2": "_J_m2", "-": ""}
+
+
+def value_key(param: str) -> str:
+    """The JSON key of a swept parameter's values: its name with its unit's suffix
+    (``freq_hz``, ``stroke_m``, ``profile``); ``window`` and ``max_travel_at`` take the same suffix."""
+    return param + _SUFFIX[SWEEPABLE[param][0]]
