@@ -150,7 +150,7 @@ def _ov_shifted_load(N, x, tl, xa, f, h, P, tu):
 @njit(cache=True)
 def normal_load(x, v, tl, xa, f, h, P):
     """(N, Y_x, cos(theta), Y) at position x, velocity v, time tl into the stroke."""
-    Y, Yx, Yt, Ytt, Yxt, Yxx = surface_eval(x, tl, xa, f, h, int(P[I_SHAPE]), P[I_WL])
+    Y, Yx, _, Ytt, Yxt, Yxx = surface_eval(x, tl, xa, f, h, int(P[I_SHAPE]), P[I_WL])
     Yx += P[I_SLOPE]
     Y += P[I_SLOPE] * x
     c = 1.0 / math.sqrt(1.0 + Yx * Yx)
