@@ -55,7 +55,8 @@ def cmd_simulate(args: argparse.Namespace) -> None:
     sim = scene.simulator()
     scene.run()  # load the compiled kernel first, so wall_time_s is the steady-state figure
     res = scene.run(record=bool(args.plot))
-    out: dict[str, Any] = {"preset": args.preset, "freq_hz": args.freq, "stroke_m": args.stroke, "x0_m": args.x0,
+    out: dict[str, Any] = {
+           "preset": args.preset, "freq_hz": args.freq, "stroke_m": args.stroke, "x0_m": args.x0,
            "profile": args.profile, "mode": args.mode, "kinematics": args.kinematics,
            "dt_s": sim.dt, "steps_per_stroke": sim.steps_per_stroke(args.freq),
            **res.to_dict(), "rest_time_s": res.rest_time_s}

@@ -48,9 +48,9 @@ def stroke_steps(f: npt.ArrayLike, dt: float, min_steps: int) -> np.ndarray:
 
 def check_step_budget(owner: str, f: npt.ArrayLike, dt: float, min_steps: int, max_steps: int,
                       max_time: float = math.inf) -> float:
-    """Total RK4 steps of strokes at ``f`` [Hz] with step ``dt`` [s] (a stroke is cut at ``max_time`` [s], so at most the
-    steps of its first ``max_time``); ParameterError if above ``max_steps`` [-]. ``owner`` names the
-    caller in the message."""
+    """Total RK4 steps of strokes at ``f`` [Hz] with step ``dt`` [s] (a stroke is cut at ``max_time``
+    [s], so at most the steps of its first ``max_time``); ParameterError if above ``max_steps`` [-].
+    ``owner`` names the caller in the message."""
     steps = stroke_steps(f, dt, min_steps)
     with np.errstate(over="ignore", invalid="ignore"):
         steps = steps * np.minimum(1.0, max_time * np.asarray(f, dtype=float))

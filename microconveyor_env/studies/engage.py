@@ -62,7 +62,8 @@ def map_column(task: dict[str, Any]) -> list[dict[str, Any]]:
 
 
 def engage_map_rows(freqs: Sequence[float] = (300.0, 500.0, 700.0), stroke: float = 150e-6,
-                    x0s: Sequence[float] = tuple(np.round(np.arange(-0.6e-3, 0.6e-3 + 1e-9, 0.05e-3), 9)),
+                    x0s: Sequence[float] = tuple(
+                        np.round(np.arange(-0.6e-3, 0.6e-3 + 1e-9, 0.05e-3), 9)),
                     v0s: Sequence[float] = tuple(np.round(np.arange(-0.5, 0.5 + 1e-9, 0.01), 6)),
                     preset: str = "dissertation", sim_kw: dict[str, Any] | None = None,
                     **engine_kw: Any) -> list[dict[str, Any]]:
@@ -168,8 +169,10 @@ def two_column(task: dict[str, Any]) -> list[dict[str, Any]]:
 
 
 def two_actuator_rows(freq: float = 950.0, stroke: float = 200e-6, start_offset: float = 0.125e-3,
-                      spacings: Sequence[float] = tuple(np.round(np.arange(0.2e-3, 1.5e-3 + 1e-9, 0.05e-3), 9)),
-                      delays: Sequence[float] = tuple(np.round(np.arange(0.0, 8e-3 + 1e-12, 0.2e-3), 9)),
+                      spacings: Sequence[float] = tuple(
+                          np.round(np.arange(0.2e-3, 1.5e-3 + 1e-9, 0.05e-3), 9)),
+                      delays: Sequence[float] = tuple(
+                          np.round(np.arange(0.0, 8e-3 + 1e-12, 0.2e-3), 9)),
                       preset: str = "dissertation", sim_kw: dict[str, Any] | None = None,
                       **engine_kw: Any) -> list[dict[str, Any]]:
     """Final position over (delay [s], spacing [m]) at ``freq`` [Hz] and ``stroke`` [m], the part

@@ -194,8 +194,8 @@ def package_displacement(contact: ContactParams, freq: float = 950.0, stroke: fl
 def converged_dt(contact: ContactParams, target_m: float = 1e-6, reference_m: float | None = None,
                  *, dt_start: float = DEFAULT_DT_START, time_budget_s: float = DEFAULT_TIME_BUDGET,
                  dt_min: float = DEFAULT_DT_MIN, **kw: Any) -> dict[str, Any]:
-    """Halve dt [s] from ~``dt_start`` [s] until the displacement is within ``target_m`` of ``reference_m``
-    **and** stays within it at the next halving (Karnopp convergence is erratic).
+    """Halve dt [s] from ~``dt_start`` [s] until the displacement is within ``target_m`` [m] of
+    ``reference_m`` [m] **and** stays within it at the next halving (Karnopp convergence is erratic).
 
     ``reference_m`` defaults to the package's converged answer, ``Simulator(contact, mode="event",
     dt=1e-6)``. ``kw`` (freq, stroke, x0, wavelength) go to :func:`reference_firing`. The first step

@@ -138,7 +138,8 @@ def sweep(scene: Scene, param: str, values: Iterable[Any], progress: bool = True
     travel = [r.displacement_m for r in rows]
     outcomes = [r.outcome for r in rows]
     key = value_key(param)
-    out: dict[str, Any] = {"param": param, "unit": SWEEPABLE[param][0], "values_key": key, key: list(values),
+    out: dict[str, Any] = {
+           "param": param, "unit": SWEEPABLE[param][0], "values_key": key, key: list(values),
            "displacement_m": travel, "outcome": outcomes,
            "rest_time_s": [r.rest_time_s for r in rows],
            "detach_time_s": [r.detach_time_s for r in rows],
