@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy.typing as npt
+
 import math
 import time
 import warnings
@@ -34,8 +36,9 @@ MAX_STEPS = 10_000_000     # default cap on the RK4 steps of one run (~10 s of k
 MAX_STEPS_LIMIT = 10 ** 12  # largest cap one may ask for
 
 
-def stroke_steps(f, dt: float, min_steps: int) -> np.ndarray:
-    """RK4 steps of strokes at frequencies ``f`` [Hz] (as the kernel's ``steps_for``), as floats
+def stroke_steps(f: npt.ArrayLike, dt: float, min_steps: int) -> np.ndarray:
+    """RK4 steps of strokes at frequencies ``f`` [Hz] with step ``dt`` [s] and at least ``min_steps``
+    [-] per stroke (as the kernel's ``steps_for``), as floats
     that never overflow: ``inf`` where ``1/(f dt)`` is beyond float range."""
     f = np.asarray(f, dtype=float)
     with np.errstate(over="ignore", divide="ignore", under="ignore", invalid="ignore"):
@@ -43,10 +46,11 @@ def stroke_steps(f, dt: float, min_steps: int) -> np.ndarray:
         return np.where(np.isfinite(n), n + n % 2, n)
 
 
-def check_step_budget(owner: str, f, dt: float, min_steps: int, max_steps: int,
+def check_step_budget(owner: str, f: npt.ArrayLike, dt: float, min_steps: int, max_steps: int,
                       max_time: float = math.inf) -> float:
-    """Total RK4 steps of strokes at ``f`` (a stroke is cut at ``max_time`` [s], so at most the
-    steps of its first ``max_time``); ParameterError if above ``max_steps``."""
+    """Total RK4 steps of strokes at ``f`` [Hz] with step ``dt`` [s] (a stroke is cut at ``max_time``
+    [s], so at most the steps of its first ``max_time``); ParameterError if above ``max_steps`` [-].
+    ``owner`` names the caller in the message."""
     steps = stroke_steps(f, dt, min_steps)
     with np.errstate(over="ignore", invalid="ignore"):
         steps = steps * np.minimum(1.0, max_time * np.asarray(f, dtype=float))
@@ -61,8 +65,8 @@ def check_step_budget(owner: str, f, dt: float, min_steps: int, max_steps: int,
     return total
 
 
-def check_max_steps(owner: str, value) -> int:
-    """``max_steps``: an integer in [1, MAX_STEPS_LIMIT]."""
+def check_max_steps(owner: str, value: object) -> int:
+    """``max_steps`` [-]: an integer in [1, MAX_STEPS_LIMIT]; ``owner`` names the caller."""
     if (isinstance(value, bool) or not isinstance(value, (int, np.integer))
             or not 1 <= value <= MAX_STEPS_LIMIT):
         raise ParameterError(f"{owner}.max_steps = {value!r} is invalid: must be an integer in "
@@ -109,13 +113,15 @@ class Result:
     steps: int
     events: int
     wall_time_s: float
-    trajectory: dict | None = field(default=None, repr=False)
+    trajectory: dict[str, np.ndarray] | None = field(default=None, repr=False)
 
     @property
     def displacement_m(self) -> float:
+        """``final_position_m - x0_m`` [m]."""
         return self.final_position_m - self.x0_m
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
+        """The fields (SI, unit-suffixed keys) without the trajectory, plus ``displacement_m``."""
         d = {k: v for k, v in self.__dict__.items() if k != "trajectory"}
         d["displacement_m"] = self.displacement_m
         return d
@@ -153,7 +159,7 @@ class Simulator:
                  slope: float = 0.0, max_time: float = 10.0,
                  min_steps: int = MIN_STEPS_PER_STROKE, max_steps: int = MAX_STEPS,
                  roughness: str = "constant", zone_length: float | None = None,
-                 max_strain: float = 0.4, n_sigma: int = 21):
+                 max_strain: float = 0.4, n_sigma: int = 21) -> None:
         if not isinstance(contact, ContactParams):
             raise ParameterError(f"contact = {contact!r} is invalid: Simulator takes ContactParams; "
                                  "for a preset by name use microconveyor_env.presets.simulator("
@@ -192,14 +198,14 @@ class Simulator:
         P[forces.I_NMAX] = self.table.max_load
         self.params = P
         tu, tq, tqu, _ = self.table.kernel_arrays()
-        self.tables: tuple = (np.ascontiguousarray(tu), np.ascontiguousarray(tq),
+        self.tables: tuple[np.ndarray, ...] = (np.ascontiguousarray(tu), np.ascontiguousarray(tq),
                               np.ascontiguousarray(tqu))
         self.stretch: Any = None  # StretchContact with roughness='stretch'
         if roughness == "stretch":
             self._setup_stretch(zone_length, max_strain, n_sigma)
 
     # ------------------------------------------------------------------ stretch
-    def _setup_stretch(self, zone_length, max_strain, n_sigma) -> None:
+    def _setup_stretch(self, zone_length: float | None, max_strain: float, n_sigma: int) -> None:
         from .stretch import StretchContact, pack_tables, strain_table
 
         zone = self.wavelength if zone_length is None else check_range(
@@ -238,8 +244,8 @@ class Simulator:
 
     # ------------------------------------------------------------------ checks
     def check_firings(self, f: np.ndarray, h: np.ndarray) -> None:
-        """Warn about under-resolved strokes; refuse loads beyond the contact table and more
-        steps than ``max_steps``."""
+        """Warn about under-resolved strokes at frequencies ``f`` [Hz] and strokes ``h`` [m];
+        refuse loads beyond the contact table and more steps than ``max_steps``."""
         check_step_budget("Simulator", f, self.dt, self.min_steps, self.max_steps, self.max_time)
         steps = stroke_steps(f, self.dt, self.min_steps)
         if steps.min() < MIN_STEPS_PER_STROKE:
@@ -282,7 +288,8 @@ class Simulator:
         wall = time.perf_counter() - t0
         return self._result(out, x0, rec, wall, record)
 
-    def _result(self, out, x0, rec, wall, record) -> Result:
+    def _result(self, out: np.ndarray, x0: float, rec: np.ndarray, wall: float,
+                record: bool) -> Result:
         outcome = kernel.OUTCOMES[int(out[kernel.O_OUTCOME])]
         if outcome == "load_beyond_table":
             raise TableRangeError(f"the normal load exceeded the contact table "
@@ -306,6 +313,7 @@ class Simulator:
             trajectory=traj)
 
     def steps_per_stroke(self, frequency: float) -> int:
+        """RK4 steps [-] of one stroke at ``frequency`` [Hz]."""
         f = check_range("Simulator", "frequency", frequency, 0, math.inf, True, unit="Hz")
         check_step_budget("Simulator", f, self.dt, self.min_steps, self.max_steps)
         return int(kernel.steps_for(f, self.dt, self.min_steps))
