@@ -1,12 +1,20 @@
 """Figures (matplotlib with the Agg backend, imported lazily so the simulator never needs it)."""
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+if TYPE_CHECKING:  # matplotlib is imported lazily at run time
+    from matplotlib.figure import Figure
 
-def _subplots(nrows: int = 1, ncols: int = 1, **kw):
+    from .physics.contact_table import ContactTable
+    from .physics.simulator import Result
+
+
+def _subplots(nrows: int = 1, ncols: int = 1, **kw: Any) -> tuple[Figure, Any]:
     """A stand-alone Agg figure (no pyplot, so the caller's matplotlib backend is untouched)."""
     from matplotlib.figure import Figure
 
@@ -14,8 +22,9 @@ def _subplots(nrows: int = 1, ncols: int = 1, **kw):
     return fig, fig.subplots(nrows, ncols, **kw)
 
 
-def plot_contact(table, path: str | Path, title: str = "") -> Path:
-    """The contact law of a preset: P, F_s, N versus separation (pull-off marked), and Q."""
+def plot_contact(table: ContactTable, path: str | Path, title: str = "") -> Path:
+    """The contact law of a preset: P, F_s, N [N] versus separation [m] (pull-off marked), and Q [N],
+    drawn in µN / nm and written to ``path``."""
     from .physics.rough_surface import surface_forces
 
     p = table.params
@@ -55,7 +64,7 @@ def plot_contact(table, path: str | Path, title: str = "") -> Path:
     return _save(fig, path)
 
 
-def _save(fig, path) -> Path:
+def _save(fig: Figure, path: str | Path) -> Path:
     """Write ``fig``; a name without an extension gets ``.png``. Returns the path written."""
     path = Path(path)
     if not str(path).strip() or path.name in ("", ".", ".."):
@@ -67,12 +76,13 @@ def _save(fig, path) -> Path:
     return path
 
 
-def plot_firing(result, freq: float, path, delay: float = 0.0, title: str = "",
+def plot_firing(result: Result, freq: float, path: str | Path, delay: float = 0.0, title: str = "",
                 stroke: float | None = None) -> Path:
     """One firing: friction force, velocity, position and normal load versus time, with the
     stroke's up and down phases shaded and stick intervals marked (``freq`` [Hz], ``stroke`` [m],
-    ``delay`` [s] before the stroke)."""
+    ``delay`` [s] before the stroke); ``result`` must be recorded (``record=True``)."""
     tr = result.trajectory
+    assert tr is not None, "plot_firing needs a recorded result (simulate(..., record=True))"
     t_ms = tr["t_s"] * 1e3
     fig, (ax1, ax2, ax3) = _subplots(3, 1, figsize=(9, 7.5), sharex=True)
     T = 1.0 / freq
@@ -102,9 +112,10 @@ def plot_firing(result, freq: float, path, delay: float = 0.0, title: str = "",
     return _save(fig, path)
 
 
-def plot_sweep(sweep: dict, path, title: str = "") -> Path:
-    """Travel versus the swept parameter, detachment and the feasible window marked."""
-    vals = np.asarray(sweep["values"], dtype=object)
+def plot_sweep(sweep: dict[str, Any], path: str | Path, title: str = "") -> Path:
+    """Travel [m, drawn in µm] versus the swept parameter (in its own unit, ``sweep['unit']``),
+    detachment and the feasible window marked."""
+    vals = np.asarray(sweep[sweep["values_key"]], dtype=object)
     fig, ax = _subplots(figsize=(8, 4.5))
     numeric = sweep["param"] != "profile"
     x = np.asarray(vals, float) if numeric else np.arange(len(vals))
@@ -113,7 +124,7 @@ def plot_sweep(sweep: dict, path, title: str = "") -> Path:
     ax.plot(x[~det], d[~det], "o-", ms=3, label="travel |x_final - x0|")
     if det.any():
         ax.plot(x[det], d[det], "rx", label="detached (travel until detachment)")
-    win = sweep.get("window")
+    win = sweep.get("window" + sweep["values_key"][len(sweep["param"]):])
     if win:
         ax.axvspan(win[0], win[1], color="tab:green", alpha=0.1,
                    label=f"feasible window {win[0]:g} .. {win[1]:g} {sweep['unit']}")
@@ -126,10 +137,11 @@ def plot_sweep(sweep: dict, path, title: str = "") -> Path:
     return _save(fig, path)
 
 
-def plot_accuracy(study: dict, path) -> Path:
-    """Error of the final position versus wall time per firing, per mode and kinematics level."""
+def plot_accuracy(study: dict[str, Any], path: str | Path) -> Path:
+    """Error of the final position [m, drawn in µm] versus wall time per firing [s, drawn in µs], per
+    mode and kinematics level."""
     fig, ax = _subplots(figsize=(10, 5))
-    styles = {("event", "seed"): "o-", ("karnopp", "seed"): "s-",
+    styles = {("event", "reduced"): "o-", ("karnopp", "reduced"): "s-",
               ("event", "exact"): "o--", ("karnopp", "exact"): "s--"}
     floor = 1e-12  # m: errors below are drawn at the floor, marked with a downward triangle
     clipped_any = False
@@ -164,8 +176,9 @@ def plot_accuracy(study: dict, path) -> Path:
     return _save(fig, path)
 
 
-def plot_episode_accuracy(study: dict, path) -> Path:
-    """Episode-level error (95th percentile and max of the final position) versus cost per episode
+def plot_episode_accuracy(study: dict[str, Any], path: str | Path) -> Path:
+    """Episode-level error (95th percentile and max of the final position [m, drawn in µm]) versus
+    cost per episode
     (RK4 steps: deterministic, unlike wall time on a shared machine)."""
     fig, ax = _subplots(figsize=(10, 5.5))
     floor = 1e-10
@@ -211,8 +224,8 @@ def plot_episode_accuracy(study: dict, path) -> Path:
     return _save(fig, path)
 
 
-def save_frames(frames, path, cols: int = 2) -> Path:
-    """Tile rendered env frames (uint8 H x W x 3) into one PNG."""
+def save_frames(frames: Sequence[np.ndarray], path: str | Path, cols: int = 2) -> Path:
+    """Tile rendered env frames (uint8 H x W x 3 [px]) into one PNG, ``cols`` [-] per row."""
     n = len(frames)
     rows = (n + cols - 1) // cols
     h, w = frames[0].shape[:2]

@@ -1,19 +1,25 @@
 """Named parameter presets (YAML files in the repository's ``configs/``, shipped with the package).
 
-``load_preset("seed")`` reads ``configs/seed.yaml``, validates it, applies its ``calibration`` block
-(if any) and returns a :class:`Preset`. A path to a YAML file works as well as a name.
+``load_preset("dissertation")`` reads ``configs/dissertation.yaml``, validates it, applies its
+``calibration`` block (if any) and returns a :class:`Preset`. A path to a YAML file works as well as
+a name. :func:`simulator` builds a :class:`~.physics.simulator.Simulator` from a preset (the
+physics layer itself takes parameters, never names). The former preset name ``seed`` still works
+with a DeprecationWarning.
 """
 from __future__ import annotations
 
 import functools
+import warnings
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
+from typing import Any
 
 import yaml
 
 from .physics.calibration import Calibration, calibrate
 from .physics.materials import ContactParams, Materials, ParameterError, Part, Surface
+from .physics.simulator import Simulator
 
 _TOP_KEYS = {"name", "description", "materials", "surface", "part", "friction_scale",
              "calibration", "dynamics"}
@@ -25,14 +31,18 @@ class PresetError(ValueError):
 
 @dataclass(frozen=True)
 class Preset:
+    """A loaded preset: its name, description, (calibrated) contact parameters (SI), the
+    calibration report (forces [N]; empty: nothing fitted) and its simulator defaults."""
+
     name: str
     description: str
     contact: ContactParams
-    calibration: dict = field(default_factory=dict)   # what was fitted (empty: none)
-    dynamics: dict = field(default_factory=dict)      # simulator defaults of this preset
+    calibration: dict[str, Any] = field(default_factory=dict)   # what was fitted (empty: none)
+    dynamics: dict[str, Any] = field(default_factory=dict)      # simulator defaults of this preset
 
 
 def available_presets() -> list[str]:
+    """Names of the presets shipped with the package (sorted)."""
     files = resources.files("microconveyor_env.configs")
     return sorted(p.name[:-5] for p in files.iterdir() if p.name.endswith(".yaml"))
 
@@ -45,7 +55,7 @@ _SECTIONS = ("materials", "surface", "part", "calibration", "dynamics")
 class _NoAliasLoader(yaml.SafeLoader):
     """Safe YAML without anchors/aliases (an alias bomb would expand to gigabytes)."""
 
-    def compose_node(self, parent, index):
+    def compose_node(self, parent: yaml.Node | None, index: Any) -> yaml.Node | None:
         if self.check_event(yaml.AliasEvent):
             event = self.peek_event()
             raise yaml.composer.ComposerError(None, None, "YAML aliases (*name) are not allowed "
@@ -53,8 +63,9 @@ class _NoAliasLoader(yaml.SafeLoader):
         return super().compose_node(parent, index)
 
 
-def parse_yaml(text: str, what: str):
-    """Safe-load ``text`` (no aliases, bounded size); PresetError with the position on failure."""
+def parse_yaml(text: str, what: str) -> Any:
+    """Safe-load ``text`` (no aliases, bounded size); PresetError with the position on failure;
+    ``what`` names the source in messages."""
     if len(text) > MAX_PRESET_BYTES:
         raise PresetError(f"{what} is too large ({len(text)} bytes > {MAX_PRESET_BYTES})")
     try:
@@ -65,7 +76,7 @@ def parse_yaml(text: str, what: str):
         raise PresetError(f"{what} is nested too deeply") from None
 
 
-def _read(name_or_path: str) -> dict:
+def _read(name_or_path: str) -> dict[str, Any]:
     p = Path(name_or_path)
     if p.suffix in (".yaml", ".yml") and p.exists():
         try:
@@ -97,7 +108,7 @@ def _read(name_or_path: str) -> dict:
     return data
 
 
-def _section(cls, data: dict, key: str):
+def _section(cls: type[Any], data: dict[str, Any], key: str) -> Any:
     raw = data.get(key) or {}
     try:
         return cls(**raw)
@@ -105,19 +116,43 @@ def _section(cls, data: dict, key: str):
         raise ParameterError(f"{key}: {exc}") from None
 
 
-def params_from_dict(data: dict) -> ContactParams:
+def params_from_dict(data: dict[str, Any]) -> ContactParams:
+    """ContactParams from a preset mapping (sections ``materials``, ``surface``, ``part`` and
+    ``friction_scale`` [-], values in SI units)."""
     return ContactParams(materials=_section(Materials, data, "materials"),
                          surface=_section(Surface, data, "surface"),
                          part=_section(Part, data, "part"),
                          friction_scale=data.get("friction_scale", 1.0))
 
 
+DEFAULT_PRESET = "dissertation"
+RENAMED_PRESETS = {"seed": "dissertation"}  # old name -> new name (deprecated, still accepted)
+
+
+def load_preset(name_or_path: str = DEFAULT_PRESET) -> Preset:
+    """Load, validate and calibrate a preset by name (``dissertation``, ``ke``) or YAML path."""
+    name = str(name_or_path)
+    if name in RENAMED_PRESETS:
+        warnings.warn(f"preset {name!r} is now called {RENAMED_PRESETS[name]!r}",
+                      DeprecationWarning, stacklevel=2)
+        name = RENAMED_PRESETS[name]
+    return _load_preset(name)
+
+
+def simulator(preset: str = DEFAULT_PRESET, contact: ContactParams | None = None,
+              **kw: Any) -> Simulator:
+    """A :class:`Simulator` of a preset (name or YAML path): its contact parameters (or
+    ``contact``, if given), its dynamics defaults (e.g. ``kinematics``), then ``kw`` (any
+    Simulator argument, SI units)."""
+    p = load_preset(preset)
+    return Simulator(p.contact if contact is None else contact, **{**p.dynamics, **kw})
+
+
 @functools.lru_cache(maxsize=32)
-def load_preset(name_or_path: str = "seed") -> Preset:
-    """Load, validate and calibrate a preset by name (``seed``, ``ke``) or YAML path."""
-    data = _read(str(name_or_path))
+def _load_preset(name_or_path: str) -> Preset:
+    data = _read(name_or_path)
     params = params_from_dict(data)
-    report: dict = {}
+    report: dict[str, Any] = {}
     cal = data.get("calibration")
     if cal:
         cal = dict(cal)

@@ -19,7 +19,7 @@ def _isolated_cache(tmp_path_factory):
 def seed():
     from microconveyor_env.presets import load_preset
 
-    return load_preset("seed")
+    return load_preset("dissertation")
 
 
 @pytest.fixture(scope="session")

@@ -10,6 +10,7 @@ import numpy as np
 
 from microconveyor_env.physics.materials import G0
 from microconveyor_env.physics.schedule import Schedule
+from microconveyor_env.presets import simulator
 from microconveyor_env.physics.simulator import Simulator, StepSizeWarning
 
 WL = 0.6e-3           # m, seed wavelength
@@ -24,7 +25,7 @@ REL = 1e-9            # closed-form tolerance (relative)
 @functools.lru_cache(maxsize=None)
 def sim(**kw) -> Simulator:
     """Cached Simulator (the contact table and the kernel arrays are built once per setting)."""
-    return Simulator(**kw)
+    return simulator(**kw)
 
 
 def run(freq=F_SEED, h=H, x0=X0, **kw):
@@ -47,7 +48,7 @@ GRID = np.arange(100.0, 2000.0 + 1, 25.0)  # Hz, 25 Hz grid
 
 
 @functools.lru_cache(maxsize=None)
-def sweep(shape="gaussian", h=H, kinematics="seed", x0=X0):
+def sweep(shape="gaussian", h=H, kinematics="reduced", x0=X0):
     """Travel [m] and detachment flag over GRID (single actuator at 0)."""
     s = sim(shape=shape, kinematics=kinematics)
     travel, detached = [], []

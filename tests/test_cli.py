@@ -11,7 +11,7 @@ def run(*args):
 
 def test_contact_json_and_plot(tmp_path):
     png = tmp_path / "contact.png"
-    r = run("contact", "--preset", "seed", "--json", "--plot", str(png))
+    r = run("contact", "--preset", "dissertation", "--json", "--plot", str(png))
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     for key in ("pull_off_force_N", "pull_off_separation_m", "separation_at_weight_m",
@@ -29,7 +29,7 @@ def test_error_is_json_with_nonzero_status():
 
 def test_simulate_json_keys_and_plot(tmp_path):
     png = tmp_path / "firing.png"
-    r = run("simulate", "--preset", "seed", "--freq", "950", "--stroke", "200e-6", "--x0",
+    r = run("simulate", "--preset", "dissertation", "--freq", "950", "--stroke", "200e-6", "--x0",
             "0.125e-3", "--json", "--plot", str(png))
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
@@ -81,3 +81,10 @@ def test_demo_writes_charts_and_summary(tmp_path):
         assert (tmp_path / name).stat().st_size > 1000, name
     assert out["window_hz"][0] < out["window_hz"][1]
     assert out["episode"]["outcome"] in ("rest", "detached", "max_time")
+    # the charted numbers are the validated ones (docs/validation.md), not just non-empty files
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    firing = summary["reference_firing"]
+    assert firing["outcome"] == "rest"
+    assert abs(firing["displacement_m"] + 1164e-6) < 2e-6       # 1164 µm towards the actuator
+    assert firing["wall_time_s"] < 0.05                         # steady state, not the compile
+    assert summary["window_hz"] == [225.0, 1250.0]

@@ -77,7 +77,7 @@ def test_flat_coast_stop_located_inside_a_stroke():
 
 
 @pytest.mark.parametrize("mode", ["event", "karnopp"])
-@pytest.mark.parametrize("kinematics", ["seed", "exact"])
+@pytest.mark.parametrize("kinematics", ["reduced", "exact"])
 @pytest.mark.parametrize("shape", ["gaussian", "sinusoidal", "clamped_beam"])
 def test_rest_on_still_surface_never_moves(mode, kinematics, shape):
     s = sim(mode=mode, kinematics=kinematics, shape=shape)
@@ -117,7 +117,7 @@ HEAVY_MASS = 2e-8  # kg: 10 x the seed part, so that a finite critical tilt exis
 def heavy_contact():
     from microconveyor_env.presets import load_preset
 
-    return load_preset("seed").contact.replace(part__mass=HEAVY_MASS)
+    return load_preset("dissertation").contact.replace(part__mass=HEAVY_MASS)
 
 
 @functools.lru_cache(maxsize=None)
@@ -175,7 +175,7 @@ def test_max_time_is_honoured_inside_a_delay():
 
 
 # ================================================ 2. independent re-derivation along trajectories
-@pytest.mark.parametrize("kinematics", ["seed", "exact"])
+@pytest.mark.parametrize("kinematics", ["reduced", "exact"])
 def test_recorded_normal_load_matches_physics(kinematics):
     """Recorded N equals m cos(theta)(g0 + Y_tt [+ 2 Y_xt v + Y_xx v^2]) from an independent
     implementation of the quintic stroke and the Gaussian bump; recorded Y too."""

@@ -19,7 +19,7 @@ LADDER = [16, 32, 64, 128, 256, 512, 1024]  # steps per stroke
 REF_STEPS = 2 ** 16
 
 
-def _final(mode, n, kinematics="seed"):
+def _final(mode, n, kinematics="reduced"):
     s = sim(mode=mode, kinematics=kinematics, dt=dt_for(F_SEED, n), min_steps=2)
     assert s.steps_per_stroke(F_SEED) == n
     r = quiet(s.simulate, Schedule.single(F_SEED, H), X0)
@@ -67,7 +67,7 @@ def test_convergence_karnopp_worse_than_event():
     assert abs(ka_ref - ref.final_position_m) < 1e-7
 
 
-@pytest.mark.parametrize("kinematics,freq,min_order", [("seed", 1300.0, 3.0), ("seed", 1500.0, 3.0),
+@pytest.mark.parametrize("kinematics,freq,min_order", [("reduced", 1300.0, 3.0), ("reduced", 1500.0, 3.0),
                                                        ("exact", F_SEED, 1.2)])
 def test_convergence_of_detachment_instant(kinematics, freq, min_order):
     """Event mode locates the detachment instant and place to ~1e-12 relative at 2048 steps.
@@ -104,7 +104,7 @@ def test_convergence_study_across_frequencies_and_shapes():
     ns = [16, 32, 64, 128, 256, 512, 1024]
     rows = []
     for shape in ("gaussian", "sinusoidal", "clamped_beam"):
-        for kin in ("seed", "exact"):
+        for kin in ("reduced", "exact"):
             for f in (300.0, 500.0, 700.0, 950.0, 1250.0):
                 def fin(n):
                     s = sim(shape=shape, kinematics=kin, dt=dt_for(f, n), min_steps=2)
@@ -115,7 +115,7 @@ def test_convergence_study_across_frequencies_and_shapes():
                 e = np.array([abs(fin(n)[0] - ref) for n in ns]) + 1e-300
                 order = _order(ns, e)
                 rows.append((shape, kin, f, outcome, order, e[-1]))
-                if shape != "clamped_beam" and kin == "seed" and outcome == "rest":
+                if shape != "clamped_beam" and kin == "reduced" and outcome == "rest":
                     assert order >= 3.0, (shape, kin, f, order)
     print()
     for shape, kin, f, outcome, order, e in rows:

@@ -14,7 +14,8 @@ import pytest
 from microconveyor_env.physics.contact_table import TableRangeError
 from microconveyor_env.physics.materials import ParameterError
 from microconveyor_env.physics.schedule import ActuatorArray, Schedule
-from microconveyor_env.physics.simulator import Simulator, StepSizeWarning
+from microconveyor_env.presets import simulator
+from microconveyor_env.physics.simulator import StepSizeWarning
 
 from dynamics_support import (F_SEED, GRID, H, WL, X0, assert_finite_result, normal_load_ref,
                               onset, run, sim, sweep, usable_window)
@@ -92,16 +93,16 @@ NAN = float("nan")
     (lambda: sim().simulate(Schedule.single(F_SEED, H), math.inf), r"x0 = inf is invalid"),
     (lambda: sim().simulate(Schedule.single(F_SEED, H), X0, v0=NAN), r"v0 = nan is invalid"),
     (lambda: sim().simulate("950 Hz", X0), r"schedule must be a Schedule"),
-    (lambda: Simulator(dt=0.0), r"dt = 0\.0 is invalid"),
-    (lambda: Simulator(dt=-2e-5), r"dt = -2e-05 is invalid"),
-    (lambda: Simulator(dt=NAN), r"dt = nan is invalid"),
-    (lambda: Simulator(wavelength=0.0), r"wavelength = 0\.0 is invalid"),
-    (lambda: Simulator(min_steps=1), r"min_steps = 1 is invalid"),
-    (lambda: Simulator(max_time=0.0), r"max_time = 0\.0 is invalid"),
-    (lambda: Simulator(slope=NAN), r"slope = nan is invalid"),
-    (lambda: Simulator(shape="square"), r"shape = 'square' is invalid.*gaussian"),
-    (lambda: Simulator(mode="rk45"), r"mode = 'rk45' is invalid.*event.*karnopp"),
-    (lambda: Simulator(kinematics="approx"), r"kinematics = 'approx' is invalid.*seed.*exact"),
+    (lambda: simulator(dt=0.0), r"dt = 0\.0 is invalid"),
+    (lambda: simulator(dt=-2e-5), r"dt = -2e-05 is invalid"),
+    (lambda: simulator(dt=NAN), r"dt = nan is invalid"),
+    (lambda: simulator(wavelength=0.0), r"wavelength = 0\.0 is invalid"),
+    (lambda: simulator(min_steps=1), r"min_steps = 1 is invalid"),
+    (lambda: simulator(max_time=0.0), r"max_time = 0\.0 is invalid"),
+    (lambda: simulator(slope=NAN), r"slope = nan is invalid"),
+    (lambda: simulator(shape="square"), r"shape = 'square' is invalid.*gaussian"),
+    (lambda: simulator(mode="rk45"), r"mode = 'rk45' is invalid.*event.*karnopp"),
+    (lambda: simulator(kinematics="approx"), r"kinematics = 'approx' is invalid.*reduced.*exact"),
 ])
 def test_bad_inputs_raise_parameter_error(build, match):
     with pytest.raises(ParameterError, match=match):
@@ -114,7 +115,7 @@ def test_stroke_beyond_contact_table_raises():
 
 
 @pytest.mark.parametrize("mode", ["event", "karnopp"])
-@pytest.mark.parametrize("kinematics", ["seed", "exact"])
+@pytest.mark.parametrize("kinematics", ["reduced", "exact"])
 def test_no_nan_over_frequency_sweep(mode, kinematics):
     s = sim(mode=mode, kinematics=kinematics)
     outcomes = {}
@@ -217,7 +218,7 @@ def test_exact_vs_seed_kinematics():
     into the stroke -- on the downstroke, 2 Y_xt xdot and Y_xx xdot^2 (each ~1e3 m/s^2 at xdot
     ~ 0.3 m/s) pull the load below -F_pull. Exact kinematics moves the detachment onset from
     1300 Hz down to ~725 Hz (h = 200 um, Gaussian)."""
-    seed, exact = run(kinematics="seed"), run(kinematics="exact")
+    seed, exact = run(kinematics="reduced"), run(kinematics="exact")
     assert_finite_result(seed, "seed")
     assert_finite_result(exact, "exact")
     diff = abs(seed.displacement_m) - abs(exact.displacement_m)
@@ -230,7 +231,7 @@ def test_exact_vs_seed_kinematics():
     # documented measurement (not a dissertation figure): the velocity terms matter at 950 Hz
     assert exact.outcome == "detached" and abs(exact.displacement_m) < 100e-6
     # at low frequency, where the part barely moves, both levels agree
-    lo_s, lo_e = run(freq=150.0, kinematics="seed"), run(freq=150.0, kinematics="exact")
+    lo_s, lo_e = run(freq=150.0, kinematics="reduced"), run(freq=150.0, kinematics="exact")
     assert abs(lo_s.displacement_m - lo_e.displacement_m) < 1e-6
 
 
@@ -251,7 +252,7 @@ def test_load_beyond_table_raises_never_extrapolates():
     from microconveyor_env.physics import forces
     from microconveyor_env.physics.contact_table import TableRangeError
 
-    s = Simulator("seed")
+    s = simulator("dissertation")
     s.params = s.params.copy()
     s.params[forces.I_NMAX] = 2 * s.mass * 9.81  # ordinary strokes load the part far beyond
     with pytest.raises(TableRangeError, match="exceeded the contact table"):

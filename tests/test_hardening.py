@@ -9,7 +9,7 @@ from microconveyor_env.cli import main
 from microconveyor_env.envs import EnvConfig, MicroConveyorEnv, MicroConveyorVectorEnv
 from microconveyor_env.physics.materials import ParameterError, Surface
 from microconveyor_env.physics.schedule import Schedule
-from microconveyor_env.physics.simulator import Simulator
+from microconveyor_env.presets import simulator
 from microconveyor_env.studies.sweep import parse_values
 
 
@@ -58,16 +58,16 @@ def test_sweep_size_is_capped_with_an_override():
 
 
 def test_tiny_dt_is_refused_not_run_and_absurd_dt_does_not_wrap():
-    sim = Simulator("seed", dt=1e-12)
+    sim = simulator("dissertation", dt=1e-12)
     with pytest.raises(ParameterError, match=r"dt = 1e-12 s.*1\.05e\+09 RK4 steps.*max_steps"):
         sim.simulate(Schedule.single(950.0, 200e-6), 0.125e-3)
-    slow = Simulator("seed", dt=1.0, min_steps=2)
+    slow = simulator("dissertation", dt=1.0, min_steps=2)
     with pytest.raises(ParameterError, match="inf RK4 steps"):  # 1/(f dt) beyond float range
         slow.simulate(Schedule.single(1e-310, 200e-6), 0.125e-3)
-    big = Simulator("seed", dt=1e-9, max_steps=10 ** 9)  # the override
+    big = simulator("dissertation", dt=1e-9, max_steps=10 ** 9)  # the override
     big.check_firings(np.array([950.0]), np.array([200e-6]))
     with pytest.raises(ParameterError, match="max_steps"):
-        Simulator("seed", max_steps=0)
+        simulator("dissertation", max_steps=0)
 
 
 def test_env_step_budget_and_its_override():

@@ -1,7 +1,7 @@
 """numba's per-file cache invalidation is extended to all compiled sources (jit_cache)."""
 from pathlib import Path
 
-from microconveyor_env.physics import dynamics_kernel as K
+from microconveyor_env.physics import dynamics_kernel as kernel
 from microconveyor_env.physics.jit_cache import refresh, sources_digest
 
 
@@ -28,7 +28,7 @@ def test_digest_covers_every_compiled_module():
     import microconveyor_env.physics.forces as forces
     import microconveyor_env.physics.kinematics as kin
 
-    for mod in (K, task, forces, kin):
+    for mod in (kernel, task, forces, kin):
         src = Path(mod.__file__).read_text()
         assert "refresh_jit_cache(globals())" in src, mod.__name__
 
@@ -38,7 +38,7 @@ def test_every_compiled_module_is_in_the_digest():
     would leave stale machine code in its callers' caches)."""
     from microconveyor_env.physics.jit_cache import COMPILED_SOURCES
 
-    root = Path(K.__file__).resolve().parents[1]
+    root = Path(kernel.__file__).resolve().parents[1]
     calling = {str(p.relative_to(root)) for p in root.rglob("*.py")
                if "refresh_jit_cache(globals())" in p.read_text()}
     assert calling == set(COMPILED_SOURCES)
@@ -58,7 +58,7 @@ def test_numba_private_caching_api_is_what_jit_cache_expects():
     assert FallbackLocator in nc.CacheImpl._locator_classes, numba.__version__
     for name in ("load_overload", "save_overload", "flush", "enable", "cache_path"):
         assert hasattr(nc.FunctionCache, name), (name, numba.__version__)
-    cache = K.run._cache
+    cache = kernel.run._cache
     assert isinstance(cache, GuardedCache), (type(cache), numba.__version__)
     inner = cache._inner
     files = inner._cache_file

@@ -47,7 +47,7 @@ def test_calibration_targets_validated():
 
 
 def test_preset_errors_are_clear(tmp_path):
-    with pytest.raises(PresetError, match="available: ke, seed"):
+    with pytest.raises(PresetError, match="available: dissertation, ke"):
         load_preset("no-such-preset")
     bad = tmp_path / "bad.yaml"
     bad.write_text("surface: {sigma: -1}\n")
@@ -59,3 +59,23 @@ def test_preset_errors_are_clear(tmp_path):
         load_preset(str(typo))
     with pytest.raises(ParameterError, match="surface"):
         params_from_dict({"surface": {"sigmaa": 1e-8}})
+
+
+def test_former_names_still_work_with_a_deprecation_warning():
+    """'seed' was the preset and the kinematics level; configs that still say so keep working."""
+    import gymnasium as gym
+
+    import microconveyor_env  # noqa: F401
+    from microconveyor_env.envs import EnvConfig
+    from microconveyor_env.presets import load_preset, simulator
+
+    with pytest.warns(DeprecationWarning, match="'seed' is now called 'dissertation'"):
+        assert load_preset("seed").name == "dissertation"
+    with pytest.warns(DeprecationWarning, match="'seed' is now called 'reduced'"):
+        assert simulator(kinematics="seed").kinematics == "reduced"
+    with pytest.warns(DeprecationWarning):
+        cfg = EnvConfig.from_yaml(preset="seed", kinematics="seed")
+    assert cfg.kinematics == "reduced"
+    with pytest.warns(DeprecationWarning):
+        env = gym.make("MicroConveyor-v0", preset="seed").unwrapped
+    assert env.sim.contact == load_preset("dissertation").contact

@@ -1,4 +1,4 @@
-"""Stretch-dependent roughness in the dynamics (physics.md §4): the compiled sigma-dependent
+"""Stretch-dependent roughness in the dynamics (docs/physics.md §4): the compiled sigma-dependent
 lookup against the Python stretch tables, zero strain = constant roughness, the study and CLI."""
 import json
 
@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from microconveyor_env.cli import main
-from microconveyor_env.physics import forces as F
+from microconveyor_env.physics import forces
 from microconveyor_env.physics.kinematics import stroke_eval, zone_strain
 from microconveyor_env.physics.materials import ParameterError
 from microconveyor_env.physics.schedule import ActuatorArray, Schedule
-from microconveyor_env.physics.simulator import Simulator
+from microconveyor_env.presets import simulator
 from microconveyor_env.studies.engine import same_rows
 from microconveyor_env.studies.stretch_study import compare, stretch_rows
 
@@ -19,15 +19,15 @@ N_SIGMA = 5  # a coarse sigma grid keeps the tests' table builds short
 
 @pytest.fixture(scope="module")
 def stretched():
-    return Simulator("seed", roughness="stretch", n_sigma=N_SIGMA)
+    return simulator("dissertation", roughness="stretch", n_sigma=N_SIGMA)
 
 
-@pytest.mark.parametrize("kinematics", ["seed", "exact"])
+@pytest.mark.parametrize("kinematics", ["reduced", "exact"])
 @pytest.mark.parametrize("mode", ["event", "karnopp"])
 def test_zero_strain_equals_constant_roughness(kinematics, mode):
     """With the active zone shrunk to nothing the part never sees strain: bit-identical runs."""
-    const = Simulator("seed", kinematics=kinematics, mode=mode)
-    zero = Simulator("seed", kinematics=kinematics, mode=mode, roughness="stretch",
+    const = simulator("dissertation", kinematics=kinematics, mode=mode)
+    zero = simulator("dissertation", kinematics=kinematics, mode=mode, roughness="stretch",
                      zone_length=1e-12, n_sigma=N_SIGMA)
     scheds = [Schedule.single(950.0, 200e-6),
               Schedule.sequence(ActuatorArray.uniform(3, 0.3e-3), 950.0, 200e-6, 1e-3)]
@@ -45,25 +45,25 @@ def test_compiled_lookup_matches_the_stretch_tables(stretched):
     for tl in np.linspace(0.0, 1.0 / f, 9):
         amp = stroke_eval(tl, f, h)[0]
         sigma = float(sim.stretch.sigma_at_strain(zone_strain(amp, 0, 0.6e-3, 0.6e-3)))
-        n_min = F.stretch_n_min(0.0, tl, 0.0, f, h, P)
+        n_min = forces.stretch_n_min(0.0, tl, 0.0, f, h, P)
         assert n_min == pytest.approx(-float(sim.stretch.pull_off_force(sigma)), rel=1e-5)
         for load in (0.9 * n_min, 0.0, 2e-6, 5e-5):
             ref = float(sim.stretch.friction(load, sigma))
-            assert F.stretch_friction(load, 0.0, tl, 0.0, f, h, P, tu, tq, tqu) == \
+            assert forces.stretch_friction(load, 0.0, tl, 0.0, f, h, P, tu, tq, tqu) == \
                 pytest.approx(ref, rel=1e-5)
             # the plain-Python dispatch (used outside compiled code) agrees
-            assert F.friction_at(load, 0.0, tl, 0.0, f, h, P, tu, tq, tqu) == \
+            assert forces.friction_at(load, 0.0, tl, 0.0, f, h, P, tu, tq, tqu) == \
                 pytest.approx(ref, rel=1e-5)
     # outside the active zone: the unstretched table
-    assert F.stretch_n_min(0.5e-3, 0.5 / f, 0.0, f, h, P) == P[F.I_NMIN]
+    assert forces.stretch_n_min(0.5e-3, 0.5 / f, 0.0, f, h, P) == P[forces.I_NMIN]
 
 
 def test_strain_beyond_the_tables_is_refused():
-    sim = Simulator("seed", roughness="stretch", max_strain=0.1, n_sigma=2)
+    sim = simulator("dissertation", roughness="stretch", max_strain=0.1, n_sigma=2)
     with pytest.raises(ParameterError, match="max_strain"):
         sim.simulate(Schedule.single(950.0, 200e-6), x0=0.125e-3)
     with pytest.raises(ParameterError, match="roughness"):
-        Simulator("seed", roughness="wrinkled")
+        simulator("dissertation", roughness="wrinkled")
 
 
 def test_stretch_study_parallel_equals_serial_and_compares(dask_client):

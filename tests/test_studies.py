@@ -54,10 +54,10 @@ def test_larger_mass_narrower_window_at_lower_frequencies():
 
 def test_pick_default_requires_tolerance_at_all_finer_steps():
     rows = [
-        {"mode": "karnopp", "kinematics": "seed", "dt_s": 4e-5, "error_m": 1e-7, "wall_time_s": 1.0},
-        {"mode": "karnopp", "kinematics": "seed", "dt_s": 2e-5, "error_m": 5e-6, "wall_time_s": 2.0},
-        {"mode": "event", "kinematics": "seed", "dt_s": 4e-5, "error_m": 3e-7, "wall_time_s": 3.0},
-        {"mode": "event", "kinematics": "seed", "dt_s": 2e-5, "error_m": 1e-8, "wall_time_s": 4.0},
+        {"mode": "karnopp", "kinematics": "reduced", "dt_s": 4e-5, "error_m": 1e-7, "wall_time_s": 1.0},
+        {"mode": "karnopp", "kinematics": "reduced", "dt_s": 2e-5, "error_m": 5e-6, "wall_time_s": 2.0},
+        {"mode": "event", "kinematics": "reduced", "dt_s": 4e-5, "error_m": 3e-7, "wall_time_s": 3.0},
+        {"mode": "event", "kinematics": "reduced", "dt_s": 2e-5, "error_m": 1e-8, "wall_time_s": 4.0},
     ]
-    d = pick_default(rows, "seed", 1e-6)
+    d = pick_default(rows, "reduced", 1e-6)
     assert d["mode"] == "event" and d["dt_s"] == 4e-5  # the lucky Karnopp hit is not accepted

@@ -55,7 +55,7 @@ def test_regression_recovers_known_coefficients():
     assert est["C(dgamma)[T.2.0]"]["estimate"] == pytest.approx(-3.0, rel=0.05)
     assert est["C(stroke_um)[T.250.0]"]["estimate"] == pytest.approx(3.1, rel=0.05)
     assert t["r_squared"] > 0.99
-    # signs: the synthetic data follow physics.md's trends, so every claimed sign agrees
+    # signs: the synthetic data follow docs/physics.md's trends, so every claimed sign agrees
     assert all(r["sign_agrees"] in (True, None) for r in t["terms"])
     assert all(r["dissertation_estimate"] is None for r in t["terms"])  # never invented
     text = regression.table34_text(t)
@@ -64,7 +64,7 @@ def test_regression_recovers_known_coefficients():
 
 def test_window_matches_the_sweep_window():
     scan = [float(f) for f in np.arange(200.0, 1500.0, 100.0)]
-    sim = simulator("seed")
+    sim = simulator("dissertation")
     window, runs = find_window(sim, 200e-6, 0.125e-3, scan, refine=0)
     res = sweep(Scene(), "freq", scan, progress=False)
     assert window == feasible_window(scan, res["displacement_m"], res["outcome"])
@@ -99,18 +99,18 @@ def test_fidelity_assessment_logic():
         return {"scene": "s", "kinematics": kin, "roughness": "constant", "mode": mode,
                 "dt_s": dt, "reference": ref, "outcome": outcome, "position_m": pos,
                 "steps": 1, "wall_time_s": wall}
-    rows = [row("exact", "event", 1e-7, 1e-3, ref=True), row("seed", "event", 1e-7, 2e-3, ref=True),
+    rows = [row("exact", "event", 1e-7, 1e-3, ref=True), row("reduced", "event", 1e-7, 2e-3, ref=True),
             row("exact", "event", 5e-5, 1e-3 + 2e-7, wall=1.0),
             row("exact", "event", 2.5e-5, 1e-3 + 1e-8, wall=2.0),
             row("exact", "karnopp", 5e-5, 1e-3 + 1e-7, wall=0.5),     # lucky hit ...
             row("exact", "karnopp", 2.5e-5, 1e-3 + 5e-6, wall=0.9),   # ... not kept at finer dt
-            row("seed", "event", 5e-5, 2e-3, wall=0.1)]
+            row("reduced", "event", 5e-5, 2e-3, wall=0.1)]
     a = fidelity.assess(rows)
     pick = a["per_scene"]["s"]["cheapest_within_tolerance_of_faithful"]
     assert (pick["kinematics"], pick["mode"], pick["dt_s"]) == ("exact", "event", 5e-5)
-    assert a["physics_disagreements"][0]["level"].startswith("seed kinematics")
+    assert a["physics_disagreements"][0]["level"].startswith("reduced kinematics")
     num = a["per_scene"]["s"]["cheapest_numerically_converged"]
-    assert num["kinematics"] == "seed"  # numerically fine, physically another answer
+    assert num["kinematics"] == "reduced"  # numerically fine, physically another answer
 
 
 def _cli(*args):
@@ -140,7 +140,7 @@ def test_cli_studies_json_table_plot(tmp_path):
 @pytest.mark.slow
 def test_full_sensitivity_design():
     """The whole Table 3.2 design (432 combinations): every combination scanned, the fit made,
-    and physics.md's three stated travel trends (energy -, roughness +, stroke +) recovered."""
+    and docs/physics.md's three stated travel trends (energy -, roughness +, stroke +) recovered."""
     from microconveyor_env.studies.sensitivity import sensitivity_rows, windows
 
     rows = sensitivity_rows(progress=False)

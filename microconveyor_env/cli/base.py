@@ -7,7 +7,7 @@ import json
 import os
 import sys
 import traceback
-from typing import Any, Callable
+from typing import Any, Callable, NoReturn, TypeVar
 
 from ..physics.materials import ParameterError
 
@@ -15,10 +15,13 @@ from ..physics.materials import ParameterError
 COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], Any], str]] = {}
 ARGS: dict[str, Callable[[argparse.ArgumentParser], None]] = {}
 
+Handler = TypeVar("Handler", bound=Callable[[argparse.Namespace], Any])
 
-def command(name: str, help_: str, add_args: Callable[[argparse.ArgumentParser], None] | None = None):
+
+def command(name: str, help_: str, add_args: Callable[[argparse.ArgumentParser], None] | None = None,
+            ) -> Callable[[Handler], Handler]:
     """Register ``fn(args)`` as subcommand ``name`` (its options added by ``add_args``)."""
-    def deco(fn):
+    def deco(fn: Handler) -> Handler:
         COMMANDS[name] = (fn, help_)
         if add_args is not None:
             ARGS[name] = add_args
@@ -26,14 +29,17 @@ def command(name: str, help_: str, add_args: Callable[[argparse.ArgumentParser],
     return deco
 
 
-def emit(args, result: dict, human: str = "") -> None:
+def emit(args: argparse.Namespace, result: dict[str, Any], human: str = "") -> None:
+    """Print ``result`` (SI values, unit-suffixed keys) as one JSON object with ``--json``, else
+    ``human`` or one ``key value`` line per entry."""
     if args.json:
         print(json.dumps(result, indent=None, default=json_default, allow_nan=False))
     else:
         print(human or "\n".join(f"{k:32s} {v}" for k, v in result.items()))
 
 
-def json_default(o):
+def json_default(o: object) -> Any:
+    """``json.dumps`` fallback: numpy scalars and arrays as Python numbers and lists."""
     import numpy as np
 
     if isinstance(o, np.generic):
@@ -63,13 +69,13 @@ def plot_path(text: str) -> str:
     return str(path)
 
 
-def _plot_formats() -> set:
+def _plot_formats() -> set[str]:
     from matplotlib.backend_bases import FigureCanvasBase
 
     return set(FigureCanvasBase.get_supported_filetypes())
 
 
-def count(lo: int, hi: int | None = None):
+def count(lo: int, hi: int | None = None) -> Callable[[str], int]:
     """An integer option in [lo, hi] (hi None: the library checks the upper bound)."""
     def parse(text: str) -> int:
         try:
@@ -84,8 +90,10 @@ def count(lo: int, hi: int | None = None):
 
 
 def common_args(p: argparse.ArgumentParser) -> None:
+    """The options of every command: ``--json`` and ``--preset``."""
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    p.add_argument("--preset", default="seed", help="preset name (seed, ke) or YAML path")
+    p.add_argument("--preset", default="dissertation",
+                   help="preset name (dissertation, ke) or YAML path")
 
 
 
@@ -97,11 +105,12 @@ class UsageError(ValueError):
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message):
+    def error(self, message: str) -> NoReturn:
         raise UsageError(f"{self.prog}: {message} (see --help)")
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``microconveyor`` parser with every registered command."""
     parser = _Parser(prog="microconveyor", description=DESCRIPTION)
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     for name, (fn, help_) in COMMANDS.items():
@@ -117,7 +126,7 @@ USER_ERRORS = (ParameterError, ValueError, RuntimeError, OSError, OverflowError,
                RecursionError)
 
 
-def fail(argv: list, command: str, exc: BaseException) -> int:
+def fail(argv: list[str], command: str, exc: BaseException) -> int:
     """The error contract: ``--json``: one ``{"error": ...}`` object on stdout; always one line on
     stderr; exit status 2."""
     expected = isinstance(exc, USER_ERRORS)
@@ -133,7 +142,7 @@ def fail(argv: list, command: str, exc: BaseException) -> int:
     return 2
 
 
-def main(argv: list | None = None) -> int:
+def main(argv: list[str] | None = None) -> int:
     """Run the command line (``argv``: the arguments, default ``sys.argv[1:]``); exit status."""
     argv = list(sys.argv[1:] if argv is None else argv)
     command = ""

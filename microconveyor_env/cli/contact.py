@@ -1,12 +1,14 @@
 """``microconveyor contact``: the contact law of a preset."""
 from __future__ import annotations
 
+import argparse
 import time
+from typing import Any
 
 from .base import ARGS, command, emit, plot_path
 
 
-def _contact_args(p):
+def _contact_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--plot", metavar="FILE.png", type=plot_path,
                    help="draw P, F_s, N and Q versus separation")
     p.add_argument("--check-table", action="store_true",
@@ -14,14 +16,15 @@ def _contact_args(p):
 
 
 @command("contact", "contact report of a preset (pull-off, friction at weight, separations)")
-def cmd_contact(args):
+def cmd_contact(args: argparse.Namespace) -> None:
+    """Report the preset's contact characteristics (SI, unit-suffixed keys)."""
     from ..physics.contact_table import ContactTable, tabulation_error
     from ..presets import load_preset
 
     preset = load_preset(args.preset)
     t0 = time.perf_counter()
     table = ContactTable(preset.contact)
-    out = {"preset": preset.name, **table.report(),
+    out: dict[str, Any] = {"preset": preset.name, **table.report(),
            "table_build_s": table.base.build_seconds,
            "table_load_s": time.perf_counter() - t0,
            "calibration": preset.calibration}

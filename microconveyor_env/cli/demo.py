@@ -43,7 +43,7 @@ def demo_summary(args) -> dict:
     episode = _demo_episode(out_dir / "episode.png")
     charts.append(episode.pop("chart"))
     summary = {"preset": preset.name, "contact": table.report(), "calibration": preset.calibration,
-               "seed_firing": firing.to_dict(), "window_hz": freq["window_hz"],
+               "reference_firing": firing.to_dict(), "window_hz": freq["window_hz"],
                "max_travel_m": freq.get("max_travel_m"), "episode": episode,
                "charts": [str(c) for c in charts]}
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2, default=json_default))

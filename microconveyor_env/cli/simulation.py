@@ -2,10 +2,13 @@
 and the kernel benchmark."""
 from __future__ import annotations
 
+import argparse
+from typing import Any
+
 from .base import ARGS, command, count, emit, plot_path
 
 
-def _scene_args(p, sweep=False):
+def _scene_args(p: argparse.ArgumentParser, sweep: bool = False) -> None:
     num = str if sweep else float
     p.add_argument("--freq", type=num, default=None if sweep else 950.0,
                    help="stroke frequency f [Hz] (stroke lasts 1/f)")
@@ -20,9 +23,10 @@ def _scene_args(p, sweep=False):
         for name in ("mass", "sigma", "dgamma"):
             p.add_argument(f"--{name}", default=None, help=f"sweep {name} (SI units)")
     p.add_argument("--mode", default="event", choices=("event", "karnopp"))
-    p.add_argument("--kinematics", default="seed", choices=("seed", "exact"))
+    p.add_argument("--kinematics", default="reduced", choices=("reduced", "exact", "seed"),
+                   help="reduced (the dissertation's model) or exact; 'seed' is the former name")
     p.add_argument("--roughness", default="constant", choices=("constant", "stretch"),
-                   help="stretch: sigma follows the strain of the active zone (physics.md §4)")
+                   help="stretch: sigma follows the strain of the active zone (docs/physics.md §4)")
     p.add_argument("--dt", type=float, default=None, help="largest RK4 step [s]")
     p.add_argument("--max-steps", type=count(1), default=None,
                    help="refuse a firing needing more RK4 steps (default 1e7; raise it if you "
@@ -30,8 +34,8 @@ def _scene_args(p, sweep=False):
     p.add_argument("--plot", metavar="FILE.png", type=plot_path, help="write a chart")
 
 
-def _sim_kw(args) -> dict:
-    kw = {"mode": args.mode, "kinematics": args.kinematics}
+def _sim_kw(args: argparse.Namespace) -> dict[str, Any]:
+    kw: dict[str, Any] = {"mode": args.mode, "kinematics": args.kinematics}
     if args.dt is not None:
         kw["dt"] = args.dt
     if args.roughness != "constant":
@@ -42,7 +46,8 @@ def _sim_kw(args) -> dict:
 
 
 @command("simulate", "one firing of one actuator: travel, outcome, timing")
-def cmd_simulate(args):
+def cmd_simulate(args: argparse.Namespace) -> None:
+    """One firing of the scene (SI options); travel [m], outcome and timing [s]."""
     from ..studies.sweep import Scene
 
     scene = Scene(preset=args.preset, freq=args.freq, stroke=args.stroke, x0=args.x0,
@@ -50,7 +55,8 @@ def cmd_simulate(args):
     sim = scene.simulator()
     scene.run()  # load the compiled kernel first, so wall_time_s is the steady-state figure
     res = scene.run(record=bool(args.plot))
-    out = {"preset": args.preset, "freq_hz": args.freq, "stroke_m": args.stroke, "x0_m": args.x0,
+    out: dict[str, Any] = {
+           "preset": args.preset, "freq_hz": args.freq, "stroke_m": args.stroke, "x0_m": args.x0,
            "profile": args.profile, "mode": args.mode, "kinematics": args.kinematics,
            "dt_s": sim.dt, "steps_per_stroke": sim.steps_per_stroke(args.freq),
            **res.to_dict(), "rest_time_s": res.rest_time_s}
@@ -62,8 +68,9 @@ def cmd_simulate(args):
 
 
 @command("sweep", "travel versus one parameter (frequency by default) and the feasible window")
-def cmd_sweep(args):
-    from ..studies.sweep import SWEEPABLE, Scene, parse_values, sweep
+def cmd_sweep(args: argparse.Namespace) -> None:
+    """Travel [m] versus one swept parameter (in its SI unit) and the feasible window."""
+    from ..studies.sweep import SWEEPABLE, Scene, parse_values, sweep, value_key
 
     given = {k: getattr(args, k) for k in SWEEPABLE if getattr(args, k, None) is not None}
     swept = [k for k, v in given.items() if k != "profile" and (":" in v or "," in v)]
@@ -73,7 +80,7 @@ def cmd_sweep(args):
         raise ValueError(f"give exactly one swept parameter as start:stop:step or a list "
                          f"(got {swept or 'none'}); e.g. --freq 200:1500:25")
     param = swept[0]
-    base = {}
+    base: dict[str, Any] = {}
     for k, v in given.items():
         if k != param:
             base[k] = v if k == "profile" else parse_values(v, k, 1)[0]
@@ -81,10 +88,8 @@ def cmd_sweep(args):
     limit = {} if args.max_points is None else {"max_points": args.max_points}
     values = parse_values(given[param], param, **limit)
     res = sweep(scene, param, values, progress=not args.no_progress, **limit)
-    keyed = {"freq": "freq_hz", "stroke": "stroke_m", "x0": "x0_m", "wavelength": "wavelength_m",
-             "mass": "mass_kg", "sigma": "sigma_m", "dgamma": "dgamma_J_m2", "profile": "profile"}
-    out = {"preset": args.preset,
-           **{keyed[k]: getattr(scene, k) for k in SWEEPABLE if k != param}, **res}
+    out: dict[str, Any] = {"preset": args.preset,
+           **{value_key(k): getattr(scene, k) for k in SWEEPABLE if k != param}, **res}
     if args.plot:
         from ..plots import plot_sweep
 
@@ -92,16 +97,17 @@ def cmd_sweep(args):
     emit(args, out, _sweep_text(res))
 
 
-def _sweep_text(res) -> str:
-    lines = [f"{res['param']:>12s}  travel [um]  outcome"]
-    for v, d, o in zip(res["values"], res["displacement_m"], res["outcome"]):
+def _sweep_text(res: dict[str, Any]) -> str:
+    lines = [f"{res['param']:>12s}  travel [µm]  outcome"]
+    for v, d, o in zip(res[res["values_key"]], res["displacement_m"], res["outcome"]):
         lines.append(f"{v!s:>12s}  {d * 1e6:11.2f}  {o}")
-    if res.get("window") is not None:
-        lines.append(f"feasible window: {res['window']} {res['unit']}")
+    window = res.get("window" + res["values_key"][len(res["param"]):])
+    if window is not None:
+        lines.append(f"feasible window: {window} {res['unit']}")
     return "\n".join(lines)
 
 
-def _sweep_args(p):
+def _sweep_args(p: argparse.ArgumentParser) -> None:
     _scene_args(p, sweep=True)
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     p.add_argument("--max-points", type=count(1, 10 ** 9), default=None,
@@ -109,7 +115,8 @@ def _sweep_args(p):
 
 
 @command("accuracy", "speed versus accuracy of the integrator settings (chart + default choice)")
-def cmd_accuracy(args):
+def cmd_accuracy(args: argparse.Namespace) -> None:
+    """The speed/accuracy study of one firing (or, ``--episode``, of whole episodes)."""
     if args.episode:
         return _accuracy_episode(args)
     from ..studies.accuracy import accuracy_study
@@ -123,10 +130,10 @@ def cmd_accuracy(args):
     emit(args, study, f"default: {d}" if d else "no setting within tolerance")
 
 
-def _accuracy_episode(args):
+def _accuracy_episode(args: argparse.Namespace) -> None:
     from ..studies.episodes import episode_study
 
-    if args.preset != "seed":
+    if args.preset not in ("dissertation", "seed"):
         raise ValueError("--episode runs MicroConveyor-v0's own preset (seed); drop --preset")
     study = episode_study(n_per_category=args.per_category, seed=args.seed,
                           repeats=min(args.repeats, 5), progress=True)
@@ -137,7 +144,7 @@ def _accuracy_episode(args):
     emit(args, study, _episode_text(study))
 
 
-def _episode_text(study) -> str:
+def _episode_text(study: dict[str, Any]) -> str:
     lines = [f"{study['episodes']} episodes {study['counts']}, reference event dt = "
              f"{study['reference_dt_s']:g} s (halving it moves no final position by more than "
              f"{study['reference_half_dt_check']['max_error_m']:.1e} m)",
@@ -155,7 +162,7 @@ def _episode_text(study) -> str:
     return "\n".join(lines)
 
 
-def _accuracy_args(p):
+def _accuracy_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--plot", metavar="FILE.png", type=plot_path, help="write the chart")
     p.add_argument("--repeats", type=count(1, 10_000), default=30,
                    help="timed repeats per setting")
@@ -168,10 +175,11 @@ def _accuracy_args(p):
 
 
 @command("bench", "kernel speed on the seed firing, against the dissertation-style loop")
-def cmd_bench(args):
+def cmd_bench(args: argparse.Namespace) -> None:
+    """Kernel wall times [s] per mode, against the plain-Python reference loop."""
     from ..studies.bench import bench_modes
 
-    out = {"modes": bench_modes(args.preset, repeats=args.repeats)}
+    out: dict[str, Any] = {"modes": bench_modes(args.preset, repeats=args.repeats)}
     if args.skip_reference:
         out["reference"] = None
         out["reference_note"] = "skipped"
@@ -187,7 +195,7 @@ def cmd_bench(args):
     emit(args, out)
 
 
-def _bench_args(p):
+def _bench_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--repeats", type=count(1, 1_000_000), default=500,
                    help="timed repeats per mode")
     p.add_argument("--skip-reference", action="store_true",

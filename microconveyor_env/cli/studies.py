@@ -6,12 +6,15 @@ Each takes ``--json`` (one JSON object on stdout), ``--plot FILE.png``, ``--out 
 """
 from __future__ import annotations
 
+import argparse
 import time
+from collections.abc import Mapping, Sequence
+from typing import Any, Callable
 
 from .base import command, emit
 
 
-def _engine_args(p, out_default: str) -> None:
+def _engine_args(p: argparse.ArgumentParser, out_default: str) -> None:
     p.add_argument("--out", default=out_default,
                    help="result table, .csv or .parquet (one row per simulation)")
     p.add_argument("--plot", metavar="FILE.png", help="write the chart")
@@ -23,12 +26,12 @@ def _engine_args(p, out_default: str) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
 
 
-def _engine_kw(args) -> dict:
+def _engine_kw(args: argparse.Namespace) -> dict[str, Any]:
     return {"workers": args.workers or None, "scheduler": args.scheduler,
             "chunk_size": args.chunk_size, "progress": not args.no_progress}
 
 
-def _with_engine(args, body):
+def _with_engine(args: argparse.Namespace, body: Callable[[dict[str, Any], float], None]) -> None:
     """``body(engine keywords, cluster start-up time [s])`` with one Dask client for all of a
     command's runs when ``--workers``/``--scheduler`` is given."""
     kw = _engine_kw(args)
@@ -42,7 +45,7 @@ def _with_engine(args, body):
         return body({**kw, "client": client}, time.perf_counter() - t0)
 
 
-def _values(spec, name):
+def _values(spec: str, name: str) -> tuple[Any, ...]:
     from ..studies.sweep import parse_values
 
     return tuple(parse_values(spec, name))
@@ -53,7 +56,7 @@ QUICK_LEVELS = {"dgamma_J_m2": (1.0,), "sigma_m": (20e-9, 30e-9), "stroke_m": (1
                 "mass_kg": (2e-9,), "wavelength_m": (0.6e-3,), "x0_wl": (0.2, 0.25)}
 
 
-def _sensitivity_args(p):
+def _sensitivity_args(p: argparse.ArgumentParser) -> None:
     _engine_args(p, "sensitivity.csv")
     p.add_argument("--n-freq", type=int, default=8, help="design frequencies per combination")
     p.add_argument("--sobol-n", type=int, default=128,
@@ -62,7 +65,8 @@ def _sensitivity_args(p):
                    help="a 8-combination design and N = 4 Sobol' sample (smoke test)")
 
 
-def cmd_sensitivity(args):
+def cmd_sensitivity(args: argparse.Namespace) -> None:
+    """The sensitivity design (Box-Cox + OLS) and Sobol' indices of the travel [m]."""
     from ..studies.sensitivity import LEVELS
 
     levels = QUICK_LEVELS if args.quick else LEVELS
@@ -72,7 +76,8 @@ def cmd_sensitivity(args):
                                                          startup))
 
 
-def _sensitivity(args, levels, n_freq, sobol_n, kw, startup):
+def _sensitivity(args: argparse.Namespace, levels: Mapping[str, Sequence[float]], n_freq: int,
+                 sobol_n: int, kw: dict[str, Any], startup: float) -> None:
     from ..studies import regression, sobol
     from ..studies.engine import write_table
     from ..studies.sensitivity import sensitivity_rows, windows
@@ -81,7 +86,7 @@ def _sensitivity(args, levels, n_freq, sobol_n, kw, startup):
     rows = sensitivity_rows(levels, n_freq=n_freq, preset=args.preset, **kw)
     design_wall = time.perf_counter() - t0
     table = regression.table34(rows)
-    out = {"preset": args.preset, "levels": levels, "combinations": len(windows(rows)),
+    out: dict[str, Any] = {"preset": args.preset, "levels": levels, "combinations": len(windows(rows)),
            "runs": len(rows), "design_runs": sum(r["phase"] == "design" for r in rows),
            "empty_windows": sum(w["window_hz"] is None for w in windows(rows)),
            "wall_time_s": design_wall, "workers": args.workers, "scheduler": args.scheduler,
@@ -110,7 +115,7 @@ def _sensitivity(args, levels, n_freq, sobol_n, kw, startup):
 
 
 # ----------------------------------------------------------------------------- engage
-def _engage_args(p):
+def _engage_args(p: argparse.ArgumentParser) -> None:
     _engine_args(p, "engage.csv")
     p.add_argument("--freqs", default="300,500,700", help="map frequencies [Hz], list or a:b:c")
     p.add_argument("--stroke", type=float, default=150e-6, help="map stroke h [m]")
@@ -125,11 +130,12 @@ def _engage_args(p):
     p.add_argument("--delay", default="0:8e-3:0.2e-3", help="delays of the second firing [s]")
 
 
-def cmd_engage(args):
+def cmd_engage(args: argparse.Namespace) -> None:
+    """The engaging map (travel [m] over v0 [m/s] and x0 [m]) and the two-actuator map."""
     _with_engine(args, lambda kw, startup: _engage(args, kw))
 
 
-def _engage(args, kw):
+def _engage(args: argparse.Namespace, kw: dict[str, Any]) -> None:
     from ..studies.engage import (check_speed_statement, engage_map_rows, summarise_two,
                          two_actuator_rows)
     from ..studies.engine import write_table
@@ -146,7 +152,7 @@ def _engage(args, kw):
     for m in ("travel_along_m", "gain_along_m"):
         if m in check:
             check[m].pop("per_start", None)
-    out = {"preset": args.preset, "map_runs": len(mrows),
+    out: dict[str, Any] = {"preset": args.preset, "map_runs": len(mrows),
            "map_detached": sum(r["detached"] for r in mrows), "speed_statement": check,
            "two_actuators": summarise_two(trows), "wall_time_s": wall,
            "table": str(write_table(mrows, args.out)),
@@ -159,14 +165,15 @@ def _engage(args, kw):
 
 
 # ----------------------------------------------------------------------------- fidelity
-def _fidelity_args(p):
+def _fidelity_args(p: argparse.ArgumentParser) -> None:
     _engine_args(p, "fidelity.csv")
     p.add_argument("--repeats", type=int, default=3, help="timed repeats per level")
     p.add_argument("--scenes", default="single,episode_near,episode_far",
                    help="comma-separated scenes")
 
 
-def cmd_fidelity(args):
+def cmd_fidelity(args: argparse.Namespace) -> None:
+    """Each model level's error [m] against the most faithful one, and its wall time [s]."""
     from ..studies.engine import write_table
     from ..studies.fidelity import SCENES, assess, fidelity_rows
 
@@ -188,25 +195,27 @@ def cmd_fidelity(args):
 
 
 # ----------------------------------------------------------------------------- stretch
-def _stretch_args(p):
+def _stretch_args(p: argparse.ArgumentParser) -> None:
     _engine_args(p, "stretch.csv")
     p.add_argument("--freq", default="200:1500:25", help="frequencies [Hz], list or a:b:c")
     p.add_argument("--stroke", type=float, default=200e-6, help="stroke h [m]")
     p.add_argument("--x0", type=float, default=0.125e-3, help="start position [m]")
     p.add_argument("--profile", default="gaussian", help="gaussian, sinusoidal, clamped_beam")
     p.add_argument("--wavelength", type=float, default=0.6e-3, help="wavelength WL [m]")
-    p.add_argument("--kinematics", default="seed", choices=("seed", "exact"))
+    p.add_argument("--kinematics", default="reduced", choices=("reduced", "exact", "seed"),
+                   help="reduced (the dissertation's model) or exact; 'seed' is the former name")
     p.add_argument("--repeats", type=int, default=3, help="timed repeats per run")
     p.add_argument("--n-sigma", type=int, default=21, help="sigma nodes of the stretch tables")
 
 
-def cmd_stretch(args):
-    from ..physics.simulator import Simulator
+def cmd_stretch(args: argparse.Namespace) -> None:
+    """Travel [m] versus frequency [Hz] with constant and stretch-dependent roughness."""
+    from ..presets import simulator
     from ..studies.engine import write_table
     from ..studies.stretch_study import compare, stretch_rows
 
     t0 = time.perf_counter()
-    sim = Simulator(args.preset, shape=args.profile, wavelength=args.wavelength,
+    sim = simulator(args.preset, shape=args.profile, wavelength=args.wavelength,
                     roughness="stretch", n_sigma=args.n_sigma)  # build/load the tables once
     setup = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -214,7 +223,7 @@ def cmd_stretch(args):
                         args.wavelength, args.repeats, args.preset,
                         {"kinematics": args.kinematics, "n_sigma": args.n_sigma},
                         **_engine_kw(args))
-    out = {"preset": args.preset, "stroke_m": args.stroke, "x0_m": args.x0,
+    out: dict[str, Any] = {"preset": args.preset, "stroke_m": args.stroke, "x0_m": args.x0,
            "profile": args.profile, "kinematics": args.kinematics,
            "peak_strain": sim.peak_strain(args.stroke), "stretch_setup_s": setup,
            "sigma_nodes": len(sim.stretch.tables), "max_strain": sim.stretch.max_strain,

@@ -6,9 +6,15 @@ constants travel as one float array ``AC`` (:func:`constants`) into the compiled
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .config import EnvConfig
+
 import math
 
 import numpy as np
+import numpy.typing as npt
 from numba import njit
 
 from ..physics.jit_cache import refresh as refresh_jit_cache
@@ -18,7 +24,7 @@ A_F0, A_LOGSPAN, A_H0, A_HSPAN, A_D0, A_DSPAN = range(6)
 N_A = 6
 
 
-def constants(cfg) -> np.ndarray:
+def constants(cfg: EnvConfig) -> np.ndarray:
     """The action mapping of ``cfg`` (an EnvConfig) as one array."""
     AC = np.zeros(N_A)
     AC[A_F0], AC[A_LOGSPAN] = cfg.freq_range[0], cfg.log_freq_span
@@ -28,7 +34,7 @@ def constants(cfg) -> np.ndarray:
 
 
 @njit(cache=True)
-def decode(a0, a1, a2, AC):
+def decode(a0: float, a1: float, a2: float, AC: np.ndarray) -> tuple[float, float, float]:
     """Action components in [-1, 1] (clipped) -> (f [Hz], h [m], delay [s])."""
     u0 = (min(max(a0, -1.0), 1.0) + 1.0) * 0.5
     u1 = (min(max(a1, -1.0), 1.0) + 1.0) * 0.5
@@ -37,10 +43,11 @@ def decode(a0, a1, a2, AC):
             AC[A_D0] + u2 * AC[A_DSPAN])
 
 
-def encode_actions(f, h, delay, cfg):
+def encode_actions(f: npt.ArrayLike, h: npt.ArrayLike, delay: npt.ArrayLike,
+                   cfg: EnvConfig) -> np.ndarray:
     """Inverse of :func:`decode`: SI values (f [Hz], h [m], delay [s], arrays or scalars) ->
     actions in [-1, 1]^3 (float32)."""
-    def lin(val, lo, hi):
+    def lin(val: npt.ArrayLike, lo: float, hi: float) -> np.ndarray:
         val = np.asarray(val, float)
         return np.zeros_like(val) if hi == lo else 2 * (val - lo) / (hi - lo) - 1
 
@@ -49,7 +56,7 @@ def encode_actions(f, h, delay, cfg):
                     -1).astype(np.float32)
 
 
-def check_actions(actions, n: int | None) -> np.ndarray:
+def check_actions(actions: npt.ArrayLike, n: int | None) -> np.ndarray:
     """float64 ``(n, 3)`` copy of the actions, checked.
 
     ``n = None`` is the single env: exactly shape ``(3,)``; otherwise exactly ``(n, 3)``. A wrong

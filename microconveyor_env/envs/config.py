@@ -10,7 +10,7 @@ from importlib import resources
 from ..physics.kinematics import SHAPES
 from ..physics.materials import ParameterError, check_range
 from ..physics.simulator import MAX_STEPS, MIN_DT, MIN_WAVELENGTH, \
-    check_max_steps, check_step_budget
+    check_max_steps, check_step_budget, kinematics_level
 from .task import LENGTH_SCALE, OBS_BOUND
 
 # Position error and target are observed / LENGTH_SCALE, clipped to +-OBS_BOUND: targets beyond
@@ -33,7 +33,7 @@ _PAIRS = {"target_range": (0.0, MAX_TARGET, "m"), "freq_range": (0.0, 1e6, "Hz")
 class EnvConfig:
     """All settings of the environment; see ``configs/envs/MicroConveyor-v0.yaml`` for meanings and units."""
 
-    preset: str = "seed"
+    preset: str = "dissertation"
     n_actuators: int = 5
     spacing: float = 0.5e-3
     shape: str = "gaussian"
@@ -52,7 +52,7 @@ class EnvConfig:
     detach_penalty: float = 10.0
     max_time: float = 1.0
     mode: str = "event"
-    kinematics: str = "seed"
+    kinematics: str = "reduced"
     dt: float = 1e-4
     min_steps: int = 48  # floor on RK4 steps per stroke
     num_threads: int | None = None  # batched env only; None: the measured rule (envs/vector.py)
@@ -116,8 +116,11 @@ class EnvConfig:
         check_step_budget("EnvConfig (dt, freq_range, n_actuators)",
                           [self.freq_range[0]] * self.n_actuators, self.dt,
                           self.min_steps, self.max_steps, self.max_time)
+        if isinstance(self.kinematics, str):
+            object.__setattr__(self, "kinematics",
+                               kinematics_level(self.kinematics, "EnvConfig.kinematics"))
         for name, allowed in (("shape", tuple(SHAPES)), ("mode", ("event", "karnopp")),
-                              ("kinematics", ("seed", "exact"))):
+                              ("kinematics", ("reduced", "exact"))):
             if getattr(self, name) not in allowed:
                 raise ParameterError(f"EnvConfig.{name} = {getattr(self, name)!r} is invalid: "
                                      f"must be one of {allowed}")

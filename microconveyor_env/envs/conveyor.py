@@ -8,10 +8,11 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from ..physics import dynamics_kernel as K
+from ..physics import dynamics_kernel as kernel
 from ..physics.contact_table import TableRangeError
 from ..physics.materials import ParameterError
 from ..physics.simulator import Simulator
+from ..presets import simulator
 from . import actions, step as kstep, task
 from .config import EnvConfig
 
@@ -19,7 +20,7 @@ from .config import EnvConfig
 def make_simulator(cfg: EnvConfig) -> Simulator:
     """The env's simulator; refuses action ranges whose strongest stroke would load the part
     beyond the contact table (checked once here, so steps never need to)."""
-    sim = Simulator(cfg.preset, shape=cfg.shape, wavelength=cfg.wavelength,
+    sim = simulator(cfg.preset, shape=cfg.shape, wavelength=cfg.wavelength,
                     kinematics=cfg.kinematics, mode=cfg.mode, dt=cfg.dt, max_time=cfg.max_time,
                     min_steps=cfg.min_steps, max_steps=cfg.max_steps)
     try:
@@ -124,7 +125,7 @@ class MicroConveyorEnv(gym.Env):
         self.observation_space = spaces.Box(-task.OBS_BOUND, task.OBS_BOUND, (task.OBS_DIM,),
                                             np.float32)
         self._AC, self._TC = actions.constants(self.config), task.constants(self.config)
-        self._kout = np.zeros((1, K.N_OUT))
+        self._kout = np.zeros((1, kernel.N_OUT))
         self._res = np.zeros((1, kstep.N_S))
         self._obs_buf = np.zeros((1, task.OBS_DIM), dtype=np.float32)
         self._active = np.ones(1, dtype=np.bool_)
@@ -165,7 +166,7 @@ class MicroConveyorEnv(gym.Env):
                           self.sim.params, *self.sim.tables, kstep.NO_RECORD, self._kout,
                           self._res, self._obs_buf)
         res = self._res[0]
-        outcome = K.OUTCOMES[int(res[kstep.S_OUTCOME])]
+        outcome = kernel.OUTCOMES[int(res[kstep.S_OUTCOME])]
         raise_if_beyond_table(outcome, self.sim)
         terminated = outcome in ("rest", "detached")
         truncated = outcome in ("max_time", "too_many_events")

@@ -1,12 +1,19 @@
 """rgb_array frames of the conveyor (matplotlib Agg, imported lazily)."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .config import EnvConfig
+
 import numpy as np
 
 from ..physics.kinematics import surface_profile
 
 
-def render_frame(cfg, x, target, fired, last_firing, t, size=(8.0, 3.0), dpi=80) -> np.ndarray:
+def render_frame(cfg: EnvConfig, x: float, target: float, fired: int,
+                 last_firing: tuple | None, t: float, size: tuple = (8.0, 3.0),
+                 dpi: int = 80) -> np.ndarray:
     """uint8 (H, W, 3): surface, actuators, part, target and tolerance band.
 
     The last firing's peak deformation is drawn dashed (the surface is flat between strokes).

@@ -8,6 +8,8 @@ SB3 expects. Requires the ``train`` extra (stable-baselines3).
 """
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv
@@ -24,14 +26,14 @@ class MicroConveyorSB3VecEnv(VecEnv):
     Keyword arguments are :class:`~microconveyor_env.envs.EnvConfig` fields (or ``config=``).
     """
 
-    def __init__(self, num_envs: int = 8, **kwargs):
+    def __init__(self, num_envs: int = 8, **kwargs: Any) -> None:
         self.venv = MicroConveyorVectorEnv(num_envs, autoreset_mode=AutoresetMode.SAME_STEP,
                                            **kwargs)
         self._actions: np.ndarray | None = None
         super().__init__(num_envs, self.venv.single_observation_space,
                          self.venv.single_action_space)
 
-    def reset(self):
+    def reset(self) -> np.ndarray:
         seeds = self._seeds
         seed = None if all(s is None for s in seeds) else [
             s if s is not None else int(np.random.SeedSequence().generate_state(1)[0])
@@ -45,7 +47,7 @@ class MicroConveyorSB3VecEnv(VecEnv):
     def step_async(self, actions: np.ndarray) -> None:
         self._actions = actions
 
-    def step_wait(self):
+    def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
         obs, rew, term, trunc, infos = self.venv.step(self._actions)
         dones = term | trunc
         src = infos.get("final_info", infos) if dones.any() else infos
@@ -57,7 +59,7 @@ class MicroConveyorSB3VecEnv(VecEnv):
             out[i]["TimeLimit.truncated"] = bool(trunc[i] and not term[i])
         return obs, rew.astype(np.float32), dones, out
 
-    def _merged_options(self):
+    def _merged_options(self) -> dict | None:
         """Per-env options ({"target": d} each, see ``set_options``) as one batched dict."""
         opts = self._options or []
         if not any(opts):
@@ -69,7 +71,7 @@ class MicroConveyorSB3VecEnv(VecEnv):
             raise ValueError("set a 'target' option for every sub-env (or for none)")
         return {"target": np.array([o["target"] for o in opts], dtype=float)}
 
-    def _split(self, infos) -> list:
+    def _split(self, infos: dict) -> list[dict]:
         """Per-env info dicts with the keys the batched env's masks (``_key``) mark present."""
         return [{k: _py(infos[k][i]) for k in _SCALAR_INFO if k in infos and infos["_" + k][i]}
                 for i in range(self.num_envs)]
@@ -77,29 +79,30 @@ class MicroConveyorSB3VecEnv(VecEnv):
     def close(self) -> None:
         self.venv.close()
 
-    def _indices(self, indices):
+    def _indices(self, indices: Any) -> Any:
         if indices is None:
             return range(self.num_envs)
         return [indices] if isinstance(indices, int) else indices
 
-    def get_attr(self, attr_name, indices=None):
+    def get_attr(self, attr_name: str, indices: Any = None) -> list:
         """The batched env's attribute, repeated per index (its sub-envs share one config)."""
         return [getattr(self.venv, attr_name) for _ in self._indices(indices)]
 
-    def set_attr(self, attr_name, value, indices=None):
+    def set_attr(self, attr_name: str, value: Any, indices: Any = None) -> None:
         raise AttributeError("the batched env shares one configuration; create a new env instead")
 
-    def env_method(self, method_name, *method_args, indices=None, **method_kwargs):
+    def env_method(self, method_name: str, *method_args: Any, indices: Any = None,
+                   **method_kwargs: Any) -> list:
         raise AttributeError(f"{method_name}: per-sub-env methods are not available on the "
                              "compiled batch")
 
-    def env_is_wrapped(self, wrapper_class, indices=None):
+    def env_is_wrapped(self, wrapper_class: type, indices: Any = None) -> list[bool]:
         return [False for _ in self._indices(indices)]
 
-    def get_images(self):
+    def get_images(self) -> list:
         frames = self.venv.render()
         return list(frames) if frames is not None else [None] * self.num_envs
 
 
-def _py(v):
+def _py(v: Any) -> Any:
     return v.item() if isinstance(v, np.generic) else v

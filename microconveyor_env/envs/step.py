@@ -9,12 +9,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from ..physics import dynamics_kernel as K
+from ..physics import dynamics_kernel as kernel
 from ..physics.jit_cache import refresh as refresh_jit_cache
 from .actions import decode
 from .task import T_NACT, T_TMAX, is_success, observe_part, reward
 
-NO_RECORD = np.zeros((0, K.N_REC))  # the env never records trajectories
+NO_RECORD = np.zeros((0, kernel.N_REC))  # the env never records trajectories
 # per-part outputs of a step
 (S_REWARD, S_OUTCOME, S_SUCCESS, S_F, S_H, S_D) = range(6)
 N_S = 6
@@ -26,10 +26,10 @@ def _step_part(i, actions, x, v, t, fired, target, AC, TC, dt, min_steps, positi
     f, h, d = decode(actions[i, 0], actions[i, 1], actions[i, 2], AC)
     last = fired[i] == int(TC[T_NACT]) - 1
     out = kout[i]
-    K.reset_out(out)
-    x_new, v_new, t_new, code = K.fire(x[i], v[i], t[i], positions[fired[i]], f, h, d, dt,
+    kernel.reset_out(out)
+    x_new, v_new, t_new, code = kernel.fire(x[i], v[i], t[i], positions[fired[i]], f, h, d, dt,
                                        min_steps, last, TC[T_TMAX], P, tu, tq, tqu, rec, out)
-    K.finish_out(out, x_new, v_new, t_new, code)
+    kernel.finish_out(out, x_new, v_new, t_new, code)
     res[i, S_REWARD] = reward(code, x[i], x_new, t[i], t_new, target[i], TC)
     res[i, S_SUCCESS] = 1.0 if is_success(code, x_new, target[i], TC) else 0.0
     res[i, S_OUTCOME] = code

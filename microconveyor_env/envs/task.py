@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..physics import dynamics_kernel as K
+from ..physics import dynamics_kernel as kernel
 from ..physics.jit_cache import refresh as refresh_jit_cache
 
 OBS_DIM = 6
@@ -69,7 +69,7 @@ def potential(x, target, TC):
 @njit(cache=True)
 def is_success(code, x, target, TC):
     """At rest within the tolerance of the target."""
-    return code == K.REST and abs(x - target) <= TC[T_TOL]
+    return code == kernel.REST and abs(x - target) <= TC[T_TOL]
 
 
 @njit(cache=True)
@@ -77,7 +77,7 @@ def reward(code, x_old, x_new, t_old, t_new, target, TC):
     """Potential-based progress, minus the time cost, plus the success bonus; on detachment the
     part takes the horizon's potential, pays the time cost up to ``max_time`` and the detachment
     penalty (see the module docstring for why)."""
-    if code == K.DETACHED:
+    if code == kernel.DETACHED:
         return -TC[T_HORIZON] / TC[T_PSCALE] - potential(x_old, target, TC) \
             - TC[T_TCOST] * (max(TC[T_TMAX], t_new) - t_old) - TC[T_PENALTY]
     r = potential(x_new, target, TC) - potential(x_old, target, TC) \

@@ -10,6 +10,7 @@ so results are bit-identical whichever runs.
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
 from contextlib import contextmanager
 
 import numba
@@ -20,7 +21,7 @@ SMOOTHING = 0.25     # weight of the newest measurement in the running mean
 
 
 @contextmanager
-def threads(n: int):
+def threads(n: int) -> Iterator[None]:
     """Run numba parallel regions with ``n`` threads inside the block."""
     prev = numba.get_num_threads()
     numba.set_num_threads(max(1, min(n, numba.config.NUMBA_NUM_THREADS)))  # type: ignore[attr-defined]

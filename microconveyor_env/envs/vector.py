@@ -11,7 +11,8 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from ..physics import dynamics_kernel as K
+from ..physics import dynamics_kernel as kernel
+from ..physics.simulator import Simulator
 from . import actions as act, step as kstep, task
 from .config import EnvConfig
 from .conveyor import check_render_mode, check_target, make_simulator, raise_if_beyond_table
@@ -38,13 +39,13 @@ class MicroConveyorVectorEnv(VectorEnv):
 
     def __init__(self, num_envs: int = 1, render_mode: str | None = None,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
-                 config: EnvConfig | None = None, **kwargs):
+                 config: EnvConfig | None = None, **kwargs: Any) -> None:
         if (isinstance(num_envs, bool) or not isinstance(num_envs, numbers.Integral)
                 or not 1 <= num_envs <= MAX_ENVS):
             raise ValueError(f"num_envs = {num_envs!r} is invalid: must be an integer in "
                              f"[1, {MAX_ENVS}]")
         check_render_mode(render_mode, self.metadata["render_modes"])
-        self.autoreset_mode = AutoresetMode(autoreset_mode)
+        self.autoreset_mode: AutoresetMode = AutoresetMode(autoreset_mode)
         if self.autoreset_mode == AutoresetMode.DISABLED:
             raise ValueError("autoreset_mode DISABLED is not supported; use NEXT_STEP or SAME_STEP")
         self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
@@ -55,8 +56,8 @@ class MicroConveyorVectorEnv(VectorEnv):
         self.config: EnvConfig = config or EnvConfig.from_yaml(**kwargs)
         self.num_envs = n = int(num_envs)
         self.render_mode = render_mode
-        self.sim = make_simulator(self.config)
-        self.positions = np.asarray(self.config.actuator_positions, dtype=np.float64)
+        self.sim: Simulator = make_simulator(self.config)
+        self.positions: np.ndarray = np.asarray(self.config.actuator_positions, dtype=np.float64)
         self.single_action_space = spaces.Box(-1.0, 1.0, (act.ACTION_DIM,), np.float32)
         self.single_observation_space = spaces.Box(-task.OBS_BOUND, task.OBS_BOUND,
                                                    (task.OBS_DIM,), np.float32)
@@ -69,11 +70,12 @@ class MicroConveyorVectorEnv(VectorEnv):
         self.fired: np.ndarray = np.zeros(n, dtype=np.int64)
         self.done: np.ndarray = np.zeros(n, dtype=bool)
         self.rngs: list[np.random.Generator] = [seeding.np_random(None)[0] for _ in range(n)]
-        self._AC, self._TC = act.constants(self.config), task.constants(self.config)
-        self._kout: np.ndarray = np.zeros((n, K.N_OUT))
-        self._res = np.zeros((n, kstep.N_S))
-        self._obs_buf = np.zeros((n, task.OBS_DIM), dtype=np.float32)
-        self.threads = ThreadChooser(self.config.num_threads, n)
+        self._AC: np.ndarray = act.constants(self.config)
+        self._TC: np.ndarray = task.constants(self.config)
+        self._kout: np.ndarray = np.zeros((n, kernel.N_OUT))
+        self._res: np.ndarray = np.zeros((n, kstep.N_S))
+        self._obs_buf: np.ndarray = np.zeros((n, task.OBS_DIM), dtype=np.float32)
+        self.threads: ThreadChooser = ThreadChooser(self.config.num_threads, n)
         self._started: bool = False
 
     # ------------------------------------------------------------------ resets
@@ -88,7 +90,8 @@ class MicroConveyorVectorEnv(VectorEnv):
         self.target[i] = target
         self.done[i] = False
 
-    def reset(self, *, seed: int | list | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | list | None = None,
+              options: dict | None = None) -> tuple[np.ndarray, dict]:
         if seed is not None:
             seeds = ([int(seed) + i for i in range(self.num_envs)]
                      if isinstance(seed, (int, np.integer)) else [int(s) for s in seed])
@@ -101,7 +104,7 @@ class MicroConveyorVectorEnv(VectorEnv):
         return self._obs(), self._reset_infos()
 
     # ------------------------------------------------------------------ step
-    def step(self, actions):
+    def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
         if not self._started:
             raise RuntimeError("call reset() before step()")
         a = act.check_actions(actions, self.num_envs)
@@ -109,10 +112,10 @@ class MicroConveyorVectorEnv(VectorEnv):
         resetting = self.done.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP else \
             np.zeros(n, dtype=bool)
         for i in np.flatnonzero(resetting):
-            self._reset_one(i, None)
+            self._reset_one(int(i), None)
         active = ~resetting
         self._res[resetting] = 0.0
-        self._res[resetting, kstep.S_OUTCOME] = K.MOVING
+        self._res[resetting, kstep.S_OUTCOME] = kernel.MOVING
         args = (a, self.x, self.v, self.t, self.fired, self.target, active, self._AC, self._TC,
                 self.sim.dt, self.sim.min_steps, self.positions, self.sim.params, *self.sim.tables,
                 kstep.NO_RECORD, self._kout, self._res, self._obs_buf)
@@ -126,14 +129,14 @@ class MicroConveyorVectorEnv(VectorEnv):
         self.threads.record(k, time.perf_counter() - t0, int(active.sum()))
         res = self._res
         codes = res[:, kstep.S_OUTCOME].astype(np.int64)
-        if (codes == K.BEYOND_TABLE).any():
+        if (codes == kernel.BEYOND_TABLE).any():
             raise_if_beyond_table("load_beyond_table", self.sim)
-        terminated = active & ((codes == K.REST) | (codes == K.DETACHED))
-        truncated = active & ((codes == K.MAX_TIME) | (codes == K.TOO_MANY_EVENTS))
+        terminated = active & ((codes == kernel.REST) | (codes == kernel.DETACHED))
+        truncated = active & ((codes == kernel.MAX_TIME) | (codes == kernel.TOO_MANY_EVENTS))
         rew = np.where(active, res[:, kstep.S_REWARD], 0.0)
         self.done = terminated | truncated
         obs = self._obs_buf.copy()
-        infos = self._infos(np.array(K.OUTCOMES, dtype=object)[codes],
+        infos = self._infos(np.array(kernel.OUTCOMES, dtype=object)[codes],
                             active & (res[:, kstep.S_SUCCESS] > 0.5))
         for key, col in (("frequency_hz", kstep.S_F), ("stroke_m", kstep.S_H),
                          ("delay_s", kstep.S_D)):
@@ -143,7 +146,7 @@ class MicroConveyorVectorEnv(VectorEnv):
             obs = self._obs()
         return obs, rew, terminated, truncated, infos
 
-    def _same_step_reset(self, obs, infos) -> dict:
+    def _same_step_reset(self, obs: np.ndarray, infos: dict) -> dict:
         """Reset finished sub-envs now; as SyncVectorEnv does, their last observation and info go
         to ``final_obs`` / ``final_info`` and the top-level info rows become the reset info."""
         finished = self.done.copy()
@@ -175,7 +178,7 @@ class MicroConveyorVectorEnv(VectorEnv):
         return infos
 
     # ------------------------------------------------------------------ helpers
-    def _obs(self):
+    def _obs(self) -> np.ndarray:
         kstep.observe_all(self.x, self.v, self.t, self.fired, self.target, self._TC,
                           self.positions, self._obs_buf)
         return self._obs_buf.copy()
@@ -184,7 +187,7 @@ class MicroConveyorVectorEnv(VectorEnv):
         return self._infos(np.full(self.num_envs, "moving", dtype=object),
                            np.zeros(self.num_envs, dtype=bool))
 
-    def _infos(self, outcome, success) -> dict:
+    def _infos(self, outcome: np.ndarray, success: np.ndarray) -> dict:
         ok = np.ones(self.num_envs, dtype=bool)
         infos = {"is_success": success.copy(), "position_error_m": self.x - self.target,
                  "outcome": outcome, "sim_time_s": self.t.copy()}
@@ -192,7 +195,7 @@ class MicroConveyorVectorEnv(VectorEnv):
             infos["_" + key] = ok.copy()
         return infos
 
-    def render(self):
+    def render(self) -> tuple | None:
         if self.render_mode != "rgb_array":
             return None
         from .render import render_frame

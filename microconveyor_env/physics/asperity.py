@@ -15,7 +15,10 @@ Choices made (docs/physics.md §2.2 gives the reasons):
 """
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+import numpy.typing as npt
 from scipy.optimize import brentq
 
 # (lower w, upper w, coefficient, exponent) -- P/P_c = coef * w**exp on [lower, upper)
@@ -39,8 +42,9 @@ KE_FITS = {
 }
 
 
-def load(w, K: float):
-    """Contact load of one asperity over ``P_c`` at interference ratio ``w >= 0`` (0 for w <= 0)."""
+def load(w: npt.ArrayLike, K: float) -> np.ndarray:
+    """Contact load of one asperity over ``P_c`` [-] at interference ratio ``w >= 0`` [-] (0 for
+    w <= 0); ``K`` [-] the KE hardness coefficient."""
     w = np.asarray(w, dtype=float)
     out = np.where(w >= LOAD_PLASTIC_FROM, (3.0 / K) * w, 0.0)
     for lo, hi, coef, ex in LOAD_RANGES:
@@ -49,8 +53,9 @@ def load(w, K: float):
     return out
 
 
-def adhesion_contact(w, eps_over_omega_c: float):
-    """Adhesion of a touching asperity over ``F_s0`` (floored at 1)."""
+def adhesion_contact(w: npt.ArrayLike, eps_over_omega_c: float) -> np.ndarray:
+    """Adhesion of a touching asperity over ``F_s0`` [-] (floored at 1) at interference ratio ``w``
+    [-]; ``eps_over_omega_c`` [-]."""
     w = np.asarray(w, dtype=float)
     out = np.ones_like(w)
     for lo, hi, a, b, c in ADHESION_RANGES:
@@ -59,18 +64,20 @@ def adhesion_contact(w, eps_over_omega_c: float):
     return out
 
 
-def adhesion_gap(h_over_eps):
-    """Lennard-Jones (DMT) adhesion of a non-touching asperity over ``F_s0``; ``h = d - z + eps``."""
+def adhesion_gap(h_over_eps: npt.ArrayLike) -> np.ndarray:
+    """Lennard-Jones (DMT) adhesion of a non-touching asperity over ``F_s0`` [-]; ``h = d - z + eps``,
+    ``h_over_eps`` [-]."""
     r = 1.0 / np.asarray(h_over_eps, dtype=float)
     return (4.0 / 3.0) * (r ** 2 - 0.25 * r ** 8)
 
 
-def _friction_mid_raw(w):
+def _friction_mid_raw(w: npt.ArrayLike) -> Any:  # an array, or a float for a scalar w
     return sum(c * np.abs(w) ** e for c, e in FRICTION_MID)
 
 
-def friction(w):
-    """Maximum static friction of one asperity over ``P_c`` (KE 2004 fits as chosen above)."""
+def friction(w: npt.ArrayLike) -> np.ndarray:
+    """Maximum static friction of one asperity over ``P_c`` [-] at interference ratio ``w`` [-]
+    (KE 2004 fits as chosen above)."""
     w = np.asarray(w, dtype=float)
     low = FRICTION_LOW[0] * np.abs(w) ** FRICTION_LOW[1]
     mid = np.maximum(_friction_mid_raw(w), 0.0)
@@ -78,13 +85,14 @@ def friction(w):
 
 
 def friction_mid_root() -> float:
-    """Where the printed 1..6 friction polynomial crosses zero (~3.8); beyond it Q_asp = 0."""
+    """Where the printed 1..6 friction polynomial crosses zero (w ~3.8 [-]); beyond it Q_asp = 0."""
     return float(brentq(_friction_mid_raw, 1.0, FRICTION_ZERO_FROM))
 
 
 def adhesion_floor_crossings(eps_over_omega_c: float) -> list[float]:
-    """Interference ratios where an adhesion fit crosses its floor of 1 (kinks of the integrand)."""
-    out = []
+    """Interference ratios [-] where an adhesion fit crosses its floor of 1 (kinks of the integrand);
+    ``eps_over_omega_c`` [-]."""
+    out: list[float] = []
     for lo, hi, a, b, c in ADHESION_RANGES:
         # a w^b k = 1  ->  w = (1 / (a k))^(1/b)
         w = (1.0 / (a * eps_over_omega_c ** c)) ** (1.0 / b)

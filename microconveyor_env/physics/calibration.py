@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 from .contact_table import ContactTable
 from .materials import ContactParams, check_range
@@ -27,7 +28,7 @@ class Calibration:
     friction_force: float | None = None      # [N]
     friction_load: float | None = None       # [N]
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.pull_off_force is not None:
             check_range("Calibration", "pull_off_force", self.pull_off_force, 0, math.inf, True,
                         unit="N")
@@ -40,12 +41,14 @@ class Calibration:
                 raise ValueError("Calibration.friction_load given without friction_force")
 
 
-def calibrate(params: ContactParams, target: Calibration, **table_kw) -> tuple[ContactParams, dict]:
+def calibrate(params: ContactParams, target: Calibration,
+              **table_kw: Any) -> tuple[ContactParams, dict[str, Any]]:
     """Fit ``beta`` and/or ``friction_scale`` to ``target``; return (new params, report).
 
-    The report lists each fitted quantity with its value before and after and the target met.
+    The report lists each fitted quantity with its value before and after and the target met
+    (forces [N]; beta and friction_scale [-]). ``table_kw`` go to :class:`ContactTable`.
     """
-    report: dict = {"fitted": []}
+    report: dict[str, Any] = {"fitted": []}
     if target.pull_off_force is not None:
         before = ContactTable(params, **table_kw).pull_off_force
         beta = params.surface.beta * target.pull_off_force / before

@@ -23,8 +23,10 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 from scipy.interpolate import CubicHermiteSpline
 from scipy.optimize import brentq, minimize_scalar
 
@@ -41,7 +43,7 @@ DEFAULT_LOAD_RATIO = 1e4        # table covers loads up to this many pull-off fo
 class DetachmentError(RuntimeError):
     """A load below the pull-off force (N < -F_pull): the part leaves the surface."""
 
-    def __init__(self, load: float, pull_off: float):
+    def __init__(self, load: float, pull_off: float) -> None:
         self.load = float(load)
         self.pull_off = float(pull_off)
         super().__init__(f"load N = {self.load:.6g} N is below -F_pull = {-self.pull_off:.6g} N: "
@@ -71,11 +73,13 @@ class BaseTable:
     d_balance: float     # d* where P = F_s
     build_seconds: float
 
-    def arrays(self) -> dict:
+    def arrays(self) -> dict[str, Any]:
+        """The fields by name (arrays and SI scalars), as stored in the cache."""
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
 
 
-def _per_asperity(params: ContactParams, ints: SurfaceIntegrals, d, derivatives=0):
+def _per_asperity(params: ContactParams, ints: SurfaceIntegrals, d: npt.ArrayLike,
+                  derivatives: int = 0) -> dict[str, np.ndarray]:
     r = ints.evaluate(d, derivatives)
     pc, fs0 = params.critical_load, params.adhesion_force_scale
     out = {"n": pc * r["P"] - fs0 * (r["C"] + r["G"]), "q": pc * r["Q"]}
@@ -89,11 +93,12 @@ def _per_asperity(params: ContactParams, ints: SurfaceIntegrals, d, derivatives=
 
 def build_base_table(params: ContactParams, spacing: float = DEFAULT_SPACING,
                      load_ratio: float = DEFAULT_LOAD_RATIO) -> BaseTable:
-    """Locate balance and pull-off points and tabulate the stable branch (no caching)."""
+    """Locate balance and pull-off points and tabulate the stable branch (no caching); ``spacing``
+    [-] in d / sigma, ``load_ratio`` [-] in pull-off forces."""
     t0 = time.perf_counter()
     ints = SurfaceIntegrals(Normalised.from_params(params))
 
-    def n_of(x):
+    def n_of(x: float) -> float:
         return float(_per_asperity(params, ints, [x])["n"][0])
 
     lo, hi = -3.0, 12.0
@@ -148,7 +153,8 @@ def cache_dir() -> Path:
 
 
 def table_key(params: ContactParams, spacing: float, load_ratio: float) -> str:
-    """Hash of everything the base table depends on (not beta, not friction_scale)."""
+    """Hash of everything the base table depends on (not beta, not friction_scale); ``spacing``
+    [-] in d / sigma, ``load_ratio`` [-]."""
     inputs = params.as_dict()
     inputs["surface"].pop("beta")
     inputs.pop("friction_scale")
@@ -211,7 +217,8 @@ def _store(path: Path, key: str, table: BaseTable) -> None:
 
 def base_table(params: ContactParams, spacing: float = DEFAULT_SPACING,
                load_ratio: float = DEFAULT_LOAD_RATIO, use_cache: bool = True) -> BaseTable:
-    """Cached :func:`build_base_table` (memory, then disk, then build)."""
+    """Cached :func:`build_base_table` (memory, then disk, then build); ``spacing`` [-] in
+    d / sigma, ``load_ratio`` [-] in pull-off forces."""
     spacing = check_range("ContactTable", "spacing", spacing, 1e-4, 0.5)  # <= ~1e5 nodes
     load_ratio = check_range("ContactTable", "load_ratio", load_ratio, 10.0, 1e8)
     key = table_key(params, spacing, load_ratio)
@@ -258,7 +265,7 @@ class ContactTable:
     """
 
     def __init__(self, params: ContactParams, spacing: float = DEFAULT_SPACING,
-                 load_ratio: float = DEFAULT_LOAD_RATIO, use_cache: bool = True):
+                 load_ratio: float = DEFAULT_LOAD_RATIO, use_cache: bool = True) -> None:
         self.params = params
         self.base = base_table(params, spacing, load_ratio, use_cache)
         self.n_asp = params.asperity_count
@@ -301,7 +308,7 @@ class ContactTable:
                 "Surface.dgamma)")
 
     # ---- lookups ----
-    def _u(self, load) -> np.ndarray:
+    def _u(self, load: npt.ArrayLike) -> np.ndarray:
         N = np.asarray(load, dtype=float)
         if not np.all(np.isfinite(N)):
             raise ValueError("load must be finite")
@@ -313,19 +320,19 @@ class ContactTable:
                                   f"{self.max_load:.6g} N; build the table with a larger load_ratio")
         return np.sqrt(np.maximum(N / self.n_asp - self.base.n_min, 0.0))
 
-    def is_detached(self, load) -> np.ndarray:
-        """True where the load is below -F_pull."""
+    def is_detached(self, load: npt.ArrayLike) -> np.ndarray:
+        """True where the load [N] is below -F_pull."""
         return np.asarray(load, dtype=float) < -self.pull_off_force
 
-    def separation(self, load) -> np.ndarray:
+    def separation(self, load: npt.ArrayLike) -> np.ndarray:
         """Separation d [m] on the stable branch carrying load N [N] (raises DetachmentError)."""
         return self._d_of_u(self._u(load)) * self._sigma
 
-    def friction(self, load) -> np.ndarray:
+    def friction(self, load: npt.ArrayLike) -> np.ndarray:
         """Maximum static friction Q [N] at load N [N] (raises DetachmentError)."""
         return self._qscale * self._q_of_u(self._u(load))
 
-    def kernel_arrays(self) -> tuple:
+    def kernel_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
         """Arrays for the compiled kernel: (u_nodes, q_nodes, q_slopes, n_min) in SI, so that
         ``Q(N) = hermite(sqrt(N - n_min))`` with ``n_min = -F_pull`` [N]."""
         b = self.base
@@ -333,7 +340,7 @@ class ContactTable:
         return (b.u * s, b.q * self._qscale, b.q_u * self._qscale / s, -self.pull_off_force)
 
     # ---- reports ----
-    def report(self) -> dict:
+    def report(self) -> dict[str, Any]:
         """The contact characteristics in SI units (keys carry unit suffixes)."""
         p = self.params
         w = p.part.weight
@@ -357,12 +364,13 @@ class ContactTable:
         }
 
 
-def tabulation_error(table: ContactTable, samples: int = 2000) -> dict:
+def tabulation_error(table: ContactTable, samples: int = 2000) -> dict[str, Any]:
     """Measure the table against direct quadrature over the whole stable branch.
 
     Test separations are spread over (d_lo, d_A) away from the nodes; for each, the load N and
     friction Q come from quadrature, then the table's inversion is asked for d(N) and Q(N).
-    Returns the largest relative errors of Q and of the load-normalised separation.
+    Returns the largest relative errors [-] of Q and of the separation (and its largest absolute
+    error in d / sigma [-]) over ``samples`` [-] test points.
     """
     b = table.base
     rng = np.random.default_rng(12345)

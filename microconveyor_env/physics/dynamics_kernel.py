@@ -17,7 +17,7 @@ Friction in slip is ``F = -s Q(N)`` with the slip direction ``s`` fixed over a s
 mode stops the step where ``s v`` reaches 0). Sticking needs ``|N tan(theta)| <= Q(N)``.
 Detachment: ``N < -F_pull``. ``Q(N)`` is the contact table's cubic Hermite in
 ``u = sqrt(N + F_pull)``.
-With stretch-dependent roughness (physics.md §4) Q and the pull-off force follow the strain of the
+With stretch-dependent roughness (docs/physics.md §4) Q and the pull-off force follow the strain of the
 active zone under the part: :func:`.forces.friction_at`, :func:`.forces.n_min_at` and
 :func:`.forces.shifted_load` select that lookup at compile time from the tables' dimension, so the
 constant-roughness code is unchanged.
@@ -28,6 +28,7 @@ import math
 
 from numba import njit
 
+from .events import hidden_pull_off, illinois_slip, illinois_stick, slip_event
 from .forces import EVENT, I_MASS, I_MODE, I_NMAX, I_NMIN, accel, friction_at, n_min_at, \
     normal_load, rk4, shifted_load, stick_state
 from .jit_cache import refresh as refresh_jit_cache
@@ -43,8 +44,6 @@ R_T, R_X, R_V, R_Y, R_N, R_Q, R_F, R_STICK = range(8)
 N_REC = 8
 MAX_EVENTS_PER_STEP = 32
 COAST_POINTS = 32  # trajectory rows recorded per closed-form coast
-GOLDEN_ITERATIONS = 20  # golden-section steps for a load minimum inside a step
-SCREEN_MARGIN = 0.25    # search only if the parabolic estimate is within this * F_pull of pull-off
 # p''(t) of the quintic stroke is most negative at tau = (3 + sqrt 3)/6 of each half (mirrored)
 TAU_UNLOAD = (3.0 + math.sqrt(3.0)) / 6.0
 
@@ -106,149 +105,13 @@ def coast(x, v, duration, P, tu, tq, tqu):
 
 
 @njit(cache=True)
-def _illinois(a, b, fa, fb, c, fc, side):
-    """One Illinois (modified regula falsi) bracket update with the new point (c, fc)."""
-    if fc > 0.0:
-        if side == 1:
-            fb *= 0.5
-        return c, b, fc, fb, 1
-    if side == -1:
-        fa *= 0.5
-    return a, c, fa, fc, -1
-
-
-@njit(cache=True)
-def _secant(a, b, fa, fb):
-    c = (a * fb - b * fa) / (fb - fa)
-    return c if a < c < b else 0.5 * (a + b)
-
-
-@njit(cache=True)
-def _slip_event(x0, v0, tl, tau, s, vscale, xa, f, h, P, tu, tq, tqu):
-    """min(s v / vscale, (N - N_min) / F_pull) after an RK4 sub-step tau: > 0 while sliding on."""
-    x, v = rk4(x0, v0, tl, tau, s, xa, f, h, P, tu, tq, tqu)
-    N = normal_load(x, v, tl + tau, xa, f, h, P)[0]
-    N = shifted_load(N, x, tl + tau, xa, f, h, P, tu)
-    return min(s * v / vscale, (N - P[I_NMIN]) / -P[I_NMIN])
-
-
-@njit(cache=True)
-def _illinois_slip(x0, v0, tl, hmax, s, xa, f, h, P, tu, tq, tqu):
-    """First tau in (0, hmax] where the slip ends (v = 0) or the load reaches pull-off."""
-    vscale = max(abs(v0), abs(accel(x0, v0, tl, s, xa, f, h, P, tu, tq, tqu)) * hmax, 1e-300)
-    a, b = 0.0, hmax
-    fb = _slip_event(x0, v0, tl, b, s, vscale, xa, f, h, P, tu, tq, tqu)
-    fa = _slip_event(x0, v0, tl, 0.0, s, vscale, xa, f, h, P, tu, tq, tqu)
-    if not fa > 0.0:  # starting from rest (s v = 0): find a positive lower point
-        lo = hmax
-        for _ in range(60):
-            lo *= 0.5
-            fl = _slip_event(x0, v0, tl, lo, s, vscale, xa, f, h, P, tu, tq, tqu)
-            if fl > 0.0:
-                a, fa = lo, fl
-                break
-        else:
-            return 0.0
-    side = 0
-    for _ in range(100):
-        c = _secant(a, b, fa, fb)
-        fc = _slip_event(x0, v0, tl, c, s, vscale, xa, f, h, P, tu, tq, tqu)
-        a, b, fa, fb, side = _illinois(a, b, fa, fb, c, fc, side)
-        if b - a <= 1e-15 * hmax:
-            break
-    return b
-
-
-@njit(cache=True)
-def _hidden_pull_off(x0, v0, x1, v1, tl, hs, N1, xa, f, h, P, tu):
-    """A dip of the load below pull-off *inside* an accepted sliding step (both ends above it).
-
-    Checked only while the load is tensile at an end of the step, and searched only where a
-    parabola through the load at both ends and at the midpoint comes within ``SCREEN_MARGIN``
-    F_pull of pull-off: then the load along the step's cubic Hermite interpolant of x(t) is
-    minimised by golden-section search. Returns the sub-step length at the minimum if it lies
-    below pull-off, else -1.
-    """
-    n_min = P[I_NMIN]
-    N0 = shifted_load(normal_load(x0, v0, tl, xa, f, h, P)[0], x0, tl, xa, f, h, P, tu)
-    if min(N0, N1) >= 0.0:
-        return -1.0
-    # cheap screen: the parabola through the ends and the midpoint stays well above pull-off
-    Nm = _load_on_hermite(0.5, x0, v0, x1, v1, tl, hs, xa, f, h, P, tu)
-    curv = N0 - 2.0 * Nm + N1
-    low = min(N0, Nm, N1)
-    if curv > 0.0:
-        th = 0.5 + 0.25 * (N0 - N1) / curv
-        if 0.0 < th < 1.0:
-            low = min(low, Nm - 0.125 * (N1 - N0) ** 2 / curv)
-    if low - n_min > SCREEN_MARGIN * -n_min:
-        return -1.0
-    a, b = 0.0, 1.0
-    g = 0.6180339887498949
-    c, d = b - g * (b - a), a + g * (b - a)
-    fc = _load_on_hermite(c, x0, v0, x1, v1, tl, hs, xa, f, h, P, tu)
-    fd = _load_on_hermite(d, x0, v0, x1, v1, tl, hs, xa, f, h, P, tu)
-    for _ in range(GOLDEN_ITERATIONS):
-        if fc < fd:
-            b, d, fd = d, c, fc
-            c = b - g * (b - a)
-            fc = _load_on_hermite(c, x0, v0, x1, v1, tl, hs, xa, f, h, P, tu)
-        else:
-            a, c, fc = c, d, fd
-            d = a + g * (b - a)
-            fd = _load_on_hermite(d, x0, v0, x1, v1, tl, hs, xa, f, h, P, tu)
-        if min(fc, fd) < n_min:
-            break
-    if fc < fd:
-        return c * hs if fc < n_min else -1.0
-    return d * hs if fd < n_min else -1.0
-
-
-@njit(cache=True)
-def _load_on_hermite(th, x0, v0, x1, v1, tl, hs, xa, f, h, P, tu):
-    """Normal load at fraction ``th`` of a step, on the cubic Hermite interpolant of x(t)."""
-    t2 = th * th
-    t3 = t2 * th
-    x = ((2 * t3 - 3 * t2 + 1) * x0 + (t3 - 2 * t2 + th) * hs * v0 + (-2 * t3 + 3 * t2) * x1
-         + (t3 - t2) * hs * v1)
-    v = ((6 * t2 - 6 * th) * x0 / hs + (3 * t2 - 4 * th + 1) * v0 + (-6 * t2 + 6 * th) * x1 / hs
-         + (3 * t2 - 2 * th) * v1)
-    return shifted_load(normal_load(x, v, tl + th * hs, xa, f, h, P)[0], x, tl + th * hs, xa, f,
-                        h, P, tu)
-
-
-@njit(cache=True)
-def _stick_event(x, t, xa, f, h, P, tu, tq, tqu):
-    m, d, _ = stick_state(x, t, xa, f, h, P, tu, tq, tqu)
-    return min(m, d)
-
-
-@njit(cache=True)
-def _illinois_stick(x, t0, t1, xa, f, h, P, tu, tq, tqu):
-    """First t in (t0, t1] where min(margin, N - N_min) of a resting part reaches 0."""
-    a, b = t0, t1
-    fa = _stick_event(x, a, xa, f, h, P, tu, tq, tqu)
-    fb = _stick_event(x, b, xa, f, h, P, tu, tq, tqu)
-    if fa <= 0.0:
-        return a
-    side = 0
-    for _ in range(100):
-        c = _secant(a, b, fa, fb)
-        fc = _stick_event(x, c, xa, f, h, P, tu, tq, tqu)
-        a, b, fa, fb, side = _illinois(a, b, fa, fb, c, fc, side)
-        if b - a <= 1e-15 * (t1 - t0):
-            break
-    return b
-
-
-@njit(cache=True)
 def stroke(x, v, t0, xa, f, h, n_steps, t_lim, P, tu, tq, tqu, rec, out):
     """Integrate one stroke (duration 1/f, ``n_steps`` RK4 steps) from state (x, v) at time t0.
 
     The stroke is cut at ``t_lim`` [s, relative to t0] (the simulated-time limit). In event mode the
     step grid also has nodes where the actuator's downward acceleration peaks (there the load on a
     resting part is smallest), and a sliding step whose load is tensile at an end is searched for
-    a dip below pull-off inside it (:func:`_hidden_pull_off`), so a detachment cannot hide inside
+    a dip below pull-off inside it (:func:`hidden_pull_off`), so a detachment cannot hide inside
     a step.
 
     Returns (x, v, outcome) with outcome MOVING (stroke finished), DETACHED, MAX_TIME,
@@ -328,7 +191,7 @@ def stroke(x, v, t0, xa, f, h, n_steps, t_lim, P, tu, tq, tqu, rec, out):
                 if m1 > 0.0 and d1 > 0.0:
                     tl = t_end
                     break
-                tc = _illinois_stick(x, tl, t_end, xa, f, h, P, tu, tq, tqu)
+                tc = illinois_stick(x, tl, t_end, xa, f, h, P, tu, tq, tqu)
                 mc, dc, sc = stick_state(x, tc, xa, f, h, P, tu, tq, tqu)
                 n_ev += 1
                 out[O_EVENTS] += 1
@@ -349,13 +212,13 @@ def stroke(x, v, t0, xa, f, h, n_steps, t_lim, P, tu, tq, tqu, rec, out):
                                   h, P, tu)
                 h_ev = hs
                 if s * vn > 0.0 and Nn >= n_min:
-                    tm = _hidden_pull_off(x, v, xn, vn, tl, hs, Nn, xa, f, h, P, tu)
-                    if tm <= 0.0 or _slip_event(x, v, tl, tm, s, 1.0, xa, f, h, P, tu, tq,
+                    tm = hidden_pull_off(x, v, xn, vn, tl, hs, Nn, xa, f, h, P, tu)
+                    if tm <= 0.0 or slip_event(x, v, tl, tm, s, 1.0, xa, f, h, P, tu, tq,
                                                 tqu) > 0.0:
                         x, v, tl = xn, vn, t_end
                         break
                     h_ev = tm  # the load dips below pull-off inside the step: locate it
-                tau = _illinois_slip(x, v, tl, h_ev, s, xa, f, h, P, tu, tq, tqu)
+                tau = illinois_slip(x, v, tl, h_ev, s, xa, f, h, P, tu, tq, tqu)
                 n_ev += 1
                 out[O_EVENTS] += 1
                 if tau > 0.0:

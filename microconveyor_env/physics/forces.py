@@ -16,7 +16,7 @@ from .kinematics import stroke_eval, surface_eval
 
 # ---- model constants array P ----
 I_MASS, I_G0, I_NMIN, I_EXACT, I_SLOPE, I_WL, I_SHAPE, I_MODE, I_NMAX = range(9)
-# stretch-dependent roughness (physics.md §4): I_STRETCH = 1 selects the sigma-dependent lookup;
+# stretch-dependent roughness (docs/physics.md §4): I_STRETCH = 1 selects the sigma-dependent lookup;
 # then P also holds the zone half-length [m], the strain table step in amplitude^2 [m^2], the
 # number of strain-table nodes and of sigma nodes, the largest tabulated strain, and from
 # I_SDATA on: table offsets (n_sig + 1), -F_pull per sigma node (n_sig) [N], strain nodes.
@@ -124,7 +124,7 @@ def shifted_load(N, x, tl, xa, f, h, P, tu):
     return N + (P[I_NMIN] - stretch_n_min(x, tl, xa, f, h, P))
 
 
-@overload(friction_at, inline="always", jit_options={"cache": True})
+@overload(friction_at, inline="always", jit_options={"cache": True})  # type: ignore[typeddict-unknown-key]
 def _ov_friction_at(N, x, tl, xa, f, h, P, tu, tq, tqu):
     if tu.ndim == 1:
         return lambda N, x, tl, xa, f, h, P, tu, tq, tqu: friction_of_load(N, tu, tq, tqu,
@@ -133,14 +133,14 @@ def _ov_friction_at(N, x, tl, xa, f, h, P, tu, tq, tqu):
                                                                          tq, tqu)
 
 
-@overload(n_min_at, inline="always", jit_options={"cache": True})
+@overload(n_min_at, inline="always", jit_options={"cache": True})  # type: ignore[typeddict-unknown-key]
 def _ov_n_min_at(x, tl, xa, f, h, P, tu):
     if tu.ndim == 1:
         return lambda x, tl, xa, f, h, P, tu: P[I_NMIN]
     return lambda x, tl, xa, f, h, P, tu: stretch_n_min(x, tl, xa, f, h, P)
 
 
-@overload(shifted_load, inline="always", jit_options={"cache": True})
+@overload(shifted_load, inline="always", jit_options={"cache": True})  # type: ignore[typeddict-unknown-key]
 def _ov_shifted_load(N, x, tl, xa, f, h, P, tu):
     if tu.ndim == 1:
         return lambda N, x, tl, xa, f, h, P, tu: N
@@ -150,7 +150,7 @@ def _ov_shifted_load(N, x, tl, xa, f, h, P, tu):
 @njit(cache=True)
 def normal_load(x, v, tl, xa, f, h, P):
     """(N, Y_x, cos(theta), Y) at position x, velocity v, time tl into the stroke."""
-    Y, Yx, Yt, Ytt, Yxt, Yxx = surface_eval(x, tl, xa, f, h, int(P[I_SHAPE]), P[I_WL])
+    Y, Yx, _, Ytt, Yxt, Yxx = surface_eval(x, tl, xa, f, h, int(P[I_SHAPE]), P[I_WL])
     Yx += P[I_SLOPE]
     Y += P[I_SLOPE] * x
     c = 1.0 / math.sqrt(1.0 + Yx * Yx)

@@ -37,7 +37,8 @@ from typing import Any
 from numba.core import caching as _nc
 
 _ROOT = Path(__file__).resolve().parents[1]
-COMPILED_SOURCES = ("physics/kinematics.py", "physics/forces.py", "physics/dynamics_kernel.py",
+COMPILED_SOURCES = ("physics/kinematics.py", "physics/forces.py", "physics/events.py",
+                    "physics/dynamics_kernel.py",
                     "envs/actions.py", "envs/task.py", "envs/step.py")
 CHECKSUM_SUFFIX = ".sha256"
 

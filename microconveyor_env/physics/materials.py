@@ -22,6 +22,7 @@ import dataclasses
 import math
 import numbers
 from dataclasses import dataclass, field
+from typing import Any
 
 G0 = 9.81
 """Gravitational acceleration [m/s^2]."""
@@ -31,10 +32,11 @@ class ParameterError(ValueError):
     """An invalid physical parameter (message names the field, its value and the allowed range)."""
 
 
-def check_range(owner: str, name: str, value, lo: float = -math.inf, hi: float = math.inf,
+def check_range(owner: str, name: str, value: object, lo: float = -math.inf, hi: float = math.inf,
                 lo_open: bool = False, hi_open: bool = False, unit: str = "") -> float:
     """Return ``float(value)`` or raise :class:`ParameterError` if it is not a finite real number
-    in range (bools and numeric strings are refused, not converted)."""
+    in range (bools and numeric strings are refused, not converted). ``lo``, ``hi`` are in the
+    value's own unit, named by ``unit`` for the message; ``owner.name`` labels the field."""
     label = f"{owner}.{name}" if owner else name
     lb = "(" if lo_open else "["
     rb = ")" if hi_open else "]"
@@ -56,7 +58,8 @@ def check_range(owner: str, name: str, value, lo: float = -math.inf, hi: float =
     return v
 
 
-def _validate(obj, specs: dict) -> None:
+def _validate(obj: object,
+              specs: dict[str, tuple[float, float, bool, bool, str]]) -> None:
     for name, (lo, hi, lo_open, hi_open, unit) in specs.items():
         v = check_range(type(obj).__name__, name, getattr(obj, name), lo, hi, lo_open, hi_open, unit)
         object.__setattr__(obj, name, v)
@@ -80,7 +83,7 @@ class Materials:
     nu2: float = 0.33
     hardness: float = 1.96e9
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         _validate(self, {
             "E1": (1e8, 1e13, False, False, "Pa"), "E2": (1e8, 1e13, False, False, "Pa"),
             "nu1": (0, 0.5, False, True, "-"), "nu2": (0, 0.5, False, True, "-"),
@@ -119,7 +122,7 @@ class Surface:
     dgamma: float = 1.0
     eps: float = 0.4e-9
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         _validate(self, {
             "sigma": (1e-8, 1e-6, False, False, "m"), "psi": (0.5, 1e3, False, False, "-"),
             "beta": (1e-6, 1e3, False, False, "-"), "dgamma": (1e-6, 2.0, False, False, "J/m^2"),
@@ -141,7 +144,7 @@ class Part:
     mass: float = 2e-9
     area: float = 1e-8
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         _validate(self, {"mass": (1e-15, 1.0, False, False, "kg"),
                          "area": (1e-14, 1.0, False, False, "m^2")})
 
@@ -164,7 +167,7 @@ class ContactParams:
     part: Part = field(default_factory=Part)
     friction_scale: float = 1.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for name, cls in (("materials", Materials), ("surface", Surface), ("part", Part)):
             if not isinstance(getattr(self, name), cls):
                 raise ParameterError(f"ContactParams.{name} must be a {cls.__name__}, "
@@ -210,10 +213,11 @@ class ContactParams:
         """``eta A_n``: number of asperities on the nominal area [-]."""
         return self.eta * self.part.area
 
-    def replace(self, **changes) -> "ContactParams":
-        """Copy with top-level fields or ``surface__sigma=...``-style nested fields changed."""
-        nested: dict = {}
-        top = {}
+    def replace(self, **changes: Any) -> "ContactParams":
+        """Copy with top-level fields or ``surface__sigma=...``-style nested fields changed (each in
+        its field's SI unit)."""
+        nested: dict[str, dict[str, Any]] = {}
+        top: dict[str, Any] = {}
         for k, v in changes.items():
             if "__" in k:
                 group, name = k.split("__", 1)
@@ -226,6 +230,6 @@ class ContactParams:
             top[group] = dataclasses.replace(top.get(group, getattr(self, group)), **kv)
         return dataclasses.replace(self, **top)
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         """Plain nested dict of the inputs (stable key order; used for cache hashing)."""
         return dataclasses.asdict(self)

@@ -25,8 +25,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
+import numpy.typing as npt
 from scipy.special import roots_jacobi, roots_legendre
 
 from . import asperity
@@ -51,12 +53,13 @@ class Normalised:
 
     @classmethod
     def from_params(cls, params: ContactParams) -> "Normalised":
+        """The normalised inputs of ``params``."""
         oc = params.critical_interference
         eps = params.surface.eps
         return cls(oc / params.surface.sigma, eps / params.surface.sigma, eps / oc, params.materials.K)
 
 
-def _gl_nodes(a: float, b: float, h_max: float):
+def _gl_nodes(a: float, b: float, h_max: float) -> tuple[np.ndarray, np.ndarray]:
     """Composite Gauss–Legendre nodes/weights on [a, b] (sub-intervals <= h_max)."""
     if b <= a:
         return np.empty(0), np.empty(0)
@@ -70,13 +73,13 @@ def _gl_nodes(a: float, b: float, h_max: float):
     return nodes, weights
 
 
-def _jacobi_unit(alpha: float):
+def _jacobi_unit(alpha: float) -> tuple[np.ndarray, np.ndarray]:
     """Nodes/weights for int_0^1 w^alpha f(w) dw = sum W_i f(w_i)."""
     x, wts = roots_jacobi(JACOBI_ORDER, 0.0, alpha)
     return 0.5 * (1 + x), wts * 2.0 ** (-alpha - 1)
 
 
-def _pieces(breaks):
+def _pieces(breaks: list[float]) -> list[tuple[float, float]]:
     b = sorted(set(float(v) for v in breaks))
     return list(zip(b[:-1], b[1:]))
 
@@ -88,19 +91,22 @@ class SurfaceIntegrals:
     Greenwood–Williamson limit used to verify the quadrature.
     """
 
-    def __init__(self, norm: Normalised, load_model: str = "ke"):
+    def __init__(self, norm: Normalised, load_model: str = "ke") -> None:
         if load_model not in ("ke", "elastic"):
             raise ValueError(f"load_model must be 'ke' or 'elastic', got {load_model!r}")
         self.norm = norm
         self.load_model = load_model
 
     # ---- node sets in w (interference ratio); weights already include d(z*) = omega_c* dw ----
-    def _w_rule(self, kind: str, w_top: float):
+    def _w_rule(self, kind: str, w_top: float) -> tuple[np.ndarray, np.ndarray]:
         oc = self.norm.omega_c_star
         h_w = H_MAX / oc  # sub-interval length in w
-        nodes, weights, values = [], [], []
+        nodes: list[np.ndarray] = []
+        weights: list[np.ndarray] = []
+        values: list[np.ndarray] = []
 
-        def add(a, b, fun, singular_alpha=None):
+        def add(a: float, b: float, fun: Callable[[np.ndarray], np.ndarray],
+                singular_alpha: float | None = None) -> None:
             if b <= a:
                 return
             if singular_alpha is not None:
@@ -138,7 +144,7 @@ class SurfaceIntegrals:
             raise ValueError(kind)
         return np.concatenate(nodes), np.concatenate(weights) * np.concatenate(values)
 
-    def _gap_rule(self, h_top: float):
+    def _gap_rule(self, h_top: float) -> tuple[np.ndarray, np.ndarray]:
         """Nodes in h* (gap + eps) and weights for int f_nc(h) phi(d* + eps* - h*) dh*."""
         e = self.norm.eps_star
         s_top = math.log(max(h_top, 2 * e) / e)
@@ -147,8 +153,10 @@ class SurfaceIntegrals:
         return h, ws * h * asperity.adhesion_gap(h / e)
 
     # ---- evaluation ----
-    def evaluate(self, d_star, derivatives: int = 0, chunk: int = 256) -> dict:
-        """Return {'P','C','G','Q'} arrays (and 'dP', ... up to the requested derivative order)."""
+    def evaluate(self, d_star: npt.ArrayLike, derivatives: int = 0,
+                 chunk: int = 256) -> dict[str, np.ndarray]:
+        """Return {'P','C','G','Q'} arrays [-] at normalised separations ``d_star`` = d / sigma [-]
+        (and 'dP', ... up to the requested derivative order); ``chunk`` [-] separations at a time."""
         d = np.atleast_1d(np.asarray(d_star, dtype=float))
         if not np.all(np.isfinite(d)):
             raise ValueError("normalised separations must be finite")
@@ -157,7 +165,7 @@ class SurfaceIntegrals:
         rules = {k: self._w_rule(k, w_top) for k in ("P", "C", "Q")}
         h_top = float(d.max()) - (min(float(d.min()), 0.0) - TAIL) + e
         gap_h, gap_w = self._gap_rule(h_top)
-        out = {}
+        out: dict[str, np.ndarray] = {}
         for key in ("P", "C", "G", "Q"):
             for order in range(derivatives + 1):
                 out[("d" * order) + key] = np.empty_like(d)
@@ -179,7 +187,8 @@ class SurfaceIntegrals:
         return out
 
 
-def surface_forces(params: ContactParams, d, load_model: str = "ke") -> dict:
+def surface_forces(params: ContactParams, d: npt.ArrayLike,
+                   load_model: str = "ke") -> dict[str, np.ndarray]:
     """P, F_s, N = P - F_s and Q [N] at separations ``d`` [m] by direct quadrature.
 
     Q includes ``params.friction_scale``. Returns a dict of arrays with keys

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy.typing as npt
+
 import numpy as np
 
 from .materials import ParameterError, check_range
@@ -18,9 +20,9 @@ from .materials import ParameterError, check_range
 class ActuatorArray:
     """Actuator positions along x [m] (strictly increasing)."""
 
-    positions: tuple
+    positions: tuple[float, ...]
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         pos = tuple(check_range("ActuatorArray", f"positions[{i}]", p, unit="m")
                     for i, p in enumerate(self.positions))
         if not pos:
@@ -31,7 +33,7 @@ class ActuatorArray:
 
     @classmethod
     def uniform(cls, count: int, spacing: float, first: float = 0.0) -> "ActuatorArray":
-        """``count`` actuators, ``spacing`` [m] apart, the first at ``first`` [m]."""
+        """``count`` [-] actuators, ``spacing`` [m] apart, the first at ``first`` [m]."""
         n = int(check_range("ActuatorArray", "count", count, 1, 10_000))
         sp = check_range("ActuatorArray", "spacing", spacing, 0, 1.0, True, unit="m")
         return cls(tuple(first + sp * i for i in range(n)))
@@ -49,7 +51,7 @@ class Firing:
     stroke: float
     delay: float = 0.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if not isinstance(self.actuator, (int, np.integer)) or self.actuator < 0:
             raise ParameterError(f"Firing.actuator = {self.actuator!r} is invalid: must be an "
                                  "integer index >= 0")
@@ -67,9 +69,9 @@ class Schedule:
     """Firings on an actuator array."""
 
     array: ActuatorArray
-    firings: tuple
+    firings: tuple[Firing, ...]
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         firings = tuple(self.firings)
         for f in firings:
             if not isinstance(f, Firing):
@@ -82,17 +84,20 @@ class Schedule:
     @classmethod
     def single(cls, frequency: float, stroke: float, delay: float = 0.0,
                position: float = 0.0) -> "Schedule":
-        """One actuator at ``position`` [m] fired once."""
+        """One actuator at ``position`` [m] fired once at ``frequency`` [Hz] with ``stroke`` [m]
+        after ``delay`` [s]."""
         return cls(ActuatorArray((position,)), (Firing(0, frequency, stroke, delay),))
 
     @classmethod
-    def sequence(cls, array: ActuatorArray, frequency, stroke, delay=0.0) -> "Schedule":
-        """Fire every actuator of ``array`` once, in order; scalars or per-firing sequences."""
+    def sequence(cls, array: ActuatorArray, frequency: npt.ArrayLike, stroke: npt.ArrayLike,
+                 delay: npt.ArrayLike = 0.0) -> "Schedule":
+        """Fire every actuator of ``array`` once, in order, at ``frequency`` [Hz] with ``stroke`` [m]
+        after ``delay`` [s]; scalars or per-firing sequences."""
         n = len(array)
         f, h, d = (np.broadcast_to(np.asarray(a, float), (n,)) for a in (frequency, stroke, delay))
         return cls(array, tuple(Firing(i, float(f[i]), float(h[i]), float(d[i])) for i in range(n)))
 
-    def arrays(self):
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(x_act [m], f [Hz], h [m], delay [s]) as float64 arrays over the firings."""
         xa = np.array([self.array.positions[f.actuator] for f in self.firings], dtype=float)
         f = np.array([fi.frequency for fi in self.firings], dtype=float)

@@ -4,6 +4,10 @@ The Python layer validates inputs and builds plain arrays; :mod:`.dynamics_kerne
 """
 from __future__ import annotations
 
+from typing import Any
+
+import numpy.typing as npt
+
 import math
 import time
 import warnings
@@ -11,15 +15,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import dynamics_kernel as K
-from . import forces as F
+from . import dynamics_kernel as kernel
+from . import forces
 from .contact_table import ContactTable, TableRangeError
 from .kinematics import SHAPES, zone_strain
 from .materials import G0, ContactParams, ParameterError, check_range
 from .schedule import Schedule
 
-MODES = {"karnopp": F.KARNOPP, "event": F.EVENT}
-KINEMATICS = ("seed", "exact")
+MODES = {"karnopp": forces.KARNOPP, "event": forces.EVENT}
+KINEMATICS = ("reduced", "exact")
+RENAMED_KINEMATICS = {"seed": "reduced"}  # old name -> new name (deprecated, still accepted)
 ROUGHNESS = ("constant", "stretch")
 DEFAULT_MODE = "event"
 DEFAULT_DT = 5e-5          # s; the accuracy study's pick (event mode, within 1 um; docs/validation.md)
@@ -31,8 +36,9 @@ MAX_STEPS = 10_000_000     # default cap on the RK4 steps of one run (~10 s of k
 MAX_STEPS_LIMIT = 10 ** 12  # largest cap one may ask for
 
 
-def stroke_steps(f, dt: float, min_steps: int) -> np.ndarray:
-    """RK4 steps of strokes at frequencies ``f`` [Hz] (as the kernel's ``steps_for``), as floats
+def stroke_steps(f: npt.ArrayLike, dt: float, min_steps: int) -> np.ndarray:
+    """RK4 steps of strokes at frequencies ``f`` [Hz] with step ``dt`` [s] and at least ``min_steps``
+    [-] per stroke (as the kernel's ``steps_for``), as floats
     that never overflow: ``inf`` where ``1/(f dt)`` is beyond float range."""
     f = np.asarray(f, dtype=float)
     with np.errstate(over="ignore", divide="ignore", under="ignore", invalid="ignore"):
@@ -40,10 +46,11 @@ def stroke_steps(f, dt: float, min_steps: int) -> np.ndarray:
         return np.where(np.isfinite(n), n + n % 2, n)
 
 
-def check_step_budget(owner: str, f, dt: float, min_steps: int, max_steps: int,
+def check_step_budget(owner: str, f: npt.ArrayLike, dt: float, min_steps: int, max_steps: int,
                       max_time: float = math.inf) -> float:
-    """Total RK4 steps of strokes at ``f`` (a stroke is cut at ``max_time`` [s], so at most the
-    steps of its first ``max_time``); ParameterError if above ``max_steps``."""
+    """Total RK4 steps of strokes at ``f`` [Hz] with step ``dt`` [s] (a stroke is cut at ``max_time``
+    [s], so at most the steps of its first ``max_time``); ParameterError if above ``max_steps`` [-].
+    ``owner`` names the caller in the message."""
     steps = stroke_steps(f, dt, min_steps)
     with np.errstate(over="ignore", invalid="ignore"):
         steps = steps * np.minimum(1.0, max_time * np.asarray(f, dtype=float))
@@ -58,13 +65,25 @@ def check_step_budget(owner: str, f, dt: float, min_steps: int, max_steps: int,
     return total
 
 
-def check_max_steps(owner: str, value) -> int:
-    """``max_steps``: an integer in [1, MAX_STEPS_LIMIT]."""
+def check_max_steps(owner: str, value: object) -> int:
+    """``max_steps`` [-]: an integer in [1, MAX_STEPS_LIMIT]; ``owner`` names the caller."""
     if (isinstance(value, bool) or not isinstance(value, (int, np.integer))
             or not 1 <= value <= MAX_STEPS_LIMIT):
         raise ParameterError(f"{owner}.max_steps = {value!r} is invalid: must be an integer in "
                              f"[1, {MAX_STEPS_LIMIT:g}]")
     return int(value)
+
+
+def kinematics_level(name: str, owner: str) -> str:
+    """A kinematics level: ``reduced`` (the dissertation's model: the velocity terms of the normal
+    load dropped) or ``exact``; the former name ``seed`` still works with a DeprecationWarning."""
+    if name in RENAMED_KINEMATICS:
+        warnings.warn(f"{owner}: kinematics {name!r} is now called "
+                      f"{RENAMED_KINEMATICS[name]!r}", DeprecationWarning, stacklevel=3)
+        name = RENAMED_KINEMATICS[name]
+    if name not in KINEMATICS:
+        raise ParameterError(f"kinematics = {name!r} is invalid: must be one of {KINEMATICS}")
+    return name
 
 
 class StepSizeWarning(UserWarning):
@@ -94,13 +113,15 @@ class Result:
     steps: int
     events: int
     wall_time_s: float
-    trajectory: dict | None = field(default=None, repr=False)
+    trajectory: dict[str, np.ndarray] | None = field(default=None, repr=False)
 
     @property
     def displacement_m(self) -> float:
+        """``final_position_m - x0_m`` [m]."""
         return self.final_position_m - self.x0_m
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
+        """The fields (SI, unit-suffixed keys) without the trajectory, plus ``displacement_m``."""
         d = {k: v for k, v in self.__dict__.items() if k != "trajectory"}
         d["displacement_m"] = self.displacement_m
         return d
@@ -111,7 +132,7 @@ class Simulator:
 
     Parameters
     ----------
-    contact : ContactParams, or a preset name/path (default ``"seed"``).
+    contact : ContactParams (a preset by name: :func:`microconveyor_env.presets.simulator`).
     shape : deformation shape, one of ``gaussian``, ``sinusoidal``, ``clamped_beam``.
     wavelength : deformation wavelength WL [m] (> 0).
     kinematics : ``seed`` (drops the velocity terms of the normal load, the dissertation's model)
@@ -123,7 +144,7 @@ class Simulator:
         resolved whatever dt is); fewer than 20 steps per stroke gives a StepSizeWarning.
     slope : constant tilt of the carrier, tan(angle) [-] (0: horizontal).
     max_time : simulated-time limit [s].
-    roughness : ``constant`` (the preset's sigma) or ``stretch`` (physics.md §4: the strain of the
+    roughness : ``constant`` (the preset's sigma) or ``stretch`` (docs/physics.md §4: the strain of the
         active zone under the part sets sigma, and Q(N) and the pull-off force follow it; tables
         over ``n_sigma`` strains in [0, ``max_strain``], see :mod:`.stretch`).
     zone_length : length of the active zone centred on the firing actuator [m] (default: the
@@ -133,24 +154,19 @@ class Simulator:
         seconds of computing); a schedule needing more is refused up front. Raise it if you mean it.
     """
 
-    def __init__(self, contact="seed", shape: str = "gaussian", wavelength: float = 0.6e-3,
-                 kinematics: str | None = None, mode: str = DEFAULT_MODE, dt: float = DEFAULT_DT,
+    def __init__(self, contact: ContactParams, shape: str = "gaussian", wavelength: float = 0.6e-3,
+                 kinematics: str = "reduced", mode: str = DEFAULT_MODE, dt: float = DEFAULT_DT,
                  slope: float = 0.0, max_time: float = 10.0,
                  min_steps: int = MIN_STEPS_PER_STROKE, max_steps: int = MAX_STEPS,
                  roughness: str = "constant", zone_length: float | None = None,
-                 max_strain: float = 0.4, n_sigma: int = 21):
-        defaults = {}
+                 max_strain: float = 0.4, n_sigma: int = 21) -> None:
         if not isinstance(contact, ContactParams):
-            from ..presets import load_preset
-
-            preset = load_preset(contact)
-            contact, defaults = preset.contact, preset.dynamics
+            raise ParameterError(f"contact = {contact!r} is invalid: Simulator takes ContactParams; "
+                                 "for a preset by name use microconveyor_env.presets.simulator("
+                                 "name, ...)")
         if shape not in SHAPES:
             raise ParameterError(f"shape = {shape!r} is invalid: must be one of {sorted(SHAPES)}")
-        kinematics = kinematics or defaults.get("kinematics", "seed")
-        if kinematics not in KINEMATICS:
-            raise ParameterError(f"kinematics = {kinematics!r} is invalid: must be one of "
-                                 f"{KINEMATICS}")
+        kinematics = kinematics_level(kinematics, "Simulator")
         if mode not in MODES:
             raise ParameterError(f"mode = {mode!r} is invalid: must be one of {sorted(MODES)}")
         if roughness not in ROUGHNESS:
@@ -173,22 +189,23 @@ class Simulator:
         self.table = ContactTable(contact)
         self.table.check_weight()
         self.mass = contact.part.mass
-        P = np.zeros(F.N_PARAMS)
-        P[F.I_MASS], P[F.I_G0] = self.mass, G0
-        P[F.I_NMIN] = -self.table.pull_off_force
-        P[F.I_EXACT] = 1.0 if kinematics == "exact" else 0.0
-        P[F.I_SLOPE], P[F.I_WL] = self.slope, self.wavelength
-        P[F.I_SHAPE], P[F.I_MODE] = SHAPES[shape], MODES[mode]
-        P[F.I_NMAX] = self.table.max_load
+        P = np.zeros(forces.N_PARAMS)
+        P[forces.I_MASS], P[forces.I_G0] = self.mass, G0
+        P[forces.I_NMIN] = -self.table.pull_off_force
+        P[forces.I_EXACT] = 1.0 if kinematics == "exact" else 0.0
+        P[forces.I_SLOPE], P[forces.I_WL] = self.slope, self.wavelength
+        P[forces.I_SHAPE], P[forces.I_MODE] = SHAPES[shape], MODES[mode]
+        P[forces.I_NMAX] = self.table.max_load
         self.params = P
         tu, tq, tqu, _ = self.table.kernel_arrays()
-        self.tables = (np.ascontiguousarray(tu), np.ascontiguousarray(tq), np.ascontiguousarray(tqu))
-        self.stretch = None
+        self.tables: tuple[np.ndarray, ...] = (np.ascontiguousarray(tu), np.ascontiguousarray(tq),
+                              np.ascontiguousarray(tqu))
+        self.stretch: Any = None  # StretchContact with roughness='stretch'
         if roughness == "stretch":
             self._setup_stretch(zone_length, max_strain, n_sigma)
 
     # ------------------------------------------------------------------ stretch
-    def _setup_stretch(self, zone_length, max_strain, n_sigma) -> None:
+    def _setup_stretch(self, zone_length: float | None, max_strain: float, n_sigma: int) -> None:
         from .stretch import StretchContact, pack_tables, strain_table
 
         zone = self.wavelength if zone_length is None else check_range(
@@ -209,10 +226,10 @@ class Simulator:
         step, e = strain_table(shape, self.wavelength, zone, hi)
         n_sig = pk["n_sigma"]
         P = np.concatenate([self.params, pk["offsets"], pk["n_min"], e])
-        P[F.I_STRETCH], P[F.I_ZONE], P[F.I_A2STEP] = 1.0, 0.5 * zone, step
-        P[F.I_NSTRAIN], P[F.I_NSIG], P[F.I_EMAX] = e.size, n_sig, pk["max_strain"]
-        P[F.I_NMIN] = pk["n_min"][0]
-        P[F.I_NMAX] = self.stretch_max_load = pk["max_load"]
+        P[forces.I_STRETCH], P[forces.I_ZONE], P[forces.I_A2STEP] = 1.0, 0.5 * zone, step
+        P[forces.I_NSTRAIN], P[forces.I_NSIG], P[forces.I_EMAX] = e.size, n_sig, pk["max_strain"]
+        P[forces.I_NMIN] = pk["n_min"][0]
+        P[forces.I_NMAX] = self.stretch_max_load = pk["max_load"]
         self.params = P
         # (1, L) arrays: their dimension selects the stretch lookup when the kernel is compiled
         # (forces.friction_at), so the constant-roughness code carries no stretch test at all
@@ -227,8 +244,8 @@ class Simulator:
 
     # ------------------------------------------------------------------ checks
     def check_firings(self, f: np.ndarray, h: np.ndarray) -> None:
-        """Warn about under-resolved strokes; refuse loads beyond the contact table and more
-        steps than ``max_steps``."""
+        """Warn about under-resolved strokes at frequencies ``f`` [Hz] and strokes ``h`` [m];
+        refuse loads beyond the contact table and more steps than ``max_steps``."""
         check_step_budget("Simulator", f, self.dt, self.min_steps, self.max_steps, self.max_time)
         steps = stroke_steps(f, self.dt, self.min_steps)
         if steps.min() < MIN_STEPS_PER_STROKE:
@@ -262,42 +279,44 @@ class Simulator:
         cap = 0
         if record:
             cap = (int(stroke_steps(f, self.dt, self.min_steps).sum()) * 2
-                   + (12 + 2 * K.COAST_POINTS) * len(f) + 64)
-        rec = np.zeros((cap, K.N_REC))
-        out = np.zeros(K.N_OUT)
+                   + (12 + 2 * kernel.COAST_POINTS) * len(f) + 64)
+        rec = np.zeros((cap, kernel.N_REC))
+        out = np.zeros(kernel.N_OUT)
         t0 = time.perf_counter()
-        K.run(xa, f, h, d, x0, v0, 0.0, self.dt, self.min_steps, to_rest, self.max_time, self.params,
-              *self.tables, rec, out)
+        kernel.run(xa, f, h, d, x0, v0, 0.0, self.dt, self.min_steps, to_rest,  # type: ignore[call-arg]
+              self.max_time, self.params, *self.tables, rec, out)
         wall = time.perf_counter() - t0
         return self._result(out, x0, rec, wall, record)
 
-    def _result(self, out, x0, rec, wall, record) -> Result:
-        outcome = K.OUTCOMES[int(out[K.O_OUTCOME])]
+    def _result(self, out: np.ndarray, x0: float, rec: np.ndarray, wall: float,
+                record: bool) -> Result:
+        outcome = kernel.OUTCOMES[int(out[kernel.O_OUTCOME])]
         if outcome == "load_beyond_table":
             raise TableRangeError(f"the normal load exceeded the contact table "
-                                  f"({self.table.max_load:.3g} N) at t = {out[K.O_EVENT_T]:.6g} s, "
-                                  f"x = {out[K.O_EVENT_X]:.6g} m; rebuild it with a larger load_ratio")
+                                  f"({self.table.max_load:.3g} N) at t = {out[kernel.O_EVENT_T]:.6g} s, "
+                                  f"x = {out[kernel.O_EVENT_X]:.6g} m; rebuild it with a larger load_ratio")
         detached = outcome == "detached"
         traj = None
         if record:
-            n = int(out[K.O_NREC])
+            n = int(out[kernel.O_NREC])
             r = rec[:n]
-            traj = {"t_s": r[:, K.R_T], "x_m": r[:, K.R_X], "v_m_s": r[:, K.R_V],
-                    "y_m": r[:, K.R_Y], "N_N": r[:, K.R_N], "Q_N": r[:, K.R_Q],
-                    "F_N": r[:, K.R_F], "stick": r[:, K.R_STICK] > 0.5}
+            traj = {"t_s": r[:, kernel.R_T], "x_m": r[:, kernel.R_X], "v_m_s": r[:, kernel.R_V],
+                    "y_m": r[:, kernel.R_Y], "N_N": r[:, kernel.R_N], "Q_N": r[:, kernel.R_Q],
+                    "F_N": r[:, kernel.R_F], "stick": r[:, kernel.R_STICK] > 0.5}
         return Result(
-            x0_m=x0, final_position_m=float(out[K.O_X]), final_velocity_m_s=float(out[K.O_V]),
-            outcome=outcome, end_time_s=float(out[K.O_T]),
-            rest_time_s=float(out[K.O_T]) if outcome == "rest" else None,
-            detach_time_s=float(out[K.O_EVENT_T]) if detached else None,
-            detach_position_m=float(out[K.O_EVENT_X]) if detached else None,
-            steps=int(out[K.O_STEPS]), events=int(out[K.O_EVENTS]), wall_time_s=wall,
+            x0_m=x0, final_position_m=float(out[kernel.O_X]), final_velocity_m_s=float(out[kernel.O_V]),
+            outcome=outcome, end_time_s=float(out[kernel.O_T]),
+            rest_time_s=float(out[kernel.O_T]) if outcome == "rest" else None,
+            detach_time_s=float(out[kernel.O_EVENT_T]) if detached else None,
+            detach_position_m=float(out[kernel.O_EVENT_X]) if detached else None,
+            steps=int(out[kernel.O_STEPS]), events=int(out[kernel.O_EVENTS]), wall_time_s=wall,
             trajectory=traj)
 
     def steps_per_stroke(self, frequency: float) -> int:
+        """RK4 steps [-] of one stroke at ``frequency`` [Hz]."""
         f = check_range("Simulator", "frequency", frequency, 0, math.inf, True, unit="Hz")
         check_step_budget("Simulator", f, self.dt, self.min_steps, self.max_steps)
-        return int(K.steps_for(f, self.dt, self.min_steps))
+        return int(kernel.steps_for(f, self.dt, self.min_steps))
 
     def flat_deceleration(self) -> float:
         """Deceleration of a sliding part on the flat, still surface, Q(m g0)/m [m/s^2]."""

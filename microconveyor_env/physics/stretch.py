@@ -13,8 +13,10 @@ interpolation error is measured by :meth:`StretchContact.sigma_interpolation_err
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from .contact_table import ContactTable
 from .materials import ContactParams, ParameterError, check_range
@@ -37,12 +39,12 @@ class StretchContact:
     ----------
     params : the unstretched contact parameters.
     max_strain : largest strain tabulated [-] (0 < max_strain < 1).
-    n_sigma : number of sigma nodes (uniform in strain).
+    n_sigma : number of sigma nodes [-] (uniform in strain).
     table_kw : passed on to :class:`ContactTable`.
     """
 
     def __init__(self, params: ContactParams, max_strain: float = 0.4, n_sigma: int = 21,
-                 **table_kw):
+                 **table_kw: Any) -> None:
         check_range("StretchContact", "max_strain", max_strain, 0.0, 1.0, True, True)
         if isinstance(n_sigma, bool) or not isinstance(n_sigma, int) or not 2 <= n_sigma <= 1000:
             raise ParameterError(f"StretchContact.n_sigma = {n_sigma!r} is invalid: must be an "
@@ -54,11 +56,11 @@ class StretchContact:
         self.sigmas = np.array([t.params.surface.sigma for t in self.tables])  # decreasing
         self._table_kw = table_kw
 
-    def sigma_at_strain(self, strain) -> np.ndarray:
-        """sigma_n(e) [m]."""
+    def sigma_at_strain(self, strain: npt.ArrayLike) -> np.ndarray:
+        """sigma_n(e) [m] at strain e [-]."""
         return self.params.surface.sigma * (1.0 - self.params.materials.nu1 * np.asarray(strain))
 
-    def _weights(self, sigma: float):
+    def _weights(self, sigma: float) -> tuple[int, float]:
         s = float(sigma)
         if not (self.sigmas[-1] <= s <= self.sigmas[0]):
             raise ParameterError(f"sigma = {s:.6g} m is outside the tabulated range "
@@ -68,17 +70,17 @@ class StretchContact:
         i = min(int(x), len(self.sigmas) - 2)
         return i, x - i
 
-    def pull_off_force(self, sigma) -> np.ndarray:
+    def pull_off_force(self, sigma: npt.ArrayLike) -> np.ndarray:
         """Pull-off force [N] as a function of roughness sigma [m] (linear in sigma)."""
         f = np.array([t.pull_off_force for t in self.tables])
         return np.interp(np.asarray(sigma, float), self.sigmas[::-1], f[::-1])
 
-    def friction(self, load, sigma: float) -> np.ndarray:
+    def friction(self, load: npt.ArrayLike, sigma: float) -> np.ndarray:
         """Maximum static friction Q [N] at load N [N] and roughness sigma [m]."""
         i, a = self._weights(sigma)
         return (1 - a) * self.tables[i].friction(load) + a * self.tables[i + 1].friction(load)
 
-    def sigma_interpolation_error(self, loads) -> dict:
+    def sigma_interpolation_error(self, loads: npt.ArrayLike) -> dict[str, float]:
         """Largest relative error of the sigma-interpolated Q and F_pull against tables built
         directly at the midpoints of the sigma grid, over the given loads [N]."""
         worst_q = worst_f = 0.0
@@ -102,9 +104,10 @@ N_STRAIN_NODES = 129  # strain-of-amplitude table, uniform in amplitude^2
 
 
 def strain_table(shape_code: int, wavelength: float, zone_length: float, max_amplitude: float,
-                 n: int = N_STRAIN_NODES):
+                 n: int = N_STRAIN_NODES) -> tuple[float, np.ndarray]:
     """Zone strain e(A) of the active zone (length ``zone_length`` [m], centred on the actuator)
-    deflected to amplitude A [m], on nodes uniform in A^2 from 0 to ``max_amplitude``^2.
+    deflected to amplitude A [m], on ``n`` [-] nodes uniform in A^2 from 0 to ``max_amplitude`` [m]
+    squared; ``shape_code`` [-] the kinematics' shape code, ``wavelength`` [m].
 
     Returns ``(a2_step [m^2], e_nodes [-])``; e is close to linear in A^2 (e ~ c A^2 for small A),
     so linear interpolation in A^2 is accurate (measured by :func:`strain_table_error`)."""
@@ -118,7 +121,8 @@ def strain_table(shape_code: int, wavelength: float, zone_length: float, max_amp
 
 def strain_table_error(shape_code: int, wavelength: float, zone_length: float,
                        max_amplitude: float, samples: int = 400) -> float:
-    """Largest absolute error [-] of the interpolated zone strain over [0, max_amplitude]."""
+    """Largest absolute error [-] of the interpolated zone strain over [0, max_amplitude] [m], at
+    ``samples`` [-] amplitudes (``wavelength``, ``zone_length`` [m])."""
     from .kinematics import zone_strain
 
     step, e = strain_table(shape_code, wavelength, zone_length, max_amplitude)
@@ -129,7 +133,7 @@ def strain_table_error(shape_code: int, wavelength: float, zone_length: float,
     return float(np.max(np.abs(interp - exact)))
 
 
-def pack_tables(stretch: StretchContact) -> dict:
+def pack_tables(stretch: StretchContact) -> dict[str, Any]:
     """The sigma-node tables as flat arrays for a compiled lookup: node arrays of table k are
     ``u[o_k:o_k+1]`` etc. with ``o = offsets``; ``n_min[k] = -F_pull`` of table k [N]; the strain
     nodes are uniform from 0 to ``max_strain``."""

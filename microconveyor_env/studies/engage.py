@@ -14,18 +14,23 @@ the second actuator carries the part on (accelerates it), < 0 where it brakes it
 """
 from __future__ import annotations
 
+from typing import Any
+
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
 from ..physics.contact_table import TableRangeError
 from ..physics.schedule import ActuatorArray, Firing, Schedule
+from ..physics.simulator import Result, Simulator
 from .engine import run_tasks, simulator
 
 SPEED_STATEMENT = {"freq_hz": 500.0, "stroke_m": 150e-6, "rise_to_m_s": 0.15, "fall_to_m_s": 0.32}
 
 
-def _run(sim, schedule, x0, v0=0.0, to_rest=True):
+def _run(sim: Simulator, schedule: Schedule, x0: float, v0: float = 0.0,
+         to_rest: bool = True) -> Result | None:
     try:
         r = sim.simulate(schedule, x0=x0, v0=v0, to_rest=to_rest)
     except TableRangeError:
@@ -33,9 +38,9 @@ def _run(sim, schedule, x0, v0=0.0, to_rest=True):
     return r
 
 
-def map_column(task: dict) -> list:
-    """Rows of one (freq, x0) column of the engaging map over the task's ``v0s``."""
-    sim = simulator(task.get("preset", "seed"), **task.get("sim_kw", {}))
+def map_column(task: dict[str, Any]) -> list[dict[str, Any]]:
+    """Rows of one (freq [Hz], x0 [m]) column of the engaging map over the task's ``v0s`` [m/s]."""
+    sim = simulator(task.get("preset", "dissertation"), **task.get("sim_kw", {}))
     f, h, x0 = task["freq_hz"], task["stroke_m"], task["x0_m"]
     a = sim.flat_deceleration()
     sched = Schedule.single(f, h)
@@ -44,7 +49,7 @@ def map_column(task: dict) -> list:
         r = _run(sim, sched, x0, v0)
         coast = math.copysign(v0 * v0 / (2 * a), v0)
         if r is None:
-            out = {"outcome": "load_beyond_table", "travel_m": math.nan}
+            out: dict[str, Any] = {"outcome": "load_beyond_table", "travel_m": math.nan}
         else:
             out = {"outcome": r.outcome, "travel_m": r.displacement_m}
         along = out["travel_m"] * (1.0 if v0 >= 0 else -1.0)
@@ -56,11 +61,14 @@ def map_column(task: dict) -> list:
     return rows
 
 
-def engage_map_rows(freqs=(300.0, 500.0, 700.0), stroke: float = 150e-6,
-                    x0s=tuple(np.round(np.arange(-0.6e-3, 0.6e-3 + 1e-9, 0.05e-3), 9)),
-                    v0s=tuple(np.round(np.arange(-0.5, 0.5 + 1e-9, 0.01), 6)),
-                    preset: str = "seed", sim_kw=None, **engine_kw) -> list:
-    """The engaging map: frequencies [Hz] x start positions [m] x initial velocities [m/s]."""
+def engage_map_rows(freqs: Sequence[float] = (300.0, 500.0, 700.0), stroke: float = 150e-6,
+                    x0s: Sequence[float] = tuple(
+                        np.round(np.arange(-0.6e-3, 0.6e-3 + 1e-9, 0.05e-3), 9)),
+                    v0s: Sequence[float] = tuple(np.round(np.arange(-0.5, 0.5 + 1e-9, 0.01), 6)),
+                    preset: str = "dissertation", sim_kw: dict[str, Any] | None = None,
+                    **engine_kw: Any) -> list[dict[str, Any]]:
+    """The engaging map: frequencies [Hz] x start positions [m] x initial velocities [m/s], strokes
+    of ``stroke`` [m]; ``sim_kw`` go to the simulator, ``engine_kw`` to :func:`.engine.run_tasks`."""
     tasks = [{"freq_hz": float(f), "stroke_m": float(stroke), "x0_m": float(x0),
               "v0s": tuple(float(v) for v in v0s), "preset": preset, "sim_kw": sim_kw or {}}
              for f in freqs for x0 in x0s]
@@ -68,9 +76,10 @@ def engage_map_rows(freqs=(300.0, 500.0, 700.0), stroke: float = 150e-6,
     return run_tasks(map_column, tasks, **engage_kw)
 
 
-def _extrema(v, y):
+def _extrema(v: np.ndarray, y: np.ndarray) -> tuple[list[int], list[int]]:
     """Interior local maxima and minima of y(v) (plateaus collapsed)."""
-    mx, mn = [], []
+    mx: list[int] = []
+    mn: list[int] = []
     for i in range(1, len(v) - 1):
         if y[i] > y[i - 1] and y[i] >= y[i + 1]:
             mx.append(i)
@@ -79,7 +88,7 @@ def _extrema(v, y):
     return mx, mn
 
 
-def _pattern(v, y):
+def _pattern(v: np.ndarray, y: np.ndarray) -> tuple[float, float] | None:
     """First (speed of a local max, speed of the next local min) with y rising again after the
     min, or None."""
     mx, mn = _extrema(v, y)
@@ -90,22 +99,25 @@ def _pattern(v, y):
     return None
 
 
-def check_speed_statement(rows, tol_m_s: float = 0.05, statement=SPEED_STATEMENT,
-                          measures=("travel_along_m", "gain_along_m")) -> dict:
+def check_speed_statement(rows: list[dict[str, Any]], tol_m_s: float = 0.05,
+                          statement: dict[str, float] = SPEED_STATEMENT,
+                          measures: Sequence[str] = ("travel_along_m", "gain_along_m"),
+                          ) -> dict[str, Any]:
     """Test "travel rises with initial speed up to ~0.15 m/s, falls to ~0.32 m/s, then rises
     again" on the map rows at the statement's frequency and stroke, per start position and
     direction of motion, detached runs excluded. Two readings of "travel": the whole travel
-    along the motion (``travel_along_m``) and the gain over coasting (``gain_along_m``)."""
+    along the motion (``travel_along_m``) and the gain over coasting (``gain_along_m``), both [m];
+    speeds match within ``tol_m_s`` [m/s]."""
     f, h = statement["freq_hz"], statement["stroke_m"]
     sel = [r for r in rows if r["freq_hz"] == f and r["stroke_m"] == h]
     if not sel:
         return {"checked": False, "reason": f"no rows at {f} Hz, h = {h} m"}
     target = (statement["rise_to_m_s"], statement["fall_to_m_s"])
-    out = {"checked": True, "freq_hz": f, "stroke_m": h, "tolerance_m_s": tol_m_s,
+    out: dict[str, Any] = {"checked": True, "freq_hz": f, "stroke_m": h, "tolerance_m_s": tol_m_s,
            "statement": "travel rises with initial speed up to ~0.15 m/s, falls to ~0.32 m/s, "
                         "then rises again"}
     for measure in measures:
-        per = []
+        per: list[dict[str, Any]] = []
         for x0 in sorted({r["x0_m"] for r in sel}):
             for sgn in (1.0, -1.0):
                 col = sorted((abs(r["v0_m_s"]), r[measure]) for r in sel
@@ -128,9 +140,9 @@ def check_speed_statement(rows, tol_m_s: float = 0.05, statement=SPEED_STATEMENT
 
 
 # ----------------------------------------------------------------------------- two actuators
-def two_column(task: dict) -> list:
-    """Rows of one spacing of the two-actuator map over the task's delays."""
-    sim = simulator(task.get("preset", "seed"), **task.get("sim_kw", {}))
+def two_column(task: dict[str, Any]) -> list[dict[str, Any]]:
+    """Rows of one spacing [m] of the two-actuator map over the task's delays [s]."""
+    sim = simulator(task.get("preset", "dissertation"), **task.get("sim_kw", {}))
     f, h, sp, x0 = task["freq_hz"], task["stroke_m"], task["spacing_m"], task["x0_m"]
     arr = ActuatorArray((0.0, sp))
     one = _run(sim, Schedule(arr, (Firing(0, f, h),)), x0)
@@ -157,10 +169,14 @@ def two_column(task: dict) -> list:
 
 
 def two_actuator_rows(freq: float = 950.0, stroke: float = 200e-6, start_offset: float = 0.125e-3,
-                      spacings=tuple(np.round(np.arange(0.2e-3, 1.5e-3 + 1e-9, 0.05e-3), 9)),
-                      delays=tuple(np.round(np.arange(0.0, 8e-3 + 1e-12, 0.2e-3), 9)),
-                      preset: str = "seed", sim_kw=None, **engine_kw) -> list:
-    """Final position over (delay [s], spacing [m]) at ``freq`` [Hz] and ``stroke`` [m]."""
+                      spacings: Sequence[float] = tuple(
+                          np.round(np.arange(0.2e-3, 1.5e-3 + 1e-9, 0.05e-3), 9)),
+                      delays: Sequence[float] = tuple(
+                          np.round(np.arange(0.0, 8e-3 + 1e-12, 0.2e-3), 9)),
+                      preset: str = "dissertation", sim_kw: dict[str, Any] | None = None,
+                      **engine_kw: Any) -> list[dict[str, Any]]:
+    """Final position over (delay [s], spacing [m]) at ``freq`` [Hz] and ``stroke`` [m], the part
+    starting ``start_offset`` [m] upstream of the first actuator."""
     tasks = [{"freq_hz": float(freq), "stroke_m": float(stroke), "spacing_m": float(s),
               "x0_m": -float(start_offset), "delays_s": tuple(float(d) for d in delays),
               "preset": preset, "sim_kw": sim_kw or {}} for s in spacings]
@@ -168,7 +184,9 @@ def two_actuator_rows(freq: float = 950.0, stroke: float = 200e-6, start_offset:
     return run_tasks(two_column, tasks, **engage_kw)
 
 
-def summarise_two(rows) -> dict:
+def summarise_two(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """Counts of runs that the second actuator accelerates (> 1 um further) or brakes, the best
+    final position [m] and the strongest brake."""
     ok = [r for r in rows if not r["detached"] and not math.isnan(r["extra_m"])]
     acc = [r for r in ok if r["extra_m"] > 1e-6]
     brk = [r for r in ok if r["extra_m"] < -1e-6]

@@ -16,29 +16,42 @@ contact tables are cached on each worker's disk (``$MICROCONVEYOR_CACHE_DIR``).
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any, Callable
+
 import functools
 import sys
 import time
+from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
 from ..physics.materials import ParameterError
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from ..physics.simulator import Simulator
+
+Row = dict[str, Any]    # one table row: parameters and results, SI units in the key names
+Task = dict[str, Any]   # the parameters of one task
 
 TIMING_COLUMNS = ("wall_time_s",)  # measured, not computed: excluded when comparing runs
 
 
 # ----------------------------------------------------------------------------- simulators
 @functools.lru_cache(maxsize=128)
-def _simulator(preset, mass, sigma, dgamma, profile, wavelength, sim_items):
+def _simulator(preset: str, mass: float | None, sigma: float | None, dgamma: float | None,
+               profile: str, wavelength: float,
+               sim_items: tuple[tuple[str, Any], ...]) -> Simulator:
     from .sweep import Scene
 
     return Scene(preset=preset, mass=mass, sigma=sigma, dgamma=dgamma, profile=profile,
                  wavelength=wavelength, sim_kw=dict(sim_items)).simulator()
 
 
-def simulator(preset: str = "seed", mass: float | None = None, sigma: float | None = None,
+def simulator(preset: str = "dissertation", mass: float | None = None, sigma: float | None = None,
               dgamma: float | None = None, profile: str = "gaussian", wavelength: float = 0.6e-3,
-              **sim_kw):
+              **sim_kw: Any) -> Simulator:
     """A :class:`Simulator` for these contact/scene values, cached per process.
 
     ``mass`` [kg], ``sigma`` [m], ``dgamma`` [J/m^2] replace the preset's values (None: keep them;
@@ -51,21 +64,22 @@ def simulator(preset: str = "seed", mass: float | None = None, sigma: float | No
 
 
 # ----------------------------------------------------------------------------- running
-def chunked(seq, size: int) -> list:
+def chunked(seq: Sequence[Any], size: int) -> list[list[Any]]:
+    """``seq`` cut into lists of ``size`` [-] items (the last may be shorter)."""
     size = max(1, int(size))
     return [list(seq[i:i + size]) for i in range(0, len(seq), size)]
 
 
-def _run_chunk(func, chunk) -> list:
+def _run_chunk(func: Callable[[Task], list[Row]], chunk: Iterable[Task]) -> list[Row]:
     """Rows of a chunk of tasks (runs on a worker)."""
-    rows = []
+    rows: list[Row] = []
     for task in chunk:
         rows.extend(func(task))
     return rows
 
 
 @contextmanager
-def dask_client(workers: int | None = None, scheduler: str | None = None):
+def dask_client(workers: int | None = None, scheduler: str | None = None) -> Iterator[Any]:
     """A ``distributed.Client``: to the cluster at ``scheduler``, or to a new local cluster of
     ``workers`` processes (1 thread each), closed on exit."""
     from distributed import Client, LocalCluster
@@ -77,7 +91,7 @@ def dask_client(workers: int | None = None, scheduler: str | None = None):
         finally:
             client.close()
         return
-    cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
+    cluster = LocalCluster(n_workers=int(workers or 1), threads_per_worker=1, processes=True,
                            dashboard_address=":0")
     client = Client(cluster)
     try:
@@ -87,9 +101,10 @@ def dask_client(workers: int | None = None, scheduler: str | None = None):
         cluster.close()
 
 
-def run_tasks(func, tasks, *, workers: int | None = None, scheduler: str | None = None,
-              client=None, chunk_size: int | None = None, progress: bool = True,
-              desc: str = "study") -> list:
+def run_tasks(func: Callable[[Task], list[Row]], tasks: Iterable[Task], *,
+              workers: int | None = None, scheduler: str | None = None,
+              client: Any = None, chunk_size: int | None = None, progress: bool = True,
+              desc: str = "study") -> list[Row]:
     """Rows of ``func`` over ``tasks``, in task order (see the module docstring).
 
     ``workers`` [-]: number of local worker processes (None or 0: serial, unless ``scheduler`` or
@@ -105,7 +120,7 @@ def run_tasks(func, tasks, *, workers: int | None = None, scheduler: str | None 
     bar = tqdm(total=len(tasks), desc=desc, file=sys.stderr, disable=not progress, leave=False)
     try:
         if client is None and not scheduler and not workers:
-            rows = []
+            rows: list[Row] = []
             for task in tasks:
                 rows.extend(func(task))
                 bar.update()
@@ -118,7 +133,8 @@ def run_tasks(func, tasks, *, workers: int | None = None, scheduler: str | None 
         bar.close()
 
 
-def _run_dask(client, func, tasks, chunk_size, bar) -> list:
+def _run_dask(client: Any, func: Callable[[Task], list[Row]], tasks: list[Task],
+              chunk_size: int | None, bar: Any) -> list[Row]:
     from distributed import as_completed
 
     n_workers = max(1, len(client.scheduler_info().get("workers", {})))
@@ -130,7 +146,7 @@ def _run_dask(client, func, tasks, chunk_size, bar) -> list:
     data = client.scatter(chunks)
     futures = client.map(functools.partial(_run_chunk, func), data, pure=False)
     index = {f.key: i for i, f in enumerate(futures)}
-    results = [None] * len(chunks)
+    results: list[Any] = [None] * len(chunks)
     for fut in as_completed(futures):
         i = index[fut.key]
         results[i] = fut.result()
@@ -138,7 +154,7 @@ def _run_dask(client, func, tasks, chunk_size, bar) -> list:
     return [row for rows in results for row in rows]
 
 
-def timed(func, *args, **kw):
+def timed(func: Callable[..., Any], *args: Any, **kw: Any) -> tuple[Any, float]:
     """(result, wall time [s]) of one call."""
     t0 = time.perf_counter()
     out = func(*args, **kw)
@@ -146,7 +162,7 @@ def timed(func, *args, **kw):
 
 
 # ----------------------------------------------------------------------------- tables
-def write_table(rows, path) -> Path:
+def write_table(rows: list[Row], path: str | Path) -> Path:
     """Write rows as a tidy table: ``.csv`` or ``.parquet`` (one row per simulation)."""
     import pandas as pd
 
@@ -162,14 +178,15 @@ def write_table(rows, path) -> Path:
     return path
 
 
-def read_table(path):
+def read_table(path: str | Path) -> pd.DataFrame:
+    """A table written by :func:`write_table` (``.parquet``, else CSV)."""
     import pandas as pd
 
     path = Path(path)
     return pd.read_parquet(path) if path.suffix == ".parquet" else pd.read_csv(path)
 
 
-def same_rows(a, b) -> bool:
+def same_rows(a: Sequence[Row], b: Sequence[Row]) -> bool:
     """Whether two row lists are identical, row for row, ignoring :data:`TIMING_COLUMNS`."""
     if len(a) != len(b):
         return False
@@ -185,5 +202,5 @@ def same_rows(a, b) -> bool:
     return True
 
 
-def _isnan(v) -> bool:
+def _isnan(v: object) -> bool:
     return isinstance(v, float) and v != v

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from ..envs.config import EnvConfig
-from ..physics import dynamics_kernel as K
+from ..physics import dynamics_kernel as kernel
 from ..envs.vector import MicroConveyorVectorEnv
 
 CATEGORIES = ("random", "downstream", "near_detachment", "high_speed")
@@ -67,7 +67,7 @@ def run_episodes(actions: np.ndarray, targets: np.ndarray | None = None, repeats
         for j in range(k):
             v_start[:, j] = np.where(done, 0.0, venv.v)
             _, _, term, trunc, info = venv.step(actions[:, j])
-            steps += venv._kout[~done, K.O_STEPS].sum()
+            steps += venv._kout[~done, kernel.O_STEPS].sum()
             new = (term | trunc) & ~done
             x_end[new] = venv.x[new]
             outcome[new] = info["outcome"][new]

@@ -18,12 +18,14 @@ from __future__ import annotations
 import math
 import statistics
 import time
+from collections.abc import Iterable, Sequence
+from typing import Any, Callable
 
 from ..physics.contact_table import TableRangeError
 from ..physics.schedule import ActuatorArray, Schedule
 from .engine import run_tasks, simulator
 
-SCENES = {
+SCENES: dict[str, dict[str, Any]] = {
     "single": {"what": "the seed firing: 950 Hz, h = 200 um, start 0.125 mm beside the actuator",
                "count": 1, "spacing_m": 0.5e-3, "freq_hz": 950.0, "stroke_m": 200e-6,
                "delay_s": 0.0, "x0_m": 0.125e-3},
@@ -36,7 +38,7 @@ SCENES = {
                     "count": 5, "spacing_m": 0.3e-3, "freq_hz": 950.0, "stroke_m": 200e-6,
                     "delay_s": 1e-3, "x0_m": -0.15e-3},
 }
-KINEMATICS = ("seed", "exact")
+KINEMATICS = ("reduced", "exact")
 ROUGHNESS = ("constant",)          # "stretch" is added when the simulator supports it
 MODES = ("event", "karnopp")
 DTS = (5e-5, 2.5e-5, 1.25e-5, 6.25e-6, 3.125e-6, 1.5625e-6)
@@ -44,12 +46,14 @@ REFERENCE_DT = 1e-7
 TOLERANCE_M = 1e-6
 
 
-def schedule_of(scene: dict) -> Schedule:
+def schedule_of(scene: dict[str, Any]) -> Schedule:
+    """The schedule of a scene of :data:`SCENES` (``count`` actuators ``spacing_m`` [m] apart,
+    each fired at ``freq_hz`` [Hz] with ``stroke_m`` [m] after ``delay_s`` [s])."""
     arr = ActuatorArray.uniform(scene["count"], scene["spacing_m"])
     return Schedule.sequence(arr, scene["freq_hz"], scene["stroke_m"], scene["delay_s"])
 
 
-def roughness_levels() -> tuple:
+def roughness_levels() -> tuple[str, ...]:
     """The roughness levels the simulator supports."""
     import inspect
 
@@ -59,14 +63,14 @@ def roughness_levels() -> tuple:
                         and "stretch" not in ROUGHNESS else ())
 
 
-def run_level(task: dict) -> list:
-    """One row: a scene at one (kinematics, roughness, mode, dt) level."""
-    kw = {"kinematics": task["kinematics"], "mode": task["mode"], "dt": task["dt_s"]}
+def run_level(task: dict[str, Any]) -> list[dict[str, Any]]:
+    """One row: a scene at one (kinematics, roughness, mode, dt [s]) level."""
+    kw: dict[str, Any] = {"kinematics": task["kinematics"], "mode": task["mode"], "dt": task["dt_s"]}
     if task["reference"]:
         kw["min_steps"] = 2
     if task["roughness"] != "constant":
         kw["roughness"] = task["roughness"]
-    sim = simulator(task.get("preset", "seed"), **kw)
+    sim = simulator(task.get("preset", "dissertation"), **kw)
     sched = schedule_of(SCENES[task["scene"]])
     x0 = SCENES[task["scene"]]["x0_m"]
     row = {k: task[k] for k in ("scene", "kinematics", "roughness", "mode", "dt_s", "reference")}
@@ -75,7 +79,7 @@ def run_level(task: dict) -> list:
     except TableRangeError:
         return [{**row, "outcome": "load_beyond_table", "position_m": math.nan, "steps": 0,
                  "wall_time_s": math.nan}]
-    walls = []
+    walls: list[float] = []
     for _ in range(int(task.get("repeats", 3))):
         t0 = time.perf_counter()
         sim.simulate(sched, x0=x0)
@@ -85,10 +89,14 @@ def run_level(task: dict) -> list:
              "wall_time_s": statistics.median(walls) if walls else r.wall_time_s}]
 
 
-def tasks(scenes=tuple(SCENES), dts=DTS, modes=MODES, kinematics=KINEMATICS, roughness=None,
-          repeats: int = 3, preset: str = "seed") -> list:
+def tasks(scenes: Sequence[str] = tuple(SCENES), dts: Sequence[float] = DTS,
+          modes: Sequence[str] = MODES, kinematics: Sequence[str] = KINEMATICS,
+          roughness: Iterable[str] | None = None, repeats: int = 3,
+          preset: str = "dissertation") -> list[dict[str, Any]]:
+    """The tasks of the study: per scene and physics level a converged reference (event mode,
+    ``REFERENCE_DT`` [s]) and every (mode, dt [s]); ``repeats`` [-] timed runs each."""
     roughness = roughness_levels() if roughness is None else tuple(roughness)
-    out = []
+    out: list[dict[str, Any]] = []
     for sc in scenes:
         for kin in kinematics:
             for rough in roughness:
@@ -101,27 +109,32 @@ def tasks(scenes=tuple(SCENES), dts=DTS, modes=MODES, kinematics=KINEMATICS, rou
     return out
 
 
-def fidelity_rows(scenes=tuple(SCENES), dts=DTS, modes=MODES, roughness=None, repeats: int = 3,
-                  preset: str = "seed", **engine_kw) -> list:
-    """Raw rows of every (scene, level); :func:`assess` adds the errors."""
+def fidelity_rows(scenes: Sequence[str] = tuple(SCENES), dts: Sequence[float] = DTS,
+                  modes: Sequence[str] = MODES, roughness: Iterable[str] | None = None,
+                  repeats: int = 3, preset: str = "dissertation",
+                  **engine_kw: Any) -> list[dict[str, Any]]:
+    """Raw rows of every (scene, level), steps ``dts`` [s]; :func:`assess` adds the errors."""
     engine_kw.setdefault("desc", "fidelity")
     return run_tasks(run_level, tasks(scenes, dts, modes, KINEMATICS, roughness, repeats, preset),
                      **engine_kw)
 
 
-def _faithful(levels):
+def _faithful(levels: dict[str, list[str]]) -> tuple[str, str]:
     kin = "exact" if "exact" in levels["kinematics"] else levels["kinematics"][0]
     rough = "stretch" if "stretch" in levels["roughness"] else levels["roughness"][0]
     return kin, rough
 
 
-def assess(rows, tolerance_m: float = TOLERANCE_M) -> dict:
-    """Errors per row, physics disagreements, and per scene the cheapest adequate level."""
+def assess(rows: list[dict[str, Any]], tolerance_m: float = TOLERANCE_M) -> dict[str, Any]:
+    """Errors per row [m], physics disagreements (beyond ``tolerance_m`` [m]), and per scene the
+    cheapest adequate level."""
     levels = {"kinematics": sorted({r["kinematics"] for r in rows}),
               "roughness": sorted({r["roughness"] for r in rows})}
     fk, fr = _faithful(levels)
     refs = {(r["scene"], r["kinematics"], r["roughness"]): r for r in rows if r["reference"]}
-    out_rows, physics, rules = [], [], {}
+    out_rows: list[dict[str, Any]] = []
+    physics: list[dict[str, Any]] = []
+    rules: dict[str, Any] = {}
     for r in rows:
         own = refs[(r["scene"], r["kinematics"], r["roughness"])]
         top = refs[(r["scene"], fk, fr)]
@@ -155,10 +168,11 @@ def assess(rows, tolerance_m: float = TOLERANCE_M) -> dict:
             "scenes": {k: v["what"] for k, v in SCENES.items()}}
 
 
-def _stays_within(rows, good) -> list:
+def _stays_within(rows: list[dict[str, Any]],
+                  good: Callable[[dict[str, Any]], bool]) -> list[dict[str, Any]]:
     """Rows that are good at their dt *and at every smaller dt* of the same level and mode (a
     lucky hit of an erratic integrator is not accepted)."""
-    out = []
+    out: list[dict[str, Any]] = []
     for r in rows:
         finer = [q for q in rows if q["kinematics"] == r["kinematics"]
                  and q["roughness"] == r["roughness"] and q["mode"] == r["mode"]
@@ -168,5 +182,5 @@ def _stays_within(rows, good) -> list:
     return out
 
 
-def _cheapest(rows):
+def _cheapest(rows: list[dict[str, Any]]) -> dict[str, Any] | None:
     return dict(min(rows, key=lambda q: q["wall_time_s"])) if rows else None

@@ -1,13 +1,15 @@
 """Charts of the studies (matplotlib Agg, imported lazily; same style as :mod:`..plots`)."""
 from __future__ import annotations
 
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from ..plots import _save, _subplots
 
 
-def _sobol_bars(ax, block: dict, title: str) -> None:
+def _sobol_bars(ax: Any, block: dict[str, Any], title: str) -> None:
     idx = block["indices"]
     x = np.arange(len(idx))
     w = 0.38
@@ -22,7 +24,8 @@ def _sobol_bars(ax, block: dict, title: str) -> None:
     ax.legend(fontsize=8)
 
 
-def plot_sensitivity(table: dict | None, sobol: dict | None, path) -> str:
+def plot_sensitivity(table: dict[str, Any] | None, sobol: dict[str, Any] | None,
+                     path: str | Path) -> str:
     """Left: our Table 3.4 estimates with +-2 standard errors (dissertation sign marked);
     middle/right: Sobol' first-order and total indices (confidence intervals) of the distance and
     of log10(distance)."""
@@ -60,7 +63,8 @@ def plot_sensitivity(table: dict | None, sobol: dict | None, path) -> str:
     return str(_save(fig, path))
 
 
-def _grid(rows, xkey, ykey, zkey):
+def _grid(rows: list[dict[str, Any]], xkey: str, ykey: str,
+          zkey: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     xs = sorted({r[xkey] for r in rows})
     ys = sorted({r[ykey] for r in rows})
     xi = {v: i for i, v in enumerate(xs)}
@@ -73,7 +77,8 @@ def _grid(rows, xkey, ykey, zkey):
     return np.array(xs), np.array(ys), Z, D
 
 
-def _heat(fig, ax, xs, ys, Z, D, cmap, label, sx=1.0, sy=1.0, sz=1.0):
+def _heat(fig: Any, ax: Any, xs: np.ndarray, ys: np.ndarray, Z: np.ndarray, D: np.ndarray,
+          cmap: str, label: str, sx: float = 1.0, sy: float = 1.0, sz: float = 1.0) -> None:
     lim = np.nanmax(np.abs(Z)) * sz if np.isfinite(Z).any() else 1.0
     im = ax.pcolormesh(xs * sx, ys * sy, Z * sz, cmap=cmap, vmin=-lim, vmax=lim,
                        shading="nearest")
@@ -86,10 +91,12 @@ def _heat(fig, ax, xs, ys, Z, D, cmap, label, sx=1.0, sy=1.0, sz=1.0):
     fig.colorbar(im, ax=ax, label=label)
 
 
-def plot_engage(map_rows, two_rows, path) -> str:
+def plot_engage(map_rows: list[dict[str, Any]], two_rows: list[dict[str, Any]],
+                path: str | Path) -> str:
     """Top row: travel over (initial velocity, start position) per frequency (cf. Figs. 4.3-4.8);
     bottom row: the firing's gain over plain coasting. Last column: the two-actuator map, the
-    second actuator's extra travel (top) and the final position (bottom). Detachment hatched."""
+    second actuator's extra travel (top) and the final position (bottom), lengths [m] drawn in mm.
+    Detachment hatched."""
     freqs = sorted({r["freq_hz"] for r in map_rows}) if map_rows else []
     n = max(len(freqs) + (1 if two_rows else 0), 1)
     fig, axes = _subplots(2, n, figsize=(5.2 * n, 8.6), squeeze=False)
@@ -120,18 +127,19 @@ def plot_engage(map_rows, two_rows, path) -> str:
     return str(_save(fig, path))
 
 
-def plot_fidelity(assessed: dict, path) -> str:
+def plot_fidelity(assessed: dict[str, Any], path: str | Path) -> str:
     """Per scene (columns): top, error against the most faithful level (physics + numerics)
     versus wall time; bottom, error against the level's own converged result (numerics only).
-    A level that stays far off on top but converges below differs in physics, not numerics."""
+    A level that stays far off on top but converges below differs in physics, not numerics.
+    Errors [m] drawn in µm, wall times [s] in µs."""
     import textwrap
 
     scenes = [s for s in assessed["scenes"] if any(r["scene"] == s for r in assessed["rows"])]
     fig, axes = _subplots(2, len(scenes), figsize=(5.4 * len(scenes), 8.8), squeeze=False)
     floor = 1e-12
     markers = {"event": "o", "karnopp": "s"}
-    colors = {("seed", "constant"): "tab:blue", ("exact", "constant"): "tab:orange",
-              ("seed", "stretch"): "tab:green", ("exact", "stretch"): "tab:red"}
+    colors = {("reduced", "constant"): "tab:blue", ("exact", "constant"): "tab:orange",
+              ("reduced", "stretch"): "tab:green", ("exact", "stretch"): "tab:red"}
     for k, sc in enumerate(scenes):
         rows = [r for r in assessed["rows"] if r["scene"] == sc]
         for row, key in enumerate(("error_vs_faithful_m", "numerical_error_m")):
@@ -166,8 +174,9 @@ def plot_fidelity(assessed: dict, path) -> str:
     return str(_save(fig, path))
 
 
-def plot_stretch(study: dict, path) -> str:
-    """Travel versus frequency with constant and stretch-dependent roughness (ch. 5)."""
+def plot_stretch(study: dict[str, Any], path: str | Path) -> str:
+    """Travel [m, drawn in µm] versus frequency [Hz] with constant and stretch-dependent roughness
+    (ch. 5)."""
     fig, (ax1, ax2) = _subplots(1, 2, figsize=(12, 4.5))
     for level, st in (("constant", "o-"), ("stretch", "s--")):
         rows = [r for r in study["rows"] if r["roughness"] == level]

@@ -35,9 +35,15 @@ import bisect
 import json
 import math
 import time
+from typing import TYPE_CHECKING, Any
 
 from microconveyor_env.physics.contact_table import ContactTable
-from microconveyor_env.physics.materials import G0
+from microconveyor_env.physics.materials import G0, ContactParams
+
+if TYPE_CHECKING:
+    from microconveyor_env.physics.simulator import Result
+
+TableLists = tuple[list[float], list[float], list[float], float]
 
 DEFAULT_DT_START = 2e-5      # s, first (coarsest) step of the convergence search
 DEFAULT_TIME_BUDGET = 150.0  # s, wall-clock budget of the whole search (incl. the reference run)
@@ -45,19 +51,22 @@ DEFAULT_DT_MIN = 5e-9        # s, hard floor on the step (worst-case search ~15 
 MAX_TIME = 10.0              # s, simulated-time limit (as the package Simulator's default)
 
 
-def _table_lists(contact):
-    """(tu, tq, tqu, n_min) of the contact table as Python lists / float."""
+def _table_lists(contact: ContactParams) -> TableLists:
+    """(tu, tq, tqu, n_min [N]) of the contact table as Python lists / float (SI)."""
     tu, tq, tqu, n_min = ContactTable(contact).kernel_arrays()
     return [float(a) for a in tu], [float(a) for a in tq], [float(a) for a in tqu], float(n_min)
 
 
-def reference_firing(contact, freq=950.0, stroke=200e-6, x0=0.125e-3, dt=1e-6,
-                     wavelength=0.6e-3, *, x_act=0.0, max_time=MAX_TIME, _tables=None) -> dict:
+def reference_firing(contact: ContactParams, freq: float = 950.0, stroke: float = 200e-6,
+                     x0: float = 0.125e-3, dt: float = 1e-6, wavelength: float = 0.6e-3, *,
+                     x_act: float = 0.0, max_time: float = MAX_TIME,
+                     _tables: TableLists | None = None) -> dict[str, Any]:
     """One firing integrated with plain-Python fixed-step RK4 + Karnopp, stroke and coast.
 
-    Parameters: ``contact`` a ContactParams (e.g. ``load_preset("seed").contact``), ``freq`` [Hz],
+    Parameters: ``contact`` a ContactParams (e.g. ``load_preset("dissertation").contact``), ``freq`` [Hz],
     ``stroke`` height h [m], ``x0`` start position [m] (part at rest), ``dt`` nominal step [s]
-    (adjusted to ``T/n``, ``n = ceil(T/dt)``), ``wavelength`` WL [m], ``x_act`` actuator [m].
+    (adjusted to ``T/n``, ``n = ceil(T/dt)``), ``wavelength`` WL [m], ``x_act`` actuator [m],
+    ``max_time`` simulated-time limit [s].
 
     Returns a dict: ``displacement_m``, ``final_position_m``, ``rest_time_s`` (time the part came
     to rest, None unless ``outcome == 'rest'``), ``outcome`` ('rest', 'detached', or 'max_time' if
@@ -82,7 +91,7 @@ def reference_firing(contact, freq=950.0, stroke=200e-6, x0=0.125e-3, dt=1e-6,
     exp, sqrt = math.exp, math.sqrt
     bisect_right = bisect.bisect_right
 
-    def friction(N):
+    def friction(N: float) -> float:
         """Q(N): cubic Hermite in u = sqrt(N - n_min) (N below pull-off clamped to it)."""
         du = N - n_min
         u = sqrt(du) if du > 0.0 else 0.0
@@ -99,7 +108,7 @@ def reference_firing(contact, freq=950.0, stroke=200e-6, x0=0.125e-3, dt=1e-6,
         return ((2 * t3 - 3 * t2 + 1) * tq[lo] + (t3 - 2 * t2 + t) * hh * tqu[lo]
                 + (-2 * t3 + 3 * t2) * tq[lo + 1] + (t3 - t2) * hh * tqu[lo + 1])
 
-    def load(x, t):
+    def load(x: float, t: float) -> tuple[float, float, float]:
         """(N, Y_x, cos(theta)) at position x, time t since the stroke start (seed kinematics)."""
         if 0.0 <= t <= T:
             if t <= half:
@@ -117,11 +126,11 @@ def reference_firing(contact, freq=950.0, stroke=200e-6, x0=0.125e-3, dt=1e-6,
         c = 1.0 / sqrt(1.0 + Yx * Yx)
         return m * c * (G0 + p_tt * g), Yx, c
 
-    def accel(x, t, s):
+    def accel(x: float, t: float, s: float) -> float:
         N, Yx, c = load(x, t)
         return (-s * friction(N) * c - N * Yx * c) / m
 
-    def rk4(x, v, t, hs, s):
+    def rk4(x: float, v: float, t: float, hs: float, s: float) -> tuple[float, float]:
         a1 = accel(x, t, s)
         v2 = v + 0.5 * hs * a1
         a2 = accel(x + 0.5 * hs * v, t + 0.5 * hs, s)
@@ -137,7 +146,9 @@ def reference_firing(contact, freq=950.0, stroke=200e-6, x0=0.125e-3, dt=1e-6,
     x, v, t = float(x0), 0.0, 0.0
     k = 0
     outcome = "max_time"
-    rest_time = detach_time = detach_x = None
+    rest_time: float | None = None
+    detach_time: float | None = None
+    detach_x: float | None = None
     while k < max_steps:
         t_end = T if k == n - 1 else (k + 1) * dt
         N, Yx, c = load(x, t)
@@ -168,9 +179,11 @@ def reference_firing(contact, freq=950.0, stroke=200e-6, x0=0.125e-3, dt=1e-6,
             "detach_time_s": detach_time, "detach_position_m": detach_x}
 
 
-def package_displacement(contact, freq=950.0, stroke=200e-6, x0=0.125e-3, dt=1e-6,
-                         wavelength=0.6e-3, mode="event"):
-    """The package's answer (``Simulator(contact, mode=mode, dt=dt)``), as a Result."""
+def package_displacement(contact: ContactParams, freq: float = 950.0, stroke: float = 200e-6,
+                         x0: float = 0.125e-3, dt: float = 1e-6, wavelength: float = 0.6e-3,
+                         mode: str = "event") -> Result:
+    """The package's answer (``Simulator(contact, mode=mode, dt=dt)``), as a Result: ``freq`` [Hz],
+    ``stroke`` [m], ``x0`` [m], ``dt`` [s], ``wavelength`` [m]."""
     from microconveyor_env.physics.schedule import Schedule
     from microconveyor_env.physics.simulator import Simulator
 
@@ -178,10 +191,11 @@ def package_displacement(contact, freq=950.0, stroke=200e-6, x0=0.125e-3, dt=1e-
     return sim.simulate(Schedule.single(freq, stroke), x0=x0)
 
 
-def converged_dt(contact, target_m=1e-6, reference_m=None, *, dt_start=DEFAULT_DT_START,
-                 time_budget_s=DEFAULT_TIME_BUDGET, dt_min=DEFAULT_DT_MIN, **kw) -> dict:
-    """Halve dt from ~``dt_start`` until the displacement is within ``target_m`` of ``reference_m``
-    **and** stays within it at the next halving (Karnopp convergence is erratic).
+def converged_dt(contact: ContactParams, target_m: float = 1e-6, reference_m: float | None = None,
+                 *, dt_start: float = DEFAULT_DT_START, time_budget_s: float = DEFAULT_TIME_BUDGET,
+                 dt_min: float = DEFAULT_DT_MIN, **kw: Any) -> dict[str, Any]:
+    """Halve dt [s] from ~``dt_start`` [s] until the displacement is within ``target_m`` [m] of
+    ``reference_m`` [m] **and** stays within it at the next halving (Karnopp convergence is erratic).
 
     ``reference_m`` defaults to the package's converged answer, ``Simulator(contact, mode="event",
     dt=1e-6)``. ``kw`` (freq, stroke, x0, wavelength) go to :func:`reference_firing`. The first step
@@ -203,9 +217,9 @@ def converged_dt(contact, target_m=1e-6, reference_m=None, *, dt_start=DEFAULT_D
     freq = float(kw.get("freq", 950.0))
     T = 1.0 / freq
     dt = T / max(int(math.ceil(T / dt_start - 1e-9)), 1)
-    tried: list[tuple] = []
-    chosen: tuple | None = None
-    stopped_by = None
+    tried: list[tuple[float, float, float, float]] = []
+    chosen: tuple[float, float, float, float] | None = None
+    stopped_by: str | None = None
     last_wall = 0.0
     while True:
         if tried and dt < dt_min:
@@ -237,4 +251,4 @@ def converged_dt(contact, target_m=1e-6, reference_m=None, *, dt_start=DEFAULT_D
 if __name__ == "__main__":
     from microconveyor_env.presets import load_preset
 
-    print(json.dumps(converged_dt(load_preset("seed").contact), indent=2))
+    print(json.dumps(converged_dt(load_preset("dissertation").contact), indent=2))

@@ -9,16 +9,21 @@ variables of every factor level (the lowest level is the reference) and on ``log
 statsmodels' formula API.
 
 The dissertation's numeric Table 3.4 is not available to us: the comparison column is the *sign*
-each trend in physics.md §5 implies (:data:`DISSERTATION_SIGNS`), never a number.
+each trend in docs/physics.md §5 implies (:data:`DISSERTATION_SIGNS`), never a number.
 """
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 from scipy.optimize import minimize_scalar
 
 from .sweep import MIN_TRAVEL_M
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 FACTORS = {  # column -> (formula name, unit scale, label)
     "dgamma_J_m2": ("dgamma", 1.0, "surface energy [J/m^2]"),
@@ -30,7 +35,7 @@ FACTORS = {  # column -> (formula name, unit scale, label)
 }
 FORMULA = ("bc ~ C(dgamma) + C(sigma_nm) + C(stroke_um) + C(mass_kg) + C(wl_mm) + C(x0_wl)"
            " + np.log(freq_hz)")
-# The dissertation's signs as physics.md §5 states them (or as they follow from it); "" = no claim
+# The dissertation's signs as docs/physics.md §5 states them (or as they follow from it); "" = no claim
 DISSERTATION_SIGNS = {
     "dgamma": ("-", "less surface energy -> more travel"),
     "sigma_nm": ("+", "more roughness -> more travel"),
@@ -42,12 +47,14 @@ DISSERTATION_SIGNS = {
 }
 
 
-def boxcox(y, lam: float) -> np.ndarray:
+def boxcox(y: npt.ArrayLike, lam: float) -> np.ndarray:
+    """Box--Cox transform ``(y^lam - 1) / lam`` (``log y`` at ``lam = 0``) of positive ``y`` (any unit;
+    ``lam`` [-])."""
     y = np.asarray(y, float)
     return np.log(y) if lam == 0.0 else (y ** lam - 1.0) / lam
 
 
-def boxcox_loglik(lam: float, y, X=None) -> float:
+def boxcox_loglik(lam: float, y: npt.ArrayLike, X: np.ndarray | None = None) -> float:
     """Profile log-likelihood of ``lam`` for ``boxcox(y, lam) = X b + e`` (X None: intercept)."""
     y = np.asarray(y, float)
     n = y.size
@@ -60,7 +67,8 @@ def boxcox_loglik(lam: float, y, X=None) -> float:
     return -0.5 * n * math.log(rss / n) + (lam - 1.0) * float(np.sum(np.log(y)))
 
 
-def boxcox_lambda(y, X=None, bracket=(-2.0, 2.0)) -> float:
+def boxcox_lambda(y: npt.ArrayLike, X: np.ndarray | None = None,
+                  bracket: tuple[float, float] = (-2.0, 2.0)) -> float:
     """Maximum-likelihood Box--Cox exponent of positive ``y`` for the linear model ``X``."""
     y = np.asarray(y, float)
     if y.size < 3 or np.any(y <= 0):
@@ -70,8 +78,9 @@ def boxcox_lambda(y, X=None, bracket=(-2.0, 2.0)) -> float:
     return float(res.x)
 
 
-def design_frame(rows):
-    """The regression's data: moving, attached design runs, factors in readable units."""
+def design_frame(rows: list[dict[str, Any]]) -> pd.DataFrame:
+    """The regression's data: moving, attached design runs, factors in readable units (the
+    :data:`FACTORS` scales: nm, um, mm; distance in um)."""
     import pandas as pd
 
     df = pd.DataFrame(rows)
@@ -83,7 +92,7 @@ def design_frame(rows):
     return df
 
 
-def fit(df, formula: str = FORMULA):
+def fit(df: pd.DataFrame, formula: str = FORMULA) -> tuple[Any, float]:
     """(statsmodels OLS result, lambda) for the Box--Cox transformed distance [um] in ``df``."""
     import statsmodels.formula.api as smf
 
@@ -93,7 +102,7 @@ def fit(df, formula: str = FORMULA):
     return smf.ols(formula, data=df).fit(), lam
 
 
-def formula_for(df) -> str:
+def formula_for(df: pd.DataFrame) -> str:
     """:data:`FORMULA` without the factors that have a single level in ``df``."""
     terms = [f"C({name})" for name, _, _ in FACTORS.values() if df[name].nunique() > 1]
     if df["freq_hz"].nunique() > 1:
@@ -109,9 +118,9 @@ def _term_factor(term: str) -> str:
     return term
 
 
-def table34(rows, formula: str | None = None) -> dict:
+def table34(rows: list[dict[str, Any]], formula: str | None = None) -> dict[str, Any]:
     """Our Table 3.4: per term estimate, standard error, t, p, the dissertation's sign (from
-    physics.md §5), whether ours agrees; plus R^2, lambda and n."""
+    docs/physics.md §5), whether ours agrees; plus R^2, lambda and n."""
     df = design_frame(rows)
     formula = formula or formula_for(df)
     res, lam = fit(df, formula)
@@ -130,10 +139,11 @@ def table34(rows, formula: str | None = None) -> dict:
             "boxcox_lambda": lam, "n": int(res.nobs), "r_squared": float(res.rsquared),
             "adj_r_squared": float(res.rsquared_adj), "terms": terms,
             "note": "the dissertation's numeric Table 3.4 estimates are not available to us; "
-                    "'dissertation_sign' is the trend physics.md §5 states (or implies)"}
+                    "'dissertation_sign' is the trend docs/physics.md §5 states (or implies)"}
 
 
-def table34_text(t: dict) -> str:
+def table34_text(t: dict[str, Any]) -> str:
+    """:func:`table34`'s result as a plain-text table (estimates on the Box-Cox scale of um)."""
     lines = [f"Box-Cox lambda = {t['boxcox_lambda']:.4f}, n = {t['n']}, R^2 = "
              f"{t['r_squared']:.4f} (adj. {t['adj_r_squared']:.4f})",
              f"{'term':30s} {'estimate':>10s} {'std.err':>9s} {'t':>8s} {'p':>9s}  "
@@ -142,5 +152,5 @@ def table34_text(t: dict) -> str:
         agree = {True: "yes", False: "NO", None: ""}[r["sign_agrees"]]
         lines.append(f"{r['term']:30s} {r['estimate']:10.4g} {r['std_error']:9.3g} {r['t']:8.2f} "
                      f"{r['p']:9.2e}  {'n/a':>9s} {r['dissertation_sign'] or 'no claim':>9s}  {agree}")
-    lines.append("dissertation estimates: not available (signs from physics.md §5)")
+    lines.append("dissertation estimates: not available (signs from docs/physics.md §5)")
     return "\n".join(lines)

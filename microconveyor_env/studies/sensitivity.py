@@ -14,11 +14,14 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
 from ..physics.contact_table import TableRangeError
 from ..physics.schedule import Schedule
+from ..physics.simulator import Simulator
 from .engine import run_tasks, simulator
 from .sweep import MIN_TRAVEL_M
 
@@ -38,8 +41,9 @@ REFINE_STEPS = 5        # bisections in log f per window edge (edge known to ~1 
 N_FREQ = 8              # design frequencies per combination (log grid over the window)
 
 
-def fire(sim, freq: float, stroke: float, x0: float, v0: float = 0.0) -> dict:
-    """One firing of the actuator at x = 0: outcome, displacement [m], distance [m].
+def fire(sim: Simulator, freq: float, stroke: float, x0: float, v0: float = 0.0) -> dict[str, Any]:
+    """One firing of the actuator at x = 0 (``freq`` [Hz], ``stroke`` [m], start ``x0`` [m] at ``v0``
+    [m/s]): outcome, displacement [m], distance [m], detachment time [s].
 
     A stroke whose load would leave the contact table counts as ``load_beyond_table`` (such
     strokes lie far above the detachment onset)."""
@@ -53,24 +57,30 @@ def fire(sim, freq: float, stroke: float, x0: float, v0: float = 0.0) -> dict:
             "detach_time_s": r.detach_time_s if r.detach_time_s is not None else math.nan}
 
 
-def _fails(res) -> bool:
+def _fails(res: dict[str, Any]) -> bool:
     return res["outcome"] in ("detached", "load_beyond_table")
 
 
-def _moves(res) -> bool:
+def _moves(res: dict[str, Any]) -> bool:
     return not _fails(res) and res["distance_m"] >= MIN_TRAVEL_M
 
 
-def find_window(sim, stroke: float, x0: float, scan=SCAN_HZ, refine: int = REFINE_STEPS):
-    """Feasible window [lo, hi] [Hz] (None if empty) and the runs made to find it.
+def find_window(sim: Simulator, stroke: float, x0: float, scan: Iterable[float] = SCAN_HZ,
+                refine: int = REFINE_STEPS,
+                ) -> tuple[list[float] | None, list[tuple[str, float, dict[str, Any]]]]:
+    """Feasible window [lo, hi] [Hz] (None if empty) for strokes of ``stroke`` [m] from ``x0`` [m],
+    scanning ``scan`` [Hz] and refining each edge by ``refine`` [-] bisections, and the runs made
+    to find it.
 
     ``lo``: lowest frequency with >= 10 um travel; ``hi``: highest frequency below the first
     detachment. Returns ``(window, runs)`` with ``runs`` a list of ``(phase, freq, result)``.
     """
-    runs = []
-    prev = None  # (freq, result) of the previous scan point
-    lo = hi = None
-    lo_below = stop = None
+    runs: list[tuple[str, float, dict[str, Any]]] = []
+    prev: tuple[float, dict[str, Any]] | None = None  # (freq, result) of the previous scan point
+    lo: float | None = None
+    hi: float | None = None
+    lo_below: float | None = None
+    stop: float | None = None
     for f in scan:
         res = fire(sim, f, stroke, x0)
         runs.append(("scan", f, res))
@@ -84,6 +94,7 @@ def find_window(sim, stroke: float, x0: float, scan=SCAN_HZ, refine: int = REFIN
         prev = (f, res)
     if lo is None:
         return None, runs
+    assert hi is not None  # set together with lo
     if lo_below is not None:  # refine the lower edge between lo_below (no) and lo (yes)
         a, b = lo_below, lo
         for _ in range(refine):
@@ -111,7 +122,7 @@ def find_window(sim, stroke: float, x0: float, scan=SCAN_HZ, refine: int = REFIN
     return [lo, hi], runs
 
 
-def design(levels: dict | None = None) -> list:
+def design(levels: Mapping[str, Sequence[float]] | None = None) -> list[dict[str, float]]:
     """The full-factorial combinations of ``levels`` (default :data:`LEVELS`) as task dicts."""
     levels = dict(LEVELS if levels is None else levels)
     keys = list(LEVELS)
@@ -121,10 +132,10 @@ def design(levels: dict | None = None) -> list:
     return [dict(zip(keys, combo)) for combo in itertools.product(*(levels[k] for k in keys))]
 
 
-def run_combination(task: dict) -> list:
+def run_combination(task: dict[str, Any]) -> list[dict[str, Any]]:
     """All rows of one design combination (task keys: :data:`LEVELS`, plus optional ``preset``,
     ``n_freq``, ``scan_hz``, ``refine``, ``profile``)."""
-    sim = simulator(task.get("preset", "seed"), mass=task["mass_kg"], sigma=task["sigma_m"],
+    sim = simulator(task.get("preset", "dissertation"), mass=task["mass_kg"], sigma=task["sigma_m"],
                     dgamma=task["dgamma_J_m2"], profile=task.get("profile", "gaussian"),
                     wavelength=task["wavelength_m"])
     x0 = task["x0_wl"] * task["wavelength_m"]
@@ -133,7 +144,8 @@ def run_combination(task: dict) -> list:
                                task.get("refine", REFINE_STEPS))
     if window is not None:
         n = int(task.get("n_freq", N_FREQ))
-        grid = np.geomspace(window[0], window[1], n) if window[1] > window[0] else [window[0]]
+        grid: Iterable[float] = (np.geomspace(window[0], window[1], n) if window[1] > window[0]
+                                 else [window[0]])
         for f in grid:
             runs.append(("design", float(f), fire(sim, float(f), stroke, x0)))
     base = {k: task[k] for k in LEVELS}
@@ -144,18 +156,20 @@ def run_combination(task: dict) -> list:
              "window_capped": capped, **res} for phase, f, res in runs]
 
 
-def sensitivity_rows(levels: dict | None = None, n_freq: int = N_FREQ, preset: str = "seed",
-                     scan_hz=SCAN_HZ, **engine_kw) -> list:
-    """Run the design (see :func:`run_combination`); ``engine_kw`` go to :func:`run_tasks`."""
+def sensitivity_rows(levels: Mapping[str, Sequence[float]] | None = None, n_freq: int = N_FREQ,
+                     preset: str = "dissertation", scan_hz: Iterable[float] = SCAN_HZ,
+                     **engine_kw: Any) -> list[dict[str, Any]]:
+    """Run the design (see :func:`run_combination`), ``n_freq`` [-] frequencies per combination,
+    window scan ``scan_hz`` [Hz]; ``engine_kw`` go to :func:`run_tasks`."""
     tasks = [{**t, "n_freq": n_freq, "preset": preset, "scan_hz": tuple(scan_hz)}
              for t in design(levels)]
     engine_kw.setdefault("desc", "sensitivity")
     return run_tasks(run_combination, tasks, **engine_kw)
 
 
-def windows(rows) -> list:
+def windows(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """One entry per combination: its levels and feasible window [Hz] (None: empty)."""
-    seen = {}
+    seen: dict[tuple[Any, ...], dict[str, Any]] = {}
     for r in rows:
         key = tuple(r[k] for k in LEVELS)
         if key not in seen:

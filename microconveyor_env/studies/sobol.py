@@ -12,14 +12,17 @@ is the share of variance a factor explains only through interactions; ``S2`` nam
 """
 from __future__ import annotations
 
+from typing import Any
+
 import math
+from collections.abc import Iterable
 
 import numpy as np
 
 from .engine import run_tasks, simulator
 from .sensitivity import SCAN_HZ, fire, find_window
 
-PROBLEM = {
+PROBLEM: dict[str, Any] = {
     "num_vars": 7,
     "names": ["dgamma_J_m2", "sigma_m", "stroke_m", "log10_mass_kg", "wavelength_m", "x0_wl",
               "freq_pos"],
@@ -30,7 +33,8 @@ SOBOL_SCAN_HZ = SCAN_HZ[::2]  # a coarser scan (edges are refined by bisection a
 
 
 def samples(n_base: int = 128, seed: int = 0) -> np.ndarray:
-    """Saltelli/Sobol' sample matrix, ``n_base * (2 D + 2)`` rows (n_base a power of 2)."""
+    """Saltelli/Sobol' sample matrix, ``n_base * (2 D + 2)`` rows (n_base [-] a power of 2), columns
+    in :data:`PROBLEM`'s order and units."""
     from SALib.sample import sobol as sobol_sample
 
     if n_base < 2 or n_base & (n_base - 1):
@@ -38,11 +42,11 @@ def samples(n_base: int = 128, seed: int = 0) -> np.ndarray:
     return sobol_sample.sample(PROBLEM, n_base, calc_second_order=True, scramble=True, seed=seed)
 
 
-def run_sample(task: dict) -> list:
+def run_sample(task: dict[str, Any]) -> list[dict[str, Any]]:
     """One row: the sample's parameters, its window [Hz], the firing frequency and the travel."""
     p = {k: task[k] for k in PROBLEM["names"]}
     mass = 10.0 ** p["log10_mass_kg"]
-    sim = simulator(task.get("preset", "seed"), mass=mass, sigma=p["sigma_m"],
+    sim = simulator(task.get("preset", "dissertation"), mass=mass, sigma=p["sigma_m"],
                     dgamma=p["dgamma_J_m2"], wavelength=p["wavelength_m"])
     x0 = p["x0_wl"] * p["wavelength_m"]
     window, runs = find_window(sim, p["stroke_m"], x0, task.get("scan_hz", SOBOL_SCAN_HZ))
@@ -58,8 +62,11 @@ def run_sample(task: dict) -> list:
              "outcome": res["outcome"], "distance_m": d, "runs": len(runs) + 1}]
 
 
-def sobol_rows(n_base: int = 128, seed: int = 0, preset: str = "seed", scan_hz=SOBOL_SCAN_HZ,
-               **engine_kw) -> list:
+def sobol_rows(n_base: int = 128, seed: int = 0, preset: str = "dissertation",
+               scan_hz: Iterable[float] = SOBOL_SCAN_HZ,
+               **engine_kw: Any) -> list[dict[str, Any]]:
+    """One row per sample of :func:`samples` (``n_base`` [-]), windows scanned over ``scan_hz``
+    [Hz]; ``engine_kw`` go to :func:`.engine.run_tasks`."""
     X = samples(n_base, seed)
     tasks = [{"sample": i, **dict(zip(PROBLEM["names"], map(float, x))), "preset": preset,
               "scan_hz": tuple(scan_hz)} for i, x in enumerate(X)]
@@ -70,18 +77,18 @@ def sobol_rows(n_base: int = 128, seed: int = 0, preset: str = "seed", scan_hz=S
 LOG_FLOOR_M = 1e-6  # log10(distance + 1 um): the log-scale output (no window -> -6)
 
 
-def _analyze(Y, seed, conf_level) -> dict:
+def _analyze(Y: np.ndarray, seed: int, conf_level: float) -> dict[str, Any]:
     from SALib.analyze import sobol as sobol_analyze
 
     Si = sobol_analyze.analyze(PROBLEM, Y, calc_second_order=True, conf_level=conf_level,
                                seed=seed, print_to_console=False)
     names = PROBLEM["names"]
-    per = []
+    per: list[dict[str, Any]] = []
     for i, name in enumerate(names):
         per.append({"name": name, "S1": float(Si["S1"][i]), "S1_conf": float(Si["S1_conf"][i]),
                     "ST": float(Si["ST"][i]), "ST_conf": float(Si["ST_conf"][i]),
                     "interaction": float(Si["ST"][i] - Si["S1"][i])})
-    pairs = []
+    pairs: list[dict[str, Any]] = []
     for i in range(len(names)):
         for j in range(i + 1, len(names)):
             s2, c2 = float(Si["S2"][i, j]), float(Si["S2_conf"][i, j])
@@ -94,7 +101,7 @@ def _analyze(Y, seed, conf_level) -> dict:
             "sum_S1": float(sum(p["S1"] for p in per))}
 
 
-def indices(rows, seed: int = 0, conf_level: float = 0.95) -> dict:
+def indices(rows: list[dict[str, Any]], seed: int = 0, conf_level: float = 0.95) -> dict[str, Any]:
     """S1, ST (with confidence half-widths), S2 pairs, and the interaction shares ``ST - S1``, of
     the distance [m]; the same of ``log10(distance + 1 um)`` under ``log10_distance`` (on the log
     scale multiplicative effects become additive, so what remains in ``ST - S1`` there is a
@@ -102,7 +109,7 @@ def indices(rows, seed: int = 0, conf_level: float = 0.95) -> dict:
     rows = sorted(rows, key=lambda r: r["sample"])
     Y = np.array([r["distance_m"] for r in rows])
     names = PROBLEM["names"]
-    out = {"n_runs": len(rows), "n_base": len(rows) // (2 * len(names) + 2),
+    out: dict[str, Any] = {"n_runs": len(rows), "n_base": len(rows) // (2 * len(names) + 2),
            "conf_level": conf_level, "output": "distance travelled [m] (0 without a window)",
            "mean_distance_m": float(Y.mean()), "std_distance_m": float(Y.std()),
            "no_window_fraction": float(np.mean([r["outcome"] == "no_window" for r in rows])),

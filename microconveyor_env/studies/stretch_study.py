@@ -2,15 +2,18 @@
 constant and with stretched roughness, and what the stretched level costs.
 
 With ``roughness="stretch"`` the simulator looks up Q(N) and the pull-off force at the roughness
-of the stretched active zone under the part (physics.md §4; :mod:`..physics.stretch`). The study
+of the stretched active zone under the part (docs/physics.md §4; :mod:`..physics.stretch`). The study
 fires the seed scene over a frequency grid at both levels; per row the outcome, the travel, the
 peak zone strain of the stroke and the wall time of the ``simulate`` call (median of repeats).
 """
 from __future__ import annotations
 
+from typing import Any
+
 import math
 import statistics
 import time
+from collections.abc import Iterable
 
 import numpy as np
 
@@ -22,16 +25,16 @@ from .sweep import feasible_window
 LEVELS = ("constant", "stretch")
 
 
-def run_freq(task: dict) -> list:
+def run_freq(task: dict[str, Any]) -> list[dict[str, Any]]:
     """Rows of one frequency [Hz] at both roughness levels."""
-    rows = []
+    rows: list[dict[str, Any]] = []
     for level in task["levels"]:
         kw = dict(task.get("sim_kw", {}))
         if level != "constant":
             kw["roughness"] = level
         else:
             kw.pop("n_sigma", None)  # a stretch-table setting
-        sim = simulator(task.get("preset", "seed"), wavelength=task["wavelength_m"],
+        sim = simulator(task.get("preset", "dissertation"), wavelength=task["wavelength_m"],
                         profile=task["profile"], **kw)
         sched = Schedule.single(task["freq_hz"], task["stroke_m"])
         row = {"freq_hz": task["freq_hz"], "stroke_m": task["stroke_m"], "x0_m": task["x0_m"],
@@ -43,7 +46,7 @@ def run_freq(task: dict) -> list:
             rows.append({**row, "outcome": "load_beyond_table", "displacement_m": math.nan,
                          "peak_strain": math.nan, "wall_time_s": math.nan})
             continue
-        walls = []
+        walls: list[float] = []
         for _ in range(int(task.get("repeats", 3))):
             t0 = time.perf_counter()
             sim.simulate(sched, x0=task["x0_m"])
@@ -55,11 +58,13 @@ def run_freq(task: dict) -> list:
     return rows
 
 
-def stretch_rows(freqs=tuple(float(f) for f in np.arange(200.0, 1500.0 + 1e-9, 25.0)),
+def stretch_rows(freqs: Iterable[float] = tuple(np.arange(200.0, 1500.0 + 1e-9, 25.0).tolist()),
                  stroke: float = 200e-6, x0: float = 0.125e-3, profile: str = "gaussian",
-                 wavelength: float = 0.6e-3, repeats: int = 3, preset: str = "seed",
-                 sim_kw=None, **engine_kw) -> list:
-    """Both levels over ``freqs`` [Hz] for the single-firing scene (stroke [m], start x0 [m])."""
+                 wavelength: float = 0.6e-3, repeats: int = 3, preset: str = "dissertation",
+                 sim_kw: dict[str, Any] | None = None,
+                 **engine_kw: Any) -> list[dict[str, Any]]:
+    """Both levels over ``freqs`` [Hz] for the single-firing scene (stroke [m], start x0 [m],
+    ``wavelength`` [m], ``repeats`` [-] timed runs)."""
     tasks = [{"freq_hz": float(f), "stroke_m": float(stroke), "x0_m": float(x0),
               "profile": profile, "wavelength_m": float(wavelength), "levels": LEVELS,
               "repeats": repeats, "preset": preset, "sim_kw": sim_kw or {}} for f in freqs]
@@ -67,9 +72,9 @@ def stretch_rows(freqs=tuple(float(f) for f in np.arange(200.0, 1500.0 + 1e-9, 2
     return run_tasks(run_freq, tasks, **engine_kw)
 
 
-def compare(rows) -> dict:
+def compare(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """Windows, travel differences (where both rest) and the cost ratio of the two levels."""
-    out = {}
+    out: dict[str, Any] = {}
     by = {lv: sorted((r for r in rows if r["roughness"] == lv), key=lambda r: r["freq_hz"])
           for lv in LEVELS}
     for lv, rs in by.items():

@@ -7,13 +7,15 @@ the part starting at ``x0`` beside it, one stroke, then coasting to rest. Any of
 from __future__ import annotations
 
 import sys
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from ..physics.materials import ParameterError
 from ..physics.schedule import Schedule
-from ..physics.simulator import Simulator
+from ..physics.simulator import Result, Simulator
 
 # parameter -> (unit, where it goes)
 SWEEPABLE = {
@@ -29,7 +31,7 @@ MIN_TRAVEL_M = 10e-6  # lower bound of the feasible window: at least this much t
 class Scene:
     """Base values of a single-firing experiment (SI units)."""
 
-    preset: str = "seed"
+    preset: str = "dissertation"
     freq: float = 950.0          # Hz
     stroke: float = 200e-6       # m
     x0: float = 0.125e-3         # m, start position (actuator at 0)
@@ -38,9 +40,10 @@ class Scene:
     mass: float | None = None    # kg (None: the preset's)
     sigma: float | None = None   # m
     dgamma: float | None = None  # J/m^2
-    sim_kw: dict = field(default_factory=dict)  # mode, kinematics, dt, ...
+    sim_kw: dict[str, Any] = field(default_factory=dict)  # mode, kinematics, dt, ...
 
     def simulator(self) -> Simulator:
+        """The scene's :class:`Simulator` (the preset's contact with the scene's changes)."""
         from ..presets import load_preset
 
         contact = load_preset(self.preset).contact
@@ -50,7 +53,8 @@ class Scene:
             contact = contact.replace(**changes)
         return Simulator(contact, shape=self.profile, wavelength=self.wavelength, **self.sim_kw)
 
-    def run(self, record: bool = False):
+    def run(self, record: bool = False) -> Result:
+        """The scene's single firing (``record``: keep the trajectory)."""
         sim = self.simulator()
         return sim.simulate(Schedule.single(self.freq, self.stroke), x0=self.x0, record=record)
 
@@ -58,13 +62,14 @@ class Scene:
 MAX_POINTS = 10_000  # default cap on the points of one sweep (each is a full simulation)
 
 
-def parse_values(spec: str, param: str, max_points: int = MAX_POINTS) -> list:
+def parse_values(spec: str, param: str, max_points: int = MAX_POINTS) -> list[Any]:
     """``"200:1500:25"`` (start:stop:step, stop included) or ``"a,b,c"``; at least one and at most
-    ``max_points`` finite values (else :class:`ParameterError`, before anything is built)."""
+    ``max_points`` finite values (else :class:`ParameterError`, before anything is built), in
+    ``param``'s unit (:data:`SWEEPABLE`); profile names for ``profile``."""
     usage = (f"--{param} {spec!r} is invalid: use start:stop:step (finite numbers, step > 0, "
              "stop >= start) or a comma-separated list of finite numbers")
     if param == "profile":
-        values: list = [s.strip() for s in spec.split(",") if s.strip()]
+        values: list[Any] = [s.strip() for s in spec.split(",") if s.strip()]
     elif ":" in spec:
         try:
             a, b, c = (float(v) for v in spec.split(":"))
@@ -96,8 +101,10 @@ def _check_count(param: str, spec: str, count: float, max_points: int) -> None:
                              "step, or raise the limit (--max-points) if you mean it")
 
 
-def feasible_window(values, travel, outcomes) -> list | None:
-    """[lo, hi]: lowest value with >= 10 um travel, highest value below the first detachment."""
+def feasible_window(values: Iterable[Any], travel: Iterable[float],
+                    outcomes: Iterable[str]) -> list[Any] | None:
+    """[lo, hi]: lowest value with >= 10 um travel (``travel`` [m]), highest value below the first
+    detachment; in the values' own unit."""
     lo = hi = None
     for v, d, o in zip(values, travel, outcomes):
         if o == "detached":
@@ -109,9 +116,10 @@ def feasible_window(values, travel, outcomes) -> list | None:
     return None if lo is None else [lo, hi]
 
 
-def sweep(scene: Scene, param: str, values, progress: bool = True,
-          max_points: int = MAX_POINTS) -> dict:
-    """Run the scene for each value of ``param``; travel, outcomes and (for freq) the window.
+def sweep(scene: Scene, param: str, values: Iterable[Any], progress: bool = True,
+          max_points: int = MAX_POINTS) -> dict[str, Any]:
+    """Run the scene for each value of ``param`` (in its unit, :data:`SWEEPABLE`); travel [m],
+    outcomes and (for freq) the window.
     More than ``max_points`` values are refused."""
     if param not in SWEEPABLE:
         raise ParameterError(f"cannot sweep {param!r}; sweepable: {sorted(SWEEPABLE)}")
@@ -121,7 +129,7 @@ def sweep(scene: Scene, param: str, values, progress: bool = True,
     _check_count(param, f"{len(values)} values", len(values), max_points)
     from tqdm import tqdm
 
-    rows = []
+    rows: list[Result] = []
     it = tqdm(values, desc=f"sweep {param}", file=sys.stderr, disable=not progress, leave=False)
     for v in it:
         s = Scene(**{**scene.__dict__, param: v})
@@ -129,18 +137,28 @@ def sweep(scene: Scene, param: str, values, progress: bool = True,
         rows.append(r)
     travel = [r.displacement_m for r in rows]
     outcomes = [r.outcome for r in rows]
-    out = {"param": param, "unit": SWEEPABLE[param][0], "values": list(values),
+    key = value_key(param)
+    out: dict[str, Any] = {
+           "param": param, "unit": SWEEPABLE[param][0], "values_key": key, key: list(values),
            "displacement_m": travel, "outcome": outcomes,
            "rest_time_s": [r.rest_time_s for r in rows],
            "detach_time_s": [r.detach_time_s for r in rows],
            "wall_time_s": float(sum(r.wall_time_s for r in rows))}
     if param != "profile":
-        out["window"] = feasible_window(values, travel, outcomes)
-        if param == "freq":
-            out["window_hz"] = out["window"]
+        suffix = key[len(param):]
+        out["window" + suffix] = feasible_window(values, travel, outcomes)
         ok = [i for i, o in enumerate(outcomes) if o != "detached"]
         if ok:
             best = max(ok, key=lambda i: abs(travel[i]))
             out["max_travel_m"] = abs(travel[best])
-            out["max_travel_at"] = values[best]
+            out["max_travel_at" + suffix] = values[best]
     return out
+
+
+_SUFFIX = {"Hz": "_hz", "m": "_m", "kg": "_kg", "J/m^2": "_J_m2", "-": ""}
+
+
+def value_key(param: str) -> str:
+    """The JSON key of a swept parameter's values: its name with its unit's suffix
+    (``freq_hz``, ``stroke_m``, ``profile``); ``window`` and ``max_travel_at`` take the same suffix."""
+    return param + _SUFFIX[SWEEPABLE[param][0]]

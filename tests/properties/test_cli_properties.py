@@ -19,13 +19,13 @@ VALUES = {
     "--profile": ["gaussian", "sinusoidal", "clamped_beam", "square", "gaussian,sinusoidal", ","],
     "--mass": ["2e-9", "2e-9,3e-9", "-1", "abc", ","], "--sigma": ["abc", "-1", ","],
     "--dgamma": ["nan", "0", ","],
-    "--mode": ["event", "karnopp", "euler"], "--kinematics": ["seed", "exact", "x"],
+    "--mode": ["event", "karnopp", "euler"], "--kinematics": ["reduced", "exact", "seed", "x"],
     "--dt": ["5e-5", "1e-6", "1e-12", "5e-324", "0", "2", "nan", "abc"],
     "--max-steps": ["1", "1000", "0", "-3", "2.5", "abc", "1e7"],
     "--max-points": ["1", "5", "0", "abc"], "--repeats": ["0", "-1", "abc", "1e3"],
     "--out": ["{tmp}/demo"],
     "--plot": ["", "{tmp}/noext", "{tmp}/x.xyz", "{tmp}/", "{tmp}/c.png", "{tmp}/c.svg"],
-    "--preset": ["seed", "nope", "../seed", "{tmp}/bad.yaml", "{tmp}/alias.yaml",
+    "--preset": ["dissertation", "seed", "nope", "../seed", "{tmp}/bad.yaml", "{tmp}/alias.yaml",
                  "{tmp}/types.yaml", "{tmp}/text.yaml", "{tmp}/list.yaml", "{tmp}/missing.yaml"],
 }
 FLAGS = ["--json", "--no-progress", "--check-table", "--skip-reference", "--bogus", "-h"]
@@ -55,7 +55,7 @@ def _opts(pool, **kw):
 
 SIM_OK = {"--freq": ["950", "700", "300"], "--stroke": ["200e-6", "150e-6"],
           "--x0": ["0.125e-3", "0.1e-3"], "--mode": ["event", "karnopp"],
-          "--kinematics": ["seed", "exact"], "--dt": ["5e-5", "2e-5"],
+          "--kinematics": ["reduced", "exact"], "--dt": ["5e-5", "2e-5"],
           "--profile": ["gaussian", "sinusoidal", "clamped_beam"], "--max-steps": ["100000"]}
 SWEEP_OK = {"--stroke": ["200e-6"], "--x0": ["0.125e-3"], "--mode": ["event", "karnopp"],
             "--dt": ["5e-5"], "--max-points": ["50"]}
