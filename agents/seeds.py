@@ -1,27 +1,33 @@
-"""Aggregate over training seeds with rliable: IQM and a stratified-bootstrap 95 % CI of the
-final evaluations (``metadata.json`` of each run folder)."""
+"""Aggregate over training seeds: IQM (interquartile mean, as rliable defines it: the 25 %
+trimmed mean) and a percentile-bootstrap 95 % CI over runs of the final evaluations
+(``metadata.json`` of each run folder).
+
+rliable itself would do this, but it cannot be imported next to pandas 3 (its dependency
+``arch`` calls pandas' ``deprecate_kwarg`` with the old signature), so the same statistics are
+computed here with numpy and scipy.
+"""
 from __future__ import annotations
 
 import json
 from pathlib import Path
 
 import numpy as np
+from scipy.stats import trim_mean
 
-KEYS = ("success_rate_50um", "success_rate_100um", "success_rate_250um")
+KEYS = ("success_rate_50um", "success_rate_100um", "success_rate_250um", "median_abs_error_m")
+
+
+def iqm(x) -> float:
+    return float(trim_mean(np.asarray(x, float), 0.25))
 
 
 def aggregate(runs, reps: int = 2000, seed: int = 0) -> dict:
-    from rliable import library as rly, metrics
-
     evs = [json.loads((Path(r) / "metadata.json").read_text())["evaluation"] for r in runs]
-    out = {"runs": [str(r) for r in runs]}
-    np.random.seed(seed)  # rliable's bootstrap draws from numpy's global generator
+    rng = np.random.default_rng(seed)
+    out: dict = {"runs": [str(r) for r in runs]}
     for key in KEYS:
-        scores = {key: np.array([[ev[key]] for ev in evs])}  # (runs, 1 task)
-        point, ci = rly.get_interval_estimates(
-            scores, lambda x: np.array([metrics.aggregate_iqm(x)]), reps=reps)
-        out[key] = {"per_seed": [ev[key] for ev in evs], "iqm": float(point[key][0]),
-                    "ci95": [float(ci[key][0][0]), float(ci[key][1][0])]}
-    med = [ev["median_abs_error_m"] for ev in evs]
-    out["median_abs_error_m"] = {"per_seed": med, "median": float(np.median(med))}
+        vals = np.array([ev[key] for ev in evs], float)
+        boots = [iqm(rng.choice(vals, len(vals))) for _ in range(reps)]
+        out[key] = {"per_seed": vals.tolist(), "iqm": iqm(vals),
+                    "ci95": [float(np.quantile(boots, 0.025)), float(np.quantile(boots, 0.975))]}
     return out
