@@ -103,3 +103,20 @@ def test_widest_robust_range():
             [(1, True), (2, False), (3, True), (4, True), (5, True), (6, False)]]
     assert widest_robust_range(rows) == [3, 5]
     assert widest_robust_range([{"target_m": 1, "robust": False}]) is None
+
+
+def test_seed_aggregation(tmp_path):
+    from agents.seeds import aggregate, iqm
+
+    assert iqm([0.0, 1.0, 2.0, 3.0]) == 1.5 and iqm([1.0, 2.0, 4.0]) == pytest.approx(7 / 3)
+    runs = []
+    for i, rate in enumerate((0.2, 0.5, 0.8)):
+        d = tmp_path / str(i)
+        d.mkdir()
+        ev = {"success_rate_50um": rate, "success_rate_100um": rate, "success_rate_250um": rate,
+              "median_abs_error_m": 1e-5 * (i + 1)}
+        (d / "metadata.json").write_text(json.dumps({"evaluation": ev}))
+        runs.append(d)
+    out = aggregate(runs, reps=200)
+    lo, hi = out["success_rate_50um"]["ci95"]
+    assert 0.2 - 1e-12 <= lo <= out["success_rate_50um"]["iqm"] <= hi <= 0.8 + 1e-12
