@@ -41,8 +41,12 @@ def stroke_steps(f: npt.ArrayLike, dt: float, min_steps: int) -> np.ndarray:
     [-] per stroke (as the kernel's ``steps_for``), as floats
     that never overflow: ``inf`` where ``1/(f dt)`` is beyond float range."""
     f = np.asarray(f, dtype=float)
+    fd = f * dt
+    if fd.size and fd.min() > 1e-300:  # the common case: no overflow possible, no errstate cost
+        n = np.maximum(np.ceil(1.0 / fd - 1e-9), max(int(min_steps), 2))
+        return n + n % 2
     with np.errstate(over="ignore", divide="ignore", under="ignore", invalid="ignore"):
-        n = np.maximum(np.ceil(1.0 / (f * dt) - 1e-9), max(int(min_steps), 2))
+        n = np.maximum(np.ceil(1.0 / fd - 1e-9), max(int(min_steps), 2))
         return np.where(np.isfinite(n), n + n % 2, n)
 
 
@@ -51,9 +55,15 @@ def check_step_budget(owner: str, f: npt.ArrayLike, dt: float, min_steps: int, m
     """Total RK4 steps of strokes at ``f`` [Hz] with step ``dt`` [s] (a stroke is cut at ``max_time``
     [s], so at most the steps of its first ``max_time``); ParameterError if above ``max_steps`` [-].
     ``owner`` names the caller in the message."""
-    steps = stroke_steps(f, dt, min_steps)
-    with np.errstate(over="ignore", invalid="ignore"):
-        steps = steps * np.minimum(1.0, max_time * np.asarray(f, dtype=float))
+    return _check_budget(owner, f, dt, stroke_steps(f, dt, min_steps), max_steps, max_time)
+
+
+def _check_budget(owner: str, f: npt.ArrayLike, dt: float, steps: np.ndarray, max_steps: int,
+                  max_time: float) -> float:
+    cut = max_time * np.asarray(f, dtype=float)  # a stroke longer than max_time is cut there
+    if not np.all(np.isfinite(cut)) or cut.min() < 1.0:
+        with np.errstate(over="ignore", invalid="ignore"):
+            steps = steps * np.minimum(1.0, cut)
     total = float(np.sum(steps))
     if not total <= max_steps:
         f = np.atleast_1d(np.asarray(f, dtype=float))
@@ -246,8 +256,8 @@ class Simulator:
     def check_firings(self, f: np.ndarray, h: np.ndarray) -> None:
         """Warn about under-resolved strokes at frequencies ``f`` [Hz] and strokes ``h`` [m];
         refuse loads beyond the contact table and more steps than ``max_steps``."""
-        check_step_budget("Simulator", f, self.dt, self.min_steps, self.max_steps, self.max_time)
         steps = stroke_steps(f, self.dt, self.min_steps)
+        _check_budget("Simulator", f, self.dt, steps, self.max_steps, self.max_time)
         if steps.min() < MIN_STEPS_PER_STROKE:
             warnings.warn(f"dt = {self.dt:g} s resolves the fastest stroke (f = {f.max():g} Hz) "
                           f"with {int(steps.min())} steps (< {MIN_STEPS_PER_STROKE}); results may "
