@@ -53,6 +53,27 @@ def test_ppo_trains_saves_loads_and_resumes(tmp_path):
     assert np.isfinite(res["median_abs_error_m"])
 
 
+def test_schedules_run_out_with_the_wall_time_budget(tmp_path):
+    """With --max-minutes the lin_ learning rate decays over whichever budget ends first."""
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from agents.train import BudgetPPO
+    from microconveyor_env.envs import MicroConveyorEnv
+
+    model = BudgetPPO("MlpPolicy", DummyVecEnv([MicroConveyorEnv]), n_steps=16, batch_size=16,
+                      learning_rate=hyperparams.linear_schedule(1e-3), device="cpu")
+    model._update_current_progress_remaining(10, 100)
+    assert model._current_progress_remaining == pytest.approx(0.9)  # steps only
+    model.budget_clock = lambda: 0.5                                  # half the wall time gone
+    model._update_current_progress_remaining(10, 100)
+    assert model._current_progress_remaining == pytest.approx(0.5)
+    model.budget_clock = lambda: 1.2                                  # past the budget
+    model._update_current_progress_remaining(10, 100)
+    assert model._current_progress_remaining == 0.0
+    model.save(tmp_path / "m.zip")                                    # the clock is not saved
+    assert BudgetPPO.load(tmp_path / "m.zip", device="cpu").budget_clock is None
+
+
 def test_shipped_policy_loads_and_reproduces_its_metadata():
     pol = load_policy(shipped_path())
     meta = pol.metadata
