@@ -141,3 +141,23 @@ def test_seed_aggregation(tmp_path):
     out = aggregate(runs, reps=200)
     lo, hi = out["success_rate_50um"]["ci95"]
     assert 0.2 - 1e-12 <= lo <= out["success_rate_50um"]["iqm"] <= hi <= 0.8 + 1e-12
+
+
+def test_seeds_command_reports_curves_and_plots(tmp_path):
+    for i, rate in enumerate((0.2, 0.5, 0.8)):
+        d = tmp_path / str(i)
+        d.mkdir()
+        ev = {"success_rate_50um": rate, "success_rate_100um": rate, "success_rate_250um": rate,
+              "median_abs_error_m": 1e-5 * (i + 1)}
+        (d / "metadata.json").write_text(json.dumps({"evaluation": ev}))
+        rows = [{**ev, "steps": s, "wall_time_s": s / 1e3} for s in (1000, 2000)]
+        (d / "evaluations.jsonl").write_text("\n".join(json.dumps(r) for r in rows) + "\n")
+    r = run("seeds", *(str(tmp_path / str(i)) for i in range(3)), "--plot",
+            str(tmp_path / "curves.png"), "--json")
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["success_rate_50um"]["per_seed"] == [0.2, 0.5, 0.8]
+    assert out["curves"][str(tmp_path / "1")]["steps"] == [1000, 2000]
+    assert (tmp_path / "curves.png").stat().st_size > 10_000
+    r = run("seeds", str(tmp_path / "nope"), "--json")
+    assert r.returncode == 2 and "error" in json.loads(r.stdout)
