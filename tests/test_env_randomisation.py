@@ -266,3 +266,38 @@ def test_streams_are_derived_without_drawing_from_the_generator():
     restored = np.random.Generator(np.random.PCG64())
     restored.bit_generator.state = before  # no seed sequence of its own: a hash of the state
     assert randomisation.streams(restored)[0].random() == randomisation.streams(restored)[0].random()
+
+
+def test_sb3_adapter_passes_the_options_and_reports_the_factors():
+    pytest.importorskip("stable_baselines3")
+    from microconveyor_env.envs.sb3 import MicroConveyorSB3VecEnv
+
+    def first(seed, **kw):
+        env = MicroConveyorSB3VecEnv(3, n_actuators=2, **kw)
+        env.seed(seed)
+        obs = env.reset()
+        return env, obs
+
+    env, _ = first(4, **RAND)
+    assert env.venv.config.action_noise == 0.1 and env.venv.config.mass_factor_range == (0.5, 2.0)
+    ff = [info["friction_factor"] for info in env.reset_infos]
+    assert all(0.6 <= f <= 1.4 for f in ff)
+    assert ff == [i["friction_factor"] for i in first(4, **RAND)[0].reset_infos]
+    # seeds as the single env: sub-env i seeded 4 + i
+    single = MicroConveyorEnv(n_actuators=2, **RAND)
+    assert ff == [single.reset(seed=4 + i)[1]["friction_factor"] for i in range(3)]
+    current, ended = list(ff), 0
+    for _ in range(6):
+        obs, rew, dones, infos = env.step(np.zeros((3, 3), np.float32))
+        for i in np.flatnonzero(dones):
+            assert infos[i]["friction_factor"] == current[i]  # the finished episode's factor
+            current[i] = env.reset_infos[i]["friction_factor"]  # and the new episode's
+            assert "mass_factor" in env.reset_infos[i] and "terminal_observation" in infos[i]
+            ended += 1
+    assert ended >= 3 and current != ff
+    cfg = EnvConfig(n_actuators=2, **RAND)
+    env = MicroConveyorSB3VecEnv(2, config=cfg)
+    env.reset()
+    assert set(env.reset_infos[0]) >= {"friction_factor", "mass_factor"}
+    plain, _ = first(4)
+    assert "friction_factor" not in plain.reset_infos[0]
