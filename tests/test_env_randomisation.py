@@ -248,6 +248,15 @@ def test_bad_randomisation_values_name_the_field_and_the_range(kw, field):
         assert "contact table" in msg
 
 
+def test_the_repositorys_yaml_documents_the_options_with_the_dataclass_defaults():
+    """By path: an editable install may map the package's configs to another checkout."""
+    path = Path(__file__).parents[1] / "configs" / "envs" / "MicroConveyor-v0.yaml"
+    assert EnvConfig.from_yaml(str(path)) == EnvConfig()
+    text = path.read_text()
+    for key in ("action_noise:", "friction_factor_range:", "mass_factor_range:"):
+        assert key in text
+
+
 def test_from_yaml_reads_the_options():
     cfg = EnvConfig.from_yaml(action_noise=0.05, friction_factor_range=[0.8, 1.2],
                               mass_factor_range=[0.9, 1.1])

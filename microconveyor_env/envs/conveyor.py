@@ -110,7 +110,22 @@ class MicroConveyorEnv(gym.Env):
     time limit ``max_time`` (or an unresolved stick–slip chatter, reported in ``info["outcome"]``).
     ``info``: ``is_success``, ``position_error_m`` (signed x − target, now), ``outcome``
     (``moving``/``rest``/``detached``/``max_time``/``too_many_events``), ``sim_time_s``,
-    ``frequency_hz``, ``stroke_m``, ``delay_s`` (the decoded action).
+    ``frequency_hz``, ``stroke_m``, ``delay_s`` (the decoded action as fired, execution noise
+    included); with randomisation on also ``friction_factor`` and ``mass_factor`` (this episode's).
+
+    ## Per-episode randomisation (off by default; docs/randomisation.md)
+
+    | field | unit | default | valid | drawn | effect |
+    |---|---|---|---|---|---|
+    | ``action_noise`` | action units | 0.0 (off) | [0, 1] | per firing (at reset, for the episode) | fires ``clip(action + σ z)``, z ~ N(0, 1) per component |
+    | ``friction_factor_range`` | – | (1, 1) | [0.1, 10], low ≤ high | uniform per episode | multiplies the friction Q(N), static and sliding |
+    | ``mass_factor_range`` | – | (1, 1) | [0.1, 10], low ≤ high | uniform per episode | multiplies the part mass: inertia and weight |
+
+    The contact table does not depend on the mass (only the load it is read at), so it serves every
+    factor; the heaviest part's peak load must stay inside it (checked at construction). Draws
+    come from streams derived from the env's seeded generator, never from it: off, nothing is
+    drawn (rollouts unchanged); on, starts and targets are those of the env without, and a part
+    seeded ``s`` draws the same in the single env and in the batched env.
 
     ## Arguments
     Any field of :class:`EnvConfig` (defaults in ``configs/envs/MicroConveyor-v0.yaml``), e.g.
@@ -152,6 +167,7 @@ class MicroConveyorEnv(gym.Env):
         self._factors = (1.0, 1.0)
         self._rand_streams: tuple | None = None
         self._rand_src = None
+        self._randomised = self.config.randomised
 
     # state accessors (SI units)
     x = property(lambda self: float(self._x[0]), doc="part position [m]")
@@ -168,7 +184,7 @@ class MicroConveyorEnv(gym.Env):
         super().reset(seed=seed)
         given = check_target(options["target"]) if options and "target" in options else None
         x0, target = task.initial_state(self.config, self.np_random, given)
-        if self.config.randomised:
+        if self._randomised:
             if self._rand_src is not self.np_random:  # seeded anew (or replaced): new streams
                 self._rand_streams = randomisation.streams(self.np_random)
                 self._rand_src = self.np_random
@@ -218,6 +234,6 @@ class MicroConveyorEnv(gym.Env):
     def _info(self, outcome: str, success: bool) -> dict:
         info = {"is_success": success, "position_error_m": float(self.x - self.target),
                 "outcome": outcome, "sim_time_s": float(self.t)}
-        if self.config.randomised:
+        if self._randomised:
             info["friction_factor"], info["mass_factor"] = self._factors
         return info

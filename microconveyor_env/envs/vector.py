@@ -32,6 +32,10 @@ class MicroConveyorVectorEnv(VectorEnv):
     Threads: ``num_threads`` (an EnvConfig field, also a ``make_vec`` keyword): 1 runs a serial
     loop, k > 1 numba's parallel loop with k threads, ``None`` (default) picks between the two by
     measuring them as it runs (:mod:`.threads`). Results are bit-identical in every case.
+    Per-episode randomisation (``action_noise``, ``friction_factor_range``, ``mass_factor_range``;
+    :mod:`.randomisation`): each part has its own row of constants and draws from streams derived
+    from its own generator, so sub-env ``i`` seeded ``seed + i`` draws what the single env seeded
+    ``seed + i`` draws; ``friction_factor`` / ``mass_factor`` (arrays) hold this episode's factors.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4,
@@ -86,6 +90,7 @@ class MicroConveyorVectorEnv(VectorEnv):
         self.friction_factor: np.ndarray = np.ones(n)  # this episode's factor on the friction [-]
         self.mass_factor: np.ndarray = np.ones(n)      # this episode's factor on the mass [-]
         self._rand_streams: list[tuple | None] = [None] * n
+        self._randomised: bool = self.config.randomised
         self._rand_src: list[np.random.Generator | None] = [None] * n
 
     # ------------------------------------------------------------------ resets
@@ -95,7 +100,7 @@ class MicroConveyorVectorEnv(VectorEnv):
             tv = np.broadcast_to(np.asarray(options["target"], dtype=float), (self.num_envs,))
             given = check_target(tv[i])
         x0, target = task.initial_state(self.config, self.rngs[i], given)
-        if self.config.randomised:
+        if self._randomised:
             if self._rand_src[i] is not self.rngs[i]:  # seeded anew: new derived streams
                 self._rand_streams[i] = randomisation.streams(self.rngs[i])
                 self._rand_src[i] = self.rngs[i]
@@ -210,7 +215,7 @@ class MicroConveyorVectorEnv(VectorEnv):
         ok = np.ones(self.num_envs, dtype=bool)
         infos = {"is_success": success.copy(), "position_error_m": self.x - self.target,
                  "outcome": outcome, "sim_time_s": self.t.copy()}
-        if self.config.randomised:
+        if self._randomised:
             infos["friction_factor"] = self.friction_factor.copy()
             infos["mass_factor"] = self.mass_factor.copy()
         for key in list(infos):
