@@ -310,3 +310,29 @@ def test_sb3_adapter_passes_the_options_and_reports_the_factors():
     assert set(env.reset_infos[0]) >= {"friction_factor", "mass_factor"}
     plain, _ = first(4)
     assert "friction_factor" not in plain.reset_infos[0]
+
+
+def test_checkers_and_pickle_with_randomisation_on():
+    import pickle
+    import warnings
+
+    from gymnasium.utils.env_checker import check_env
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(gym.make("MicroConveyor-v0", **RAND).unwrapped)
+    env = MicroConveyorEnv(**RAND)
+    env.reset(seed=3)
+    _, _, te, tr, _ = env.step(np.array([0.1, 0.5, -0.9], np.float32))
+    if te or tr:
+        env.reset()
+    clone = pickle.loads(pickle.dumps(env))
+    acts = np.random.default_rng(1).uniform(-1, 1, (9, 3)).astype(np.float32)
+    for a in acts:
+        s1, s2 = env.step(a), clone.step(a)
+        np.testing.assert_array_equal(s1[0], s2[0])
+        assert s1[1:] == s2[1:]
+        if s1[2] or s1[3]:
+            r1, r2 = env.reset(), clone.reset()
+            np.testing.assert_array_equal(r1[0], r2[0])
+            assert r1[1] == r2[1]
