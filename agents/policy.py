@@ -6,5 +6,7 @@ from importlib import resources
 from pathlib import Path
 
 
-def shipped_path() -> Path:
-    return Path(str(resources.files("agents") / "policy"))
+def shipped_path(name: str = "policy") -> Path:
+    """The folder of a shipped policy: ``policy`` (the default, trained on the nominal env) or
+    ``policy_randomised`` (trained under per-episode randomisation, configs/ppo_randomised.yml)."""
+    return Path(str(resources.files("agents") / name))
