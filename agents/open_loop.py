@@ -195,3 +195,22 @@ def solve_target(target_m: float, method: str = "de", budget: int = 2000, seed: 
         sim_time_s=best["time"], wall_time_s=time.perf_counter() - t0,
         tolerance_m=cfg.tolerance, history_episodes=res.history_episodes,
         history_best_abs_error_m=hist)
+
+
+def plan_trajectory(plan: np.ndarray, target_m: float,
+                    config: EnvConfig | None = None) -> dict[str, np.ndarray]:
+    """The recorded run of one plan ``(n_actuators, 3)`` on the env's model (the same numbers the
+    env plays, from ``-start_offset``: without ``start_jitter``): ``t_s`` [s], ``x_m`` [m],
+    ``v_m_s`` [m/s]. ``target_m`` [m] is unused by the physics and only checked, so a
+    trajectory always belongs to a well-posed episode."""
+    from microconveyor_env.envs.conveyor import check_target, make_simulator
+    from microconveyor_env.physics.schedule import ActuatorArray, Schedule
+
+    cfg = config or EnvConfig.from_yaml()
+    check_target(target_m)
+    fir = decode_plan(plan, cfg)
+    sched = Schedule.sequence(ActuatorArray(cfg.actuator_positions), fir["frequency_hz"],
+                              fir["stroke_m"], fir["delay_s"])
+    r = make_simulator(cfg).simulate(sched, -cfg.start_offset, record=True)
+    assert r.trajectory is not None
+    return {k: r.trajectory[k] for k in ("t_s", "x_m", "v_m_s")}
