@@ -17,13 +17,14 @@ def _plt() -> Any:
 
 def plot_cost_history(history: Mapping[str, tuple[Sequence[int], Sequence[float]]],
                       path: str, title: str = "") -> str:
-    """Best cost after each generation, one line per run: ``{label: (episodes, best cost)}``
-    (generations on the x axis: one per point)."""
+    """Best cost so far after each generation against the episodes used, one line per run:
+    ``{label: (episodes, best cost)}`` (one point per generation: for the dissertation's DE,
+    50 episodes each, so the x axis is 50 x the generation of its Fig. 4.11)."""
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6.5, 4))
-    for label, (_, cost) in history.items():
-        ax.semilogy(np.arange(len(cost)), cost, "o-", ms=3, label=label)
-    ax.set_xlabel("generation (0: start population)")
+    for label, (episodes, cost) in history.items():
+        ax.semilogy(episodes, cost, "o-", ms=3, label=label)
+    ax.set_xlabel("episodes (one point per generation)")
     ax.set_ylabel("best cost so far")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
