@@ -124,6 +124,26 @@ def cmd_evaluate(args):
     emit(args, res)
 
 
+def _seeds_args(p):
+    p.add_argument("runs", nargs="+", help="run folders of `microconveyor train`")
+    p.add_argument("--plot", type=plot_path, default=None, help="write the learning curves here")
+
+
+@command("seeds", "aggregate training runs over seeds: IQM and bootstrap CI of the final "
+                  "evaluations, learning curves", _seeds_args)
+def cmd_seeds(args):
+    from .seeds import aggregate, curves, plot_curves
+
+    res = aggregate(args.runs)
+    res["curves"] = curves(args.runs)
+    if args.plot:
+        res["plot"] = plot_curves(res["curves"], args.plot)
+    lines = [f"{k}: IQM {v['iqm']:.4g}, 95 % CI [{v['ci95'][0]:.4g}, {v['ci95'][1]:.4g}], per "
+             f"seed {', '.join(f'{x:.4g}' for x in v['per_seed'])}"
+             for k, v in res.items() if isinstance(v, dict) and "iqm" in v]
+    emit(args, res, "\n".join(lines))
+
+
 def _demo_args(p):
     p.add_argument("--out", default="out", help="output folder for charts and the summary JSON")
     p.add_argument("--policy", default=None, help="policy folder (default: the shipped one)")

@@ -84,7 +84,9 @@ def fixed_targets(config: EnvConfig, n: int, seed: int) -> np.ndarray:
 def rollout(policy, targets: np.ndarray, config: EnvConfig, seed: int = 0,
             record: bool = False) -> dict:
     """One episode per target (batched, deterministic policy): final errors, outcomes, times;
-    with ``record`` the positions after each firing."""
+    with ``record`` the positions after each firing. With randomisation on in ``config``
+    (docs/randomisation.md) also each episode's ``friction_factor`` and ``mass_factor``; sub-env
+    ``i`` is seeded ``seed + i``."""
     from microconveyor_env.envs import MicroConveyorVectorEnv
 
     n = len(targets)
@@ -92,6 +94,7 @@ def rollout(policy, targets: np.ndarray, config: EnvConfig, seed: int = 0,
     obs, _ = env.reset(seed=seed, options={"target": np.asarray(targets, float)})
     done = np.zeros(n, bool)
     err, outcome, t = np.full(n, np.nan), np.full(n, "", dtype=object), np.zeros(n)
+    factors = {k: np.full(n, np.nan) for k in ("friction_factor", "mass_factor")}
     path = [env.x.copy()]
     while not done.all():
         obs, _, term, trunc, info = env.step(policy.act(obs))
@@ -100,12 +103,17 @@ def rollout(policy, targets: np.ndarray, config: EnvConfig, seed: int = 0,
         err[new] = src["position_error_m"][new]
         outcome[new] = src["outcome"][new]
         t[new] = src["sim_time_s"][new]
+        for key, val in factors.items():
+            if key in src:
+                val[new] = src[key][new]
         done |= term | trunc
         if record:
             x = np.where(done & ~new, path[-1], np.where(new, np.asarray(targets) + err, env.x))
             path.append(x)
     out = {"targets_m": np.asarray(targets, float), "error_m": err, "outcome": outcome,
            "time_s": t}
+    if config.randomised:
+        out.update(factors)
     if record:
         out["path_m"] = np.array(path)
     return out

@@ -27,6 +27,24 @@ from .evaluate import META, MODEL, STATS, Policy, evaluate
 CHECKPOINT = "checkpoint"
 
 
+class BudgetPPO(PPO):
+    """PPO whose schedules (``lin_`` learning rate, clip range) run out with whichever budget
+    ends first: the step count or the wall time (``budget_clock() -> fraction of the wall
+    budget used``). So a run capped by ``--max-minutes`` on a busy machine still ends with a
+    fully decayed learning rate, as the shipped policy's recipe expects."""
+
+    budget_clock = None  # set by train(); not saved with the model
+
+    def _excluded_save_params(self) -> list:
+        return [*super()._excluded_save_params(), "budget_clock"]
+
+    def _update_current_progress_remaining(self, num_timesteps: int, total_timesteps: int) -> None:
+        super()._update_current_progress_remaining(num_timesteps, total_timesteps)
+        if self.budget_clock is not None:
+            self._current_progress_remaining = max(0.0, min(
+                self._current_progress_remaining, 1.0 - self.budget_clock()))
+
+
 def config_hash(cfg: EnvConfig, hp: dict) -> str:
     import dataclasses
 
@@ -114,18 +132,21 @@ def train(out, steps: int | None = None, seed: int = 0, conf_file: str | None = 
     wall_before = 0.0
     if resume and (ckpt / MODEL).is_file():
         env = VecNormalize.load(str(ckpt / STATS), env) if (ckpt / STATS).is_file() else env
-        model = PPO.load(ckpt / MODEL, env=env, device="cpu",
+        model = BudgetPPO.load(ckpt / MODEL, env=env, device="cpu",
                          tensorboard_log=str(out / "tb") if tensorboard else None)
         wall_before = json.loads((ckpt / META).read_text()).get("wall_time_s", 0.0)
     else:
         if norm is not None:
             env = VecNormalize(env, **{"gamma": hp.get("gamma", 0.99), **norm})
-        model = PPO(hp.get("policy", "MlpPolicy"), env, seed=seed, device="cpu", verbose=0,
+        model = BudgetPPO(hp.get("policy", "MlpPolicy"), env, seed=seed, device="cpu", verbose=0,
                     tensorboard_log=str(out / "tb") if tensorboard else None,
                     **hyperparams.ppo_kwargs(hp))
     t0 = time.perf_counter()
     periodic = Periodic(out, cfg, checkpoint_freq, eval_freq, eval_targets, eval_seed, t0,
                         wall_before, None if max_minutes is None else 60.0 * max_minutes)
+    if max_minutes is not None:
+        budget_s = 60.0 * max_minutes
+        model.budget_clock = lambda: periodic.wall() / budget_s
     callbacks = [periodic] + ([ProgressBarCallback()] if progress_bar else [])
     remaining = max(0, total - model.num_timesteps)
     model.learn(remaining, callback=CallbackList(callbacks), reset_num_timesteps=not resume,

@@ -1,13 +1,14 @@
 """Environment throughput, idle and under load (a benchmark script, not a test).
 
-    python benchmarks/env_speed.py [--seconds 3] [--num-envs 64] [--no-load]
+    python benchmarks/env_speed.py [--seconds 3] [--num-envs 64] [--no-load] [--randomise]
 
 Prints JSON with two columns, ``idle`` and ``loaded`` (as many busy processes as cores, as when
 PPO, an evaluation or a browser share the machine): gymnasium's ``benchmark_step`` on the single
 env (random actions, resets included) and the batched env's firings per second with N parts for
 ``num_threads`` = 1 (serial), all cores (numba parallel) and ``None`` (the automatic choice).
-NEXT_STEP autoreset steps fire nothing and are not counted. Timings are noisy: compare within one
-run.
+NEXT_STEP autoreset steps fire nothing and are not counted. ``--randomise`` turns the per-episode
+randomisation on (``RANDOMISE``: action noise, friction and mass factors). Timings are noisy:
+compare within one run.
 """
 from __future__ import annotations
 
@@ -24,9 +25,13 @@ from gymnasium.utils.performance import benchmark_step
 
 import microconveyor_env  # noqa: F401  (registers MicroConveyor-v0)
 
+RANDOMISE = {"action_noise": 0.05, "friction_factor_range": (0.8, 1.2),
+             "mass_factor_range": (0.8, 1.2)}
 
-def batched_firings_per_s(num_envs: int, seconds: float, num_threads, seed: int = 0) -> dict:
-    venv = gym.make_vec("MicroConveyor-v0", num_envs=num_envs, num_threads=num_threads)
+
+def batched_firings_per_s(num_envs: int, seconds: float, num_threads, seed: int = 0,
+                          **kw) -> dict:
+    venv = gym.make_vec("MicroConveyor-v0", num_envs=num_envs, num_threads=num_threads, **kw)
     venv.reset(seed=seed)
     rng = np.random.default_rng(seed)
     for _ in range(3):  # warm-up (kernel load; the automatic mode tries both choices)
@@ -48,13 +53,13 @@ def _busy(stop) -> None:
         pass
 
 
-def measure(num_envs: int, seconds: float) -> dict:
-    env = gym.make("MicroConveyor-v0").unwrapped
+def measure(num_envs: int, seconds: float, **kw) -> dict:
+    env = gym.make("MicroConveyor-v0", **kw).unwrapped
     benchmark_step(env, target_duration=0.5, seed=0)  # warm-up
     out = {"single_env_steps_per_s": round(benchmark_step(env, target_duration=seconds, seed=0))}
     for label, nt in (("serial", 1), ("parallel", numba.config.NUMBA_NUM_THREADS),
                       ("auto", None)):
-        out[f"batched_{label}"] = batched_firings_per_s(num_envs, seconds, nt)
+        out[f"batched_{label}"] = batched_firings_per_s(num_envs, seconds, nt, **kw)
     return out
 
 
@@ -63,10 +68,13 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=3.0)
     ap.add_argument("--num-envs", type=int, default=64)
     ap.add_argument("--no-load", action="store_true", help="only the idle column")
+    ap.add_argument("--randomise", action="store_true",
+                    help=f"per-episode randomisation on: {RANDOMISE}")
     args = ap.parse_args()
+    kw = RANDOMISE if args.randomise else {}
     result = {"num_envs": args.num_envs, "cores": os.cpu_count(),
-              "numba_threads": numba.config.NUMBA_NUM_THREADS,
-              "idle": measure(args.num_envs, args.seconds)}
+              "numba_threads": numba.config.NUMBA_NUM_THREADS, "randomise": kw,
+              "idle": measure(args.num_envs, args.seconds, **kw)}
     if not args.no_load:
         stop = mp.Event()
         procs = [mp.Process(target=_busy, args=(stop,), daemon=True)
@@ -74,7 +82,7 @@ def main() -> None:
         for p in procs:
             p.start()
         try:
-            result["loaded"] = measure(args.num_envs, args.seconds)
+            result["loaded"] = measure(args.num_envs, args.seconds, **kw)
         finally:
             stop.set()
             for p in procs:

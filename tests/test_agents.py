@@ -53,6 +53,27 @@ def test_ppo_trains_saves_loads_and_resumes(tmp_path):
     assert np.isfinite(res["median_abs_error_m"])
 
 
+def test_schedules_run_out_with_the_wall_time_budget(tmp_path):
+    """With --max-minutes the lin_ learning rate decays over whichever budget ends first."""
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from agents.train import BudgetPPO
+    from microconveyor_env.envs import MicroConveyorEnv
+
+    model = BudgetPPO("MlpPolicy", DummyVecEnv([MicroConveyorEnv]), n_steps=16, batch_size=16,
+                      learning_rate=hyperparams.linear_schedule(1e-3), device="cpu")
+    model._update_current_progress_remaining(10, 100)
+    assert model._current_progress_remaining == pytest.approx(0.9)  # steps only
+    model.budget_clock = lambda: 0.5                                  # half the wall time gone
+    model._update_current_progress_remaining(10, 100)
+    assert model._current_progress_remaining == pytest.approx(0.5)
+    model.budget_clock = lambda: 1.2                                  # past the budget
+    model._update_current_progress_remaining(10, 100)
+    assert model._current_progress_remaining == 0.0
+    model.save(tmp_path / "m.zip")                                    # the clock is not saved
+    assert BudgetPPO.load(tmp_path / "m.zip", device="cpu").budget_clock is None
+
+
 def test_shipped_policy_loads_and_reproduces_its_metadata():
     pol = load_policy(shipped_path())
     meta = pol.metadata
@@ -120,3 +141,23 @@ def test_seed_aggregation(tmp_path):
     out = aggregate(runs, reps=200)
     lo, hi = out["success_rate_50um"]["ci95"]
     assert 0.2 - 1e-12 <= lo <= out["success_rate_50um"]["iqm"] <= hi <= 0.8 + 1e-12
+
+
+def test_seeds_command_reports_curves_and_plots(tmp_path):
+    for i, rate in enumerate((0.2, 0.5, 0.8)):
+        d = tmp_path / str(i)
+        d.mkdir()
+        ev = {"success_rate_50um": rate, "success_rate_100um": rate, "success_rate_250um": rate,
+              "median_abs_error_m": 1e-5 * (i + 1)}
+        (d / "metadata.json").write_text(json.dumps({"evaluation": ev}))
+        rows = [{**ev, "steps": s, "wall_time_s": s / 1e3} for s in (1000, 2000)]
+        (d / "evaluations.jsonl").write_text("\n".join(json.dumps(r) for r in rows) + "\n")
+    r = run("seeds", *(str(tmp_path / str(i)) for i in range(3)), "--plot",
+            str(tmp_path / "curves.png"), "--json")
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["success_rate_50um"]["per_seed"] == [0.2, 0.5, 0.8]
+    assert out["curves"][str(tmp_path / "1")]["steps"] == [1000, 2000]
+    assert (tmp_path / "curves.png").stat().st_size > 10_000
+    r = run("seeds", str(tmp_path / "nope"), "--json")
+    assert r.returncode == 2 and "error" in json.loads(r.stdout)

@@ -2,7 +2,10 @@
 
 Each component lives in [-1, 1] (clipped): frequency maps log-uniformly onto ``freq_range`` [Hz],
 stroke linearly onto ``stroke_range`` [m], delay linearly onto ``delay_range`` [s]. The mapping's
-constants travel as one float array ``AC`` (:func:`constants`) into the compiled :func:`decode`.
+constants travel as one float array ``AC`` (:func:`constants`) into the compiled :func:`decode`,
+with the execution noise ``action_noise`` [action units] (``AC[A_NOISE]``): when it is > 0 the env
+fires ``clip(action + action_noise * z)``, ``z`` standard normal per component and firing
+(docs/randomisation.md).
 """
 from __future__ import annotations
 
@@ -20,8 +23,8 @@ from numba import njit
 from ..physics.jit_cache import refresh as refresh_jit_cache
 
 ACTION_DIM = 3
-A_F0, A_LOGSPAN, A_H0, A_HSPAN, A_D0, A_DSPAN = range(6)
-N_A = 6
+A_F0, A_LOGSPAN, A_H0, A_HSPAN, A_D0, A_DSPAN, A_NOISE = range(7)
+N_A = 7
 
 
 def constants(cfg: EnvConfig) -> np.ndarray:
@@ -30,6 +33,7 @@ def constants(cfg: EnvConfig) -> np.ndarray:
     AC[A_F0], AC[A_LOGSPAN] = cfg.freq_range[0], cfg.log_freq_span
     AC[A_H0], AC[A_HSPAN] = cfg.stroke_range[0], cfg.stroke_range[1] - cfg.stroke_range[0]
     AC[A_D0], AC[A_DSPAN] = cfg.delay_range[0], cfg.delay_range[1] - cfg.delay_range[0]
+    AC[A_NOISE] = cfg.action_noise
     return AC
 
 

@@ -17,6 +17,11 @@ from .task import LENGTH_SCALE, OBS_BOUND
 # this distance could not be seen.
 MAX_TARGET = OBS_BOUND * LENGTH_SCALE  # m
 MIN_LENGTH = 1e-9  # m: below it, |x - target| / tolerance overflows (NaN rewards)
+# Randomisation (docs/randomisation.md): sigma of the execution noise, in action units (the action
+# box is [-1, 1], so sigma = 1 already spreads a firing over the whole box); the per-episode
+# friction and mass factors within an order of magnitude of the preset (beyond it, make a preset)
+MAX_ACTION_NOISE = 1.0
+FACTOR_BOUNDS = (0.1, 10.0)
 _RANGES = {  # field -> (lo, hi, lo_open, unit)
     "spacing": (1e-6, 1.0, False, "m"), "wavelength": (MIN_WAVELENGTH, 1.0, False, "m"),
     "start_offset": (0.0, 1.0, False, "m"), "start_jitter": (0.0, 1.0, False, "m"),
@@ -24,9 +29,11 @@ _RANGES = {  # field -> (lo, hi, lo_open, unit)
     "time_cost": (0.0, 1e6, False, "1/s"), "success_bonus": (0.0, 1e6, False, "-"),
     "detach_penalty": (0.0, 1e6, True, "-"), "max_time": (1e-6, 1e6, False, "s"),
     "dt": (MIN_DT, 1.0, False, "s"),
+    "action_noise": (0.0, MAX_ACTION_NOISE, False, "action units"),
 }
 _PAIRS = {"target_range": (0.0, MAX_TARGET, "m"), "freq_range": (0.0, 1e6, "Hz"),
-          "stroke_range": (0.0, 1e-2, "m"), "delay_range": (0.0, 1e4, "s")}
+          "stroke_range": (0.0, 1e-2, "m"), "delay_range": (0.0, 1e4, "s"),
+          "friction_factor_range": (*FACTOR_BOUNDS, "-"), "mass_factor_range": (*FACTOR_BOUNDS, "-")}
 
 
 @dataclass(frozen=True)
@@ -57,6 +64,10 @@ class EnvConfig:
     min_steps: int = 48  # floor on RK4 steps per stroke
     num_threads: int | None = None  # batched env only; None: the measured rule (envs/vector.py)
     max_steps: int = MAX_STEPS
+    # per-episode randomisation, off by default (docs/randomisation.md)
+    action_noise: float = 0.0  # [action units] sigma of Gaussian noise on each fired action
+    friction_factor_range: tuple = (1.0, 1.0)  # [-] factor on the friction Q, uniform per episode
+    mass_factor_range: tuple = (1.0, 1.0)  # [-] factor on the part mass, uniform per episode
 
     def __post_init__(self):
         for name, (lo, hi, lo_open, unit) in _RANGES.items():
@@ -149,6 +160,12 @@ class EnvConfig:
     @property
     def actuator_positions(self) -> tuple:
         return tuple(i * self.spacing for i in range(self.n_actuators))
+
+    @property
+    def randomised(self) -> bool:
+        """Whether any per-episode randomisation is on (noise > 0 or a factor range not (1, 1))."""
+        return (self.action_noise > 0.0 or self.friction_factor_range != (1.0, 1.0)
+                or self.mass_factor_range != (1.0, 1.0))
 
     @property
     def log_freq_span(self) -> float:

@@ -13,7 +13,7 @@ from ..physics.contact_table import TableRangeError
 from ..physics.materials import ParameterError
 from ..physics.simulator import Simulator
 from ..presets import simulator
-from . import actions, step as kstep, task
+from . import actions, randomisation, step as kstep, task
 from .config import EnvConfig
 
 
@@ -23,10 +23,20 @@ def make_simulator(cfg: EnvConfig) -> Simulator:
     sim = simulator(cfg.preset, shape=cfg.shape, wavelength=cfg.wavelength,
                     kinematics=cfg.kinematics, mode=cfg.mode, dt=cfg.dt, max_time=cfg.max_time,
                     min_steps=cfg.min_steps, max_steps=cfg.max_steps)
+    f, h = np.array([cfg.freq_range[1]]), np.array([cfg.stroke_range[1]])
     try:
-        sim.check_firings(np.array([cfg.freq_range[1]]), np.array([cfg.stroke_range[1]]))
+        sim.check_firings(f, h)
     except TableRangeError as exc:
         raise ParameterError(f"EnvConfig.freq_range / stroke_range: {exc}") from None
+    heaviest = cfg.mass_factor_range[1]
+    if heaviest > 1.0:
+        try:
+            sim.check_firings(f, h, mass_factor=heaviest)
+        except TableRangeError as exc:
+            raise ParameterError(f"EnvConfig.mass_factor_range = {cfg.mass_factor_range!r} is "
+                                 f"invalid with these freq_range / stroke_range: a part "
+                                 f"{heaviest:g} times heavier: {exc}; lower the upper factor"
+                                 ) from None
     return sim
 
 
@@ -100,7 +110,22 @@ class MicroConveyorEnv(gym.Env):
     time limit ``max_time`` (or an unresolved stick–slip chatter, reported in ``info["outcome"]``).
     ``info``: ``is_success``, ``position_error_m`` (signed x − target, now), ``outcome``
     (``moving``/``rest``/``detached``/``max_time``/``too_many_events``), ``sim_time_s``,
-    ``frequency_hz``, ``stroke_m``, ``delay_s`` (the decoded action).
+    ``frequency_hz``, ``stroke_m``, ``delay_s`` (the decoded action as fired, execution noise
+    included); with randomisation on also ``friction_factor`` and ``mass_factor`` (this episode's).
+
+    ## Per-episode randomisation (off by default; docs/randomisation.md)
+
+    | field | unit | default | valid | drawn | effect |
+    |---|---|---|---|---|---|
+    | ``action_noise`` | action units | 0.0 (off) | [0, 1] | per firing (at reset, for the episode) | fires ``clip(action + σ z)``, z ~ N(0, 1) per component |
+    | ``friction_factor_range`` | – | (1, 1) | [0.1, 10], low ≤ high | uniform per episode | multiplies the friction Q(N), static and sliding |
+    | ``mass_factor_range`` | – | (1, 1) | [0.1, 10], low ≤ high | uniform per episode | multiplies the part mass: inertia and weight |
+
+    The contact table does not depend on the mass (only the load it is read at), so it serves every
+    factor; the heaviest part's peak load must stay inside it (checked at construction). Draws
+    come from streams derived from the env's seeded generator, never from it: off, nothing is
+    drawn (rollouts unchanged); on, starts and targets are those of the env without, and a part
+    seeded ``s`` draws the same in the single env and in the batched env.
 
     ## Arguments
     Any field of :class:`EnvConfig` (defaults in ``configs/envs/MicroConveyor-v0.yaml``), e.g.
@@ -134,6 +159,15 @@ class MicroConveyorEnv(gym.Env):
         self._target = np.full(1, np.nan)
         self._done = True
         self._last_firing = None
+        # per-episode randomisation (randomisation.py): the part's constants row, its noise, the
+        # factors drawn, and the streams derived from np_random (re-derived when it is replaced)
+        self._P = self.sim.params.reshape(1, -1).copy()
+        self._noise = (np.zeros((1, self.config.n_actuators, 3)) if self.config.action_noise > 0
+                       else kstep.NO_NOISE)
+        self._factors = (1.0, 1.0)
+        self._rand_streams: tuple | None = None
+        self._rand_src = None
+        self._randomised = self.config.randomised
 
     # state accessors (SI units)
     x = property(lambda self: float(self._x[0]), doc="part position [m]")
@@ -141,12 +175,23 @@ class MicroConveyorEnv(gym.Env):
     t = property(lambda self: float(self._t[0]), doc="simulated time [s]")
     fired = property(lambda self: int(self._fired[0]), doc="actuators fired so far")
     target = property(lambda self: float(self._target[0]), doc="target position [m]")
+    friction_factor = property(lambda self: self._factors[0],
+                               doc="this episode's factor on the friction [-]")
+    mass_factor = property(lambda self: self._factors[1], doc="this episode's factor on the mass [-]")
 
     # ------------------------------------------------------------------ API
     def reset(self, *, seed=None, options=None):
         super().reset(seed=seed)
         given = check_target(options["target"]) if options and "target" in options else None
         x0, target = task.initial_state(self.config, self.np_random, given)
+        if self._randomised:
+            if self._rand_src is not self.np_random:  # seeded anew (or replaced): new streams
+                self._rand_streams = randomisation.streams(self.np_random)
+                self._rand_src = self.np_random
+            assert self._rand_streams is not None
+            self._factors = randomisation.draw(self.config, self._rand_streams, self.sim.params,
+                                               self._P[0], self._noise[0] if self._noise.size
+                                               else None)
         self._x[0], self._v[0], self._t[0] = x0, 0.0, 0.0
         self._fired[0] = 0
         self._target[0] = target
@@ -161,10 +206,10 @@ class MicroConveyorEnv(gym.Env):
             raise RuntimeError("step() called on a finished episode: call reset() first")
         a = actions.check_actions(action, None)
         xa = float(self.positions[self.fired])
-        kstep.step_serial(a, self._x, self._v, self._t, self._fired, self._target, self._active,
-                          self._AC, self._TC, self.sim.dt, self.sim.min_steps, self.positions,
-                          self.sim.params, *self.sim.tables, kstep.NO_RECORD, self._kout,
-                          self._res, self._obs_buf)
+        kstep.step_serial(a, self._noise, self._x, self._v, self._t, self._fired, self._target,
+                          self._active, self._AC, self._TC, self.sim.dt, self.sim.min_steps,
+                          self.positions, self._P, *self.sim.tables, kstep.NO_RECORD,
+                          self._kout, self._res, self._obs_buf)
         res = self._res[0]
         outcome = kernel.OUTCOMES[int(res[kstep.S_OUTCOME])]
         raise_if_beyond_table(outcome, self.sim)
@@ -187,5 +232,8 @@ class MicroConveyorEnv(gym.Env):
 
     # ------------------------------------------------------------------ helpers
     def _info(self, outcome: str, success: bool) -> dict:
-        return {"is_success": success, "position_error_m": float(self.x - self.target),
+        info = {"is_success": success, "position_error_m": float(self.x - self.target),
                 "outcome": outcome, "sim_time_s": float(self.t)}
+        if self._randomised:
+            info["friction_factor"], info["mass_factor"] = self._factors
+        return info

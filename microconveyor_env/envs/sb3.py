@@ -17,7 +17,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 from .vector import MicroConveyorVectorEnv
 
 _SCALAR_INFO = ("is_success", "position_error_m", "outcome", "sim_time_s", "frequency_hz",
-                "stroke_m", "delay_s")
+                "stroke_m", "delay_s", "friction_factor", "mass_factor")
 
 
 class MicroConveyorSB3VecEnv(VecEnv):

@@ -13,7 +13,7 @@ from gymnasium.vector.utils import batch_space
 
 from ..physics import dynamics_kernel as kernel
 from ..physics.simulator import Simulator
-from . import actions as act, step as kstep, task
+from . import actions as act, randomisation, step as kstep, task
 from .config import EnvConfig
 from .conveyor import check_render_mode, check_target, make_simulator, raise_if_beyond_table
 from .threads import ThreadChooser, threads
@@ -32,6 +32,10 @@ class MicroConveyorVectorEnv(VectorEnv):
     Threads: ``num_threads`` (an EnvConfig field, also a ``make_vec`` keyword): 1 runs a serial
     loop, k > 1 numba's parallel loop with k threads, ``None`` (default) picks between the two by
     measuring them as it runs (:mod:`.threads`). Results are bit-identical in every case.
+    Per-episode randomisation (``action_noise``, ``friction_factor_range``, ``mass_factor_range``;
+    :mod:`.randomisation`): each part has its own row of constants and draws from streams derived
+    from its own generator, so sub-env ``i`` seeded ``seed + i`` draws what the single env seeded
+    ``seed + i`` draws; ``friction_factor`` / ``mass_factor`` (arrays) hold this episode's factors.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4,
@@ -77,6 +81,17 @@ class MicroConveyorVectorEnv(VectorEnv):
         self._obs_buf: np.ndarray = np.zeros((n, task.OBS_DIM), dtype=np.float32)
         self.threads: ThreadChooser = ThreadChooser(self.config.num_threads, n)
         self._started: bool = False
+        # per-episode randomisation (randomisation.py): one row of constants per part (mass and
+        # friction factor applied), the episode's noise, the factors drawn, and each part's
+        # streams derived from its generator (re-derived when the generator is replaced)
+        self._P: np.ndarray = np.tile(self.sim.params, (n, 1))
+        self._noise: np.ndarray = (np.zeros((n, self.config.n_actuators, 3))
+                                   if self.config.action_noise > 0 else kstep.NO_NOISE)
+        self.friction_factor: np.ndarray = np.ones(n)  # this episode's factor on the friction [-]
+        self.mass_factor: np.ndarray = np.ones(n)      # this episode's factor on the mass [-]
+        self._rand_streams: list[tuple | None] = [None] * n
+        self._randomised: bool = self.config.randomised
+        self._rand_src: list[np.random.Generator | None] = [None] * n
 
     # ------------------------------------------------------------------ resets
     def _reset_one(self, i: int, options: dict | None) -> None:
@@ -85,6 +100,15 @@ class MicroConveyorVectorEnv(VectorEnv):
             tv = np.broadcast_to(np.asarray(options["target"], dtype=float), (self.num_envs,))
             given = check_target(tv[i])
         x0, target = task.initial_state(self.config, self.rngs[i], given)
+        if self._randomised:
+            if self._rand_src[i] is not self.rngs[i]:  # seeded anew: new derived streams
+                self._rand_streams[i] = randomisation.streams(self.rngs[i])
+                self._rand_src[i] = self.rngs[i]
+            rs = self._rand_streams[i]
+            assert rs is not None
+            self.friction_factor[i], self.mass_factor[i] = randomisation.draw(
+                self.config, rs, self.sim.params, self._P[i],
+                self._noise[i] if self._noise.size else None)
         self.x[i], self.v[i], self.t[i] = x0, 0.0, 0.0
         self.fired[i] = 0
         self.target[i] = target
@@ -116,9 +140,9 @@ class MicroConveyorVectorEnv(VectorEnv):
         active = ~resetting
         self._res[resetting] = 0.0
         self._res[resetting, kstep.S_OUTCOME] = kernel.MOVING
-        args = (a, self.x, self.v, self.t, self.fired, self.target, active, self._AC, self._TC,
-                self.sim.dt, self.sim.min_steps, self.positions, self.sim.params, *self.sim.tables,
-                kstep.NO_RECORD, self._kout, self._res, self._obs_buf)
+        args = (a, self._noise, self.x, self.v, self.t, self.fired, self.target, active,
+                self._AC, self._TC, self.sim.dt, self.sim.min_steps, self.positions, self._P,
+                *self.sim.tables, kstep.NO_RECORD, self._kout, self._res, self._obs_buf)
         k = self.threads.choose()
         t0 = time.perf_counter()
         if k == 1:
@@ -191,6 +215,9 @@ class MicroConveyorVectorEnv(VectorEnv):
         ok = np.ones(self.num_envs, dtype=bool)
         infos = {"is_success": success.copy(), "position_error_m": self.x - self.target,
                  "outcome": outcome, "sim_time_s": self.t.copy()}
+        if self._randomised:
+            infos["friction_factor"] = self.friction_factor.copy()
+            infos["mass_factor"] = self.mass_factor.copy()
         for key in list(infos):
             infos["_" + key] = ok.copy()
         return infos

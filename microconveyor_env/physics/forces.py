@@ -2,7 +2,8 @@
 
 Normal load, the tabulated maximum static friction Q(N), the slip acceleration, one RK4 step and
 the stick test: what :mod:`.dynamics_kernel` integrates. Model constants travel in one float
-array ``P`` (indices ``I_*``).
+array ``P`` (indices ``I_*``); the part's mass ``P[I_MASS]`` (inertia and weight) and a factor
+on the friction ``P[I_FSCALE]`` are what the env's per-episode randomisation varies per part.
 """
 from __future__ import annotations
 
@@ -21,7 +22,10 @@ I_MASS, I_G0, I_NMIN, I_EXACT, I_SLOPE, I_WL, I_SHAPE, I_MODE, I_NMAX = range(9)
 # number of strain-table nodes and of sigma nodes, the largest tabulated strain, and from
 # I_SDATA on: table offsets (n_sig + 1), -F_pull per sigma node (n_sig) [N], strain nodes.
 I_STRETCH, I_ZONE, I_A2STEP, I_NSTRAIN, I_NSIG, I_EMAX = range(9, 15)
-N_PARAMS = 15  # I_NMIN: -F_pull [N] (unstretched); I_NMAX: largest tabulated load [N]
+# I_FSCALE: factor [-] on the tabulated Q(N) (static and sliding friction), 1 unless the env
+# randomises friction per episode (docs/randomisation.md); x * 1.0 == x, so 1 changes nothing
+I_FSCALE = 15
+N_PARAMS = 16  # I_NMIN: -F_pull [N] (unstretched); I_NMAX: largest tabulated load [N]
 I_SDATA = N_PARAMS
 KARNOPP, EVENT = 0, 1  # integration modes (used by the kernel)
 
@@ -102,10 +106,10 @@ def stretch_friction(N, x, tl, xa, f, h, P, tu, tq, tqu):
 # no stretch code); 2-D tables of shape (1, L) (stretch, see Simulator) to the sigma-dependent
 # lookup. The plain-Python bodies are the same dispatch, for calls outside compiled code.
 def friction_at(N, x, tl, xa, f, h, P, tu, tq, tqu):
-    """Q(N) [N] at the roughness under the part."""
+    """Q(N) [N] at the roughness under the part, times the friction factor P[I_FSCALE]."""
     if tu.ndim == 1:
-        return friction_of_load(N, tu, tq, tqu, P[I_NMIN])
-    return stretch_friction(N, x, tl, xa, f, h, P, tu, tq, tqu)
+        return friction_of_load(N, tu, tq, tqu, P[I_NMIN]) * P[I_FSCALE]
+    return stretch_friction(N, x, tl, xa, f, h, P, tu, tq, tqu) * P[I_FSCALE]
 
 
 def n_min_at(x, tl, xa, f, h, P, tu):
@@ -127,10 +131,10 @@ def shifted_load(N, x, tl, xa, f, h, P, tu):
 @overload(friction_at, inline="always", jit_options={"cache": True})  # type: ignore[typeddict-unknown-key]
 def _ov_friction_at(N, x, tl, xa, f, h, P, tu, tq, tqu):
     if tu.ndim == 1:
-        return lambda N, x, tl, xa, f, h, P, tu, tq, tqu: friction_of_load(N, tu, tq, tqu,
-                                                                             P[I_NMIN])
-    return lambda N, x, tl, xa, f, h, P, tu, tq, tqu: stretch_friction(N, x, tl, xa, f, h, P, tu,
-                                                                         tq, tqu)
+        return lambda N, x, tl, xa, f, h, P, tu, tq, tqu: friction_of_load(
+            N, tu, tq, tqu, P[I_NMIN]) * P[I_FSCALE]
+    return lambda N, x, tl, xa, f, h, P, tu, tq, tqu: stretch_friction(
+        N, x, tl, xa, f, h, P, tu, tq, tqu) * P[I_FSCALE]
 
 
 @overload(n_min_at, inline="always", jit_options={"cache": True})  # type: ignore[typeddict-unknown-key]

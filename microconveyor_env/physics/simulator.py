@@ -206,6 +206,7 @@ class Simulator:
         P[forces.I_SLOPE], P[forces.I_WL] = self.slope, self.wavelength
         P[forces.I_SHAPE], P[forces.I_MODE] = SHAPES[shape], MODES[mode]
         P[forces.I_NMAX] = self.table.max_load
+        P[forces.I_FSCALE] = 1.0
         self.params = P
         tu, tq, tqu, _ = self.table.kernel_arrays()
         self.tables: tuple[np.ndarray, ...] = (np.ascontiguousarray(tu), np.ascontiguousarray(tq),
@@ -253,9 +254,11 @@ class Simulator:
                                  self.zone_length))
 
     # ------------------------------------------------------------------ checks
-    def check_firings(self, f: np.ndarray, h: np.ndarray) -> None:
+    def check_firings(self, f: np.ndarray, h: np.ndarray, mass_factor: float = 1.0) -> None:
         """Warn about under-resolved strokes at frequencies ``f`` [Hz] and strokes ``h`` [m];
-        refuse loads beyond the contact table and more steps than ``max_steps``."""
+        refuse loads beyond the contact table and more steps than ``max_steps``. ``mass_factor``
+        [-] checks the loads of a part that much heavier (the table does not depend on the mass,
+        only the load does)."""
         steps = stroke_steps(f, self.dt, self.min_steps)
         _check_budget("Simulator", f, self.dt, steps, self.max_steps, self.max_time)
         if steps.min() < MIN_STEPS_PER_STROKE:
@@ -266,7 +269,7 @@ class Simulator:
             raise ParameterError(f"a stroke of {h.max():g} m strains the active zone beyond the "
                                  f"stretch tables' max_strain = {self.stretch.max_strain}: raise "
                                  "max_strain")
-        peak = self.mass * (G0 + PEAK_QUINTIC_ACCEL * h * (2 * f) ** 2)
+        peak = self.mass * mass_factor * (G0 + PEAK_QUINTIC_ACCEL * h * (2 * f) ** 2)
         if self.kinematics == "exact":
             peak = peak * 4.0  # generous room for the velocity terms
         # the tables' range (with stretch: the smallest over the sigma nodes)

@@ -44,6 +44,9 @@ ENV_FIELDS = {
     "kinematics": st.sampled_from(["reduced", "exact", "seed", "other"]),
     "dt": hostile(log_uniform(1e-7, 1e-3)),
     "max_steps": st.sampled_from([10_000_000, 1, 1000, 0, -5, 2.5, True, 10 ** 13]),
+    "action_noise": hostile(st.just(0.0) | st.floats(0.0, 1.2)),
+    "friction_factor_range": hostile(pair(log_uniform(0.05, 20.0))) | st.just([1.0]),
+    "mass_factor_range": hostile(pair(log_uniform(0.05, 20.0))),
 }
 
 env_overrides = st.dictionaries(st.sampled_from(sorted(ENV_FIELDS)), st.none(), max_size=4).flatmap(

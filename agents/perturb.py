@@ -1,0 +1,167 @@
+"""Success against perturbation: a closed-loop policy or open-loop plans on fixed targets, across a
+ladder of perturbation levels of the env's per-episode randomisation (docs/randomisation.md).
+
+A level is an execution-noise sigma [action units] plus a symmetric spread r [-] of the friction
+and mass factors (both drawn uniformly in [1 - r, 1 + r] per episode)::
+
+    from agents.evaluate import fixed_targets
+    from agents.perturb import Level, perturbation_table, plan_rollout, policy_rollout
+
+    cfg = EnvConfig.from_yaml()
+    targets = fixed_targets(cfg, 100, seed=0)
+    rows = perturbation_table(policy_rollout(policy), cfg, targets)      # PPO (policy.act)
+    rows = perturbation_table(plan_rollout(plans), cfg, targets)         # DE plans (100, 5, 3)
+
+Every level replays the same targets with the same seeds; the env derives its draws from the seed
+so that a level's factors and noise are the same random numbers scaled (common random numbers):
+differences between levels are the perturbation's, not sampling noise.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from microconveyor_env.envs import EnvConfig
+
+from .evaluate import rollout
+
+# (config, targets [m], seed) -> {"error_m", "outcome", and with randomisation on
+# "friction_factor", "mass_factor"}: one episode per target, sub-env i seeded seed + i
+RolloutFn = Callable[[EnvConfig, np.ndarray, int], dict]
+
+
+@dataclasses.dataclass(frozen=True)
+class Level:
+    """One perturbation level: ``action_noise`` sigma [action units] and ``spread`` r [-] (friction
+    and mass factors uniform in [1 - r, 1 + r]; r <= 0.9, the factors' floor being 0.1)."""
+
+    action_noise: float = 0.0
+    spread: float = 0.0
+
+    def config(self, base: EnvConfig) -> EnvConfig:
+        """``base`` with this level's randomisation (validated by EnvConfig)."""
+        r = self.spread
+        return dataclasses.replace(base, action_noise=self.action_noise,
+                                   friction_factor_range=(1.0 - r, 1.0 + r),
+                                   mass_factor_range=(1.0 - r, 1.0 + r))
+
+
+def ladder(action_noise: Sequence[float], spread: Sequence[float]) -> list[Level]:
+    """Levels pairing ``action_noise[k]`` with ``spread[k]``."""
+    if len(action_noise) != len(spread):
+        raise ValueError(f"{len(action_noise)} noise levels for {len(spread)} spreads")
+    return [Level(float(s), float(r)) for s, r in zip(action_noise, spread)]
+
+
+DEFAULT_LADDER = tuple(ladder((0.0, 0.01, 0.02, 0.05, 0.1, 0.2),
+                              (0.0, 0.02, 0.05, 0.1, 0.2, 0.3)))
+
+
+class _Act:
+    def __init__(self, act: Callable[[np.ndarray], np.ndarray]) -> None:
+        self.act = act
+
+
+def policy_rollout(policy: Any) -> RolloutFn:
+    """Closed loop: ``policy`` is ``act(obs) -> actions`` ((N, 6) -> (N, 3)) or has such an
+    ``act`` method (e.g. :class:`agents.evaluate.Policy`)."""
+    act = getattr(policy, "act", policy)
+    if not callable(act):
+        raise TypeError(f"policy must be callable or have an act method, got {type(policy)}")
+
+    def run(config: EnvConfig, targets: np.ndarray, seed: int) -> dict:
+        return rollout(_Act(act), targets, config, seed=seed)
+
+    return run
+
+
+def plan_rollout(plans: np.ndarray) -> RolloutFn:
+    """Open loop: ``plans`` (n_targets, n_actuators, 3) in action units, one plan per target
+    (firing k of episode i fires ``plans[i, k]``), or one plan (n_actuators, 3) for all."""
+    plans = np.asarray(plans, dtype=np.float64)
+
+    def run(config: EnvConfig, targets: np.ndarray, seed: int) -> dict:
+        n, n_act = len(targets), config.n_actuators
+        p = np.broadcast_to(plans, (n, *plans.shape)) if plans.ndim == 2 else plans
+        if p.shape != (n, n_act, 3):
+            raise ValueError(f"plans of shape {plans.shape} do not fit {n} targets with "
+                             f"{n_act} actuators: expected ({n}, {n_act}, 3) or ({n_act}, 3)")
+        rows = np.arange(n)
+
+        def act(obs: np.ndarray) -> np.ndarray:  # obs[:, 4] = fired / n_actuators
+            k = np.minimum(np.rint(obs[:, 4].astype(np.float64) * n_act).astype(int), n_act - 1)
+            return p[rows, k].astype(np.float32)
+
+        return rollout(_Act(act), targets, config, seed=seed)
+
+    return run
+
+
+def _wilson(k: int, n: int, z: float = 1.96) -> list[float]:
+    """95 % Wilson score interval of a success rate k / n."""
+    if n == 0:
+        return [math.nan, math.nan]
+    p = k / n
+    c = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    mid = (p + z * z / (2 * n)) / (1 + z * z / n)
+    return [max(0.0, mid - c), min(1.0, mid + c)]
+
+
+def perturbation_table(run: RolloutFn, config: EnvConfig, targets: Sequence[float],
+                       levels: Sequence[Level] = DEFAULT_LADDER, seed: int = 0,
+                       repeats: int = 1, tolerance: float = 50e-6,
+                       per_episode: bool = False) -> list[dict]:
+    """Success within ``tolerance`` [m] (at rest, ``|x - target| <= tolerance``) of ``run`` on
+    ``targets`` [m] under each perturbation level applied to ``config``.
+
+    Each level runs ``repeats`` rollouts of all targets, repeat ``j`` seeded
+    ``seed + j * len(targets)`` (sub-env i: ``+ i``), the same at every level. Returns one row per
+    level (``per_episode=False``: ``level``, ``action_noise``, ``spread``,
+    ``friction_factor_range``, ``mass_factor_range``, ``n_episodes``, ``tolerance_m``,
+    ``success_rate`` and its 95 % Wilson ``success_ci95``, ``median_abs_error_m``, ``rest_rate``,
+    ``detach_rate``) or one row per episode (``level``, ``action_noise``, ``spread``, ``repeat``,
+    ``target_m``, ``error_m``, ``outcome``, ``success``, ``friction_factor``, ``mass_factor``).
+    """
+    tg = np.asarray(targets, dtype=np.float64)
+    if tg.ndim != 1 or tg.size == 0:
+        raise ValueError(f"targets must be a non-empty 1-d sequence, got shape {tg.shape}")
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
+        raise ValueError(f"repeats = {repeats!r} is invalid: must be an integer >= 1")
+    rows: list[dict] = []
+    for li, level in enumerate(levels):
+        cfg = level.config(config)
+        errs, outs, ffs, mfs = [], [], [], []
+        for j in range(repeats):
+            res = run(cfg, tg, seed + j * tg.size)
+            err = np.asarray(res["error_m"], dtype=np.float64)
+            errs.append(err)
+            outs.append(np.asarray(res["outcome"], dtype=object))
+            ffs.append(np.asarray(res.get("friction_factor", np.ones(tg.size)), dtype=np.float64))
+            mfs.append(np.asarray(res.get("mass_factor", np.ones(tg.size)), dtype=np.float64))
+            if per_episode:
+                for i in range(tg.size):
+                    rest = outs[-1][i] == "rest"
+                    rows.append({"level": li, "action_noise": level.action_noise,
+                                 "spread": level.spread, "repeat": j, "target_m": float(tg[i]),
+                                 "error_m": float(err[i]), "outcome": str(outs[-1][i]),
+                                 "success": bool(rest and abs(err[i]) <= tolerance),
+                                 "friction_factor": float(ffs[-1][i]),
+                                 "mass_factor": float(mfs[-1][i])})
+        if per_episode:
+            continue
+        err, out = np.concatenate(errs), np.concatenate(outs)
+        rest = out == "rest"
+        ok = int(np.sum(rest & (np.abs(err) <= tolerance)))
+        rows.append({"level": li, "action_noise": level.action_noise, "spread": level.spread,
+                     "friction_factor_range": list(cfg.friction_factor_range),
+                     "mass_factor_range": list(cfg.mass_factor_range),
+                     "n_episodes": int(err.size), "tolerance_m": tolerance,
+                     "success_rate": ok / err.size, "success_ci95": _wilson(ok, err.size),
+                     "median_abs_error_m": float(np.median(np.abs(err))),
+                     "rest_rate": float(np.mean(rest)),
+                     "detach_rate": float(np.mean(out == "detached"))})
+    return rows
