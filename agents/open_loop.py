@@ -155,7 +155,7 @@ class TargetResult:
 
 def solve_target(target_m: float, method: str = "de", budget: int = 2000, seed: int = 0,
                  config: EnvConfig | None = None, rollouts: Rollouts | None = None,
-                 **search_kw: Any) -> TargetResult:
+                 episode_seed: int = 0, **search_kw: Any) -> TargetResult:
     """Search the open-loop plan that brings the part to rest closest to ``target_m`` [m,
     measured from actuator 1] within ``budget`` episodes (used <= budget: see :mod:`.search`).
 
@@ -163,7 +163,9 @@ def solve_target(target_m: float, method: str = "de", budget: int = 2000, seed: 
     makes the run deterministic; ``config``: the env config (default: the env's defaults;
     ignored when ``rollouts`` is given, whose config is used and whose envs are reused);
     ``search_kw``: passed to the minimiser (e.g. ``popsize``). Every candidate plays the
-    episode of seed 0 (:meth:`Rollouts.run`, ``same_episode``)."""
+    episode of seed ``episode_seed`` [-] (:meth:`Rollouts.run`, ``same_episode``): with the env's
+    per-episode randomisation on (docs/randomisation.md) that is one draw of the factors and of
+    the action noise, the same for all candidates."""
     roll = rollouts or Rollouts(config)
     cfg = roll.config
     n = cfg.n_actuators
@@ -172,7 +174,7 @@ def solve_target(target_m: float, method: str = "de", budget: int = 2000, seed: 
 
     def cost(X: np.ndarray) -> np.ndarray:
         plans = X.reshape(-1, n, 3).astype(np.float32).astype(float)
-        r = roll.run(plans, target)
+        r = roll.run(plans, target, seed=episode_seed)
         err = r.abs_error_m
         c = np.where(r.rest, err, MISS + np.minimum(np.nan_to_num(err, nan=MISS), MISS))
         i = int(np.argmin(c))

@@ -150,3 +150,18 @@ def test_dissertation_de_full_run():
     assert a.final_position_m > 1e-3  # far beyond Table 4.3's 0.067 mm in this model
     b = solve_dissertation("de", seed=0)
     assert a.parameters == b.parameters and a.history_best_cost == b.history_best_cost
+
+
+def test_randomised_env_plays_one_episode_per_search():
+    """With per-episode randomisation on, every candidate plays the episode of `episode_seed`;
+    replaying the best plan with that seed gives the same end, other seeds other episodes."""
+    import dataclasses
+
+    from microconveyor_env.envs import EnvConfig
+
+    cfg = dataclasses.replace(EnvConfig.from_yaml(), action_noise=0.01,
+                              friction_factor_range=(0.8, 1.2), mass_factor_range=(0.8, 1.2))
+    a = solve_target(1e-3, "de", 30, seed=0, config=cfg, episode_seed=7)
+    assert replay(a.plan, 1e-3, cfg, seed=7).error_m[0] == a.error_m
+    r = replay(a.plan, 1e-3, cfg, copies=4, seed=7)
+    assert r.error_m[0] == a.error_m and len(set(r.error_m.tolist())) == 4
