@@ -1,5 +1,5 @@
-"""The agents' ``microconveyor`` commands: ``reach``, ``train``, ``evaluate`` and ``demo`` (the
-last replaces the env package's demo with one that runs the shipped policy).
+"""The agents' ``microconveyor`` commands: ``reach``, ``optimize``, ``train``, ``evaluate`` and
+``demo`` (the last replaces the env package's demo with one that runs the shipped policy).
 
 Loaded through the ``microconveyor_env.commands`` entry point (pyproject.toml): importing this
 module registers the commands with :func:`microconveyor_env.cli.base.command`.
@@ -56,6 +56,21 @@ def cmd_reach(args):
                      f"{r['best_noisy_success_rate']:.2f}  {'robust' if r['robust'] else ''}"
                      for r in study["rows"])
     emit(args, study, rows + f"\nrobust target range: {study['robust_target_range_m']}")
+
+
+def _optimize_args(p):
+    from .cli_optimize import add_args
+
+    add_args(p)
+
+
+@command("optimize", "open-loop optimisation: the env's per-firing plan for one target, or the "
+                     "dissertation's shared-parameter problem (DE or CMA-ES, batched, seeded)",
+         _optimize_args)
+def cmd_optimize(args):
+    from .cli_optimize import run
+
+    run(args)
 
 
 def _train_args(p):

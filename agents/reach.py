@@ -1,79 +1,30 @@
 """Reach study: how far, how precisely and how robustly can an open-loop schedule move the part?
 
-Per target, scipy's ``differential_evolution`` searches the whole schedule (one action of 3
-numbers per actuator: 15 numbers for 5 actuators) for the smallest final |x - target| at rest,
-each generation evaluated as one batch on :class:`MicroConveyorVectorEnv`. The best schedule is
+Per target, differential evolution (:func:`.open_loop.solve_target`) searches the whole schedule
+(one action of 3 numbers per actuator: 15 numbers for 5 actuators) for the smallest final
+|x - target| at rest, each generation evaluated as one batch on ``MicroConveyorVectorEnv``. The
+best schedule is
 then replayed ``n_noisy`` times with Gaussian action noise ``sigma`` (in [-1, 1] units): its
 success rate says whether the answer is robust or fragile.
 """
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 
 import numpy as np
 
-from microconveyor_env.envs import EnvConfig, MicroConveyorVectorEnv
+from microconveyor_env.envs import EnvConfig
 
-MISS = 1.0  # m: cost of an episode that does not end at rest (detached, max_time, ...)
-
-
-@dataclass
-class Rollouts:
-    """Batched open-loop rollouts of whole schedules on one config (envs cached by batch size)."""
-    config: EnvConfig
-
-    def __post_init__(self):
-        self._envs: dict[int, MicroConveyorVectorEnv] = {}
-        self.episodes = 0
-
-    def run(self, schedules: np.ndarray, target: float):
-        """schedules (B, n_actuators, 3) -> (final error [m], at rest, success) per schedule."""
-        b = schedules.shape[0]
-        env = self._envs.get(b)
-        if env is None:
-            env = self._envs[b] = MicroConveyorVectorEnv(b, config=self.config,
-                                                         autoreset_mode="SameStep")
-        env.reset(seed=0, options={"target": target})
-        done = np.zeros(b, bool)
-        err, rest, succ = np.full(b, np.inf), np.zeros(b, bool), np.zeros(b, bool)
-        for k in range(schedules.shape[1]):
-            _, _, term, trunc, info = env.step(schedules[:, k, :].astype(np.float32))
-            src = info.get("final_info", info)
-            new = (term | trunc) & ~done
-            err[new] = np.abs(src["position_error_m"][new])
-            rest[new] = src["outcome"][new] == "rest"
-            succ[new] = src["is_success"][new]
-            done |= term | trunc
-            if done.all():
-                break
-        self.episodes += b
-        return err, rest, succ
-
-
-def _de(cost, dim: int, budget: int, seed: int, x0=None):
-    from scipy.optimize import differential_evolution
-
-    pop = max(5, int(round(np.sqrt(budget) / dim)))  # popsize multiplier: pop * dim per generation
-    res = differential_evolution(cost, [(-1.0, 1.0)] * dim, popsize=pop,
-                                 maxiter=max(1, budget // (pop * dim) - 1), seed=seed, tol=0.0,
-                                 atol=0.0, polish=False, vectorized=True, updating="deferred",
-                                 x0=x0)
-    return res
+from .open_loop import MISS, Rollouts, solve_target
+from .search import de_minimize
 
 
 def best_schedule(roll: Rollouts, target: float, budget: int, seed: int):
-    """Differential evolution over the schedule for the smallest nominal |error|:
-    (best error [m], schedule (n, 3), episodes)."""
-    n = roll.config.n_actuators
-    start = roll.episodes
-
-    def cost(x):  # x: (dim, S) with vectorized=True
-        err, rest, _ = roll.run(x.T.reshape(-1, n, 3), target)
-        return np.where(rest, err, MISS + np.minimum(err, MISS))
-
-    res = _de(cost, 3 * n, budget, seed)
-    return float(res.fun), res.x.reshape(n, 3), roll.episodes - start
+    """Differential evolution over the schedule for the smallest nominal |error|
+    (:func:`.open_loop.solve_target`): (best error [m], schedule (n, 3), episodes)."""
+    res = solve_target(target, "de", budget, seed, rollouts=roll)
+    err = res.abs_error_m if res.outcome == "rest" else MISS + min(res.abs_error_m, MISS)
+    return err, res.plan, res.episodes
 
 
 def robust_schedule(roll: Rollouts, target: float, budget: int, seed: int, sigma: float,
@@ -86,13 +37,14 @@ def robust_schedule(roll: Rollouts, target: float, budget: int, seed: int, sigma
     start = roll.episodes
 
     def cost(x):
-        s = x.T.reshape(-1, n, 3)
+        s = x.reshape(-1, n, 3)
         noisy = np.clip(s[:, None] + rng.normal(0.0, sigma, (s.shape[0], k, n, 3)), -1, 1)
-        err, rest, _ = roll.run(noisy.reshape(-1, n, 3), target)
-        c = np.where(rest, np.minimum(err / tol, 10.0), 10.0)
+        r = roll.run(noisy.reshape(-1, n, 3), target)
+        c = np.where(r.rest, np.minimum(r.abs_error_m / tol, 10.0), 10.0)
         return c.reshape(-1, k).mean(1)
 
-    res = _de(cost, 3 * n, max(1, budget // k), seed, x0=None if x0 is None else x0.ravel())
+    res = de_minimize(cost, [(-1.0, 1.0)] * (3 * n), max(5, budget // k), seed,
+                      x0=None if x0 is None else np.asarray(x0, float).ravel())
     return res.x.reshape(n, 3), roll.episodes - start
 
 
@@ -100,8 +52,7 @@ def noisy_success(roll: Rollouts, schedule: np.ndarray, target: float, sigma: fl
                   n_noisy: int, seed: int) -> float:
     rng = np.random.default_rng(seed)
     noisy = np.clip(schedule[None] + rng.normal(0.0, sigma, (n_noisy, *schedule.shape)), -1, 1)
-    _, _, succ = roll.run(noisy, target)
-    return float(succ.mean())
+    return float(roll.run(noisy, target, seed=seed, same_episode=False).success.mean())
 
 
 def reach_study(targets, budget: int = 3000, sigma: float = 1e-3, n_noisy: int = 200,

@@ -38,7 +38,7 @@ from numba.core import caching as _nc
 
 _ROOT = Path(__file__).resolve().parents[1]
 COMPILED_SOURCES = ("physics/kinematics.py", "physics/forces.py", "physics/events.py",
-                    "physics/dynamics_kernel.py",
+                    "physics/dynamics_kernel.py", "physics/batch.py",
                     "envs/actions.py", "envs/task.py", "envs/step.py")
 CHECKSUM_SUFFIX = ".sha256"
 

@@ -1,0 +1,131 @@
+"""The ``microconveyor optimize`` command (registered by :mod:`.cli`)."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from microconveyor_env.cli.base import count, emit
+
+PROBLEMS = ("target", "dissertation")
+
+
+def plot_dir(text: str) -> str:
+    """``--plot`` value: a folder (created if missing) for the charts."""
+    p = Path(text)
+    if not text.strip():
+        raise argparse.ArgumentTypeError("empty folder name")
+    if p.exists() and not p.is_dir():
+        raise argparse.ArgumentTypeError(f"{text!r} is a file; give a folder for the charts")
+    return str(p)
+
+
+def add_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--problem", choices=PROBLEMS, default="target",
+                   help="target: the env's 15 per-firing actions for one target; dissertation: "
+                        "4 shared numbers (frequency, spacing, delay, stroke), 10 mm target")
+    p.add_argument("--method", choices=("de", "cmaes"), default="de")
+    p.add_argument("--target", type=float, default=None,
+                   help="target [m] beyond actuator 1 (default: 2e-3 for target, 10e-3 for "
+                        "dissertation)")
+    p.add_argument("--budget", type=count(10, 10_000_000), default=None,
+                   help="episodes (used <= budget; default 2000 for target, 2550 = 50 x (50 + 1) "
+                        "for dissertation)")
+    p.add_argument("--popsize", type=count(2, 100_000), default=None,
+                   help="population per generation (default: 15 for DE on target, 50 for DE on "
+                        "dissertation, pycma's for CMA-ES)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--plot", type=plot_dir, default=None, help="folder for the PNG charts")
+    p.add_argument("--explain", action="store_true",
+                   help="dissertation: also replay Table 4.3's schedule under one-at-a-time model "
+                        "changes and re-run the DE under each (~20-60 s)")
+
+
+def run(args: argparse.Namespace) -> None:
+    if args.target is not None and not 0 < args.target <= 0.1:
+        raise ValueError(f"--target {args.target!r} must be in (0, 0.1] m")
+    if args.popsize is not None and args.method == "de" and args.popsize < 5:
+        raise ValueError("--popsize: DE needs at least 5 members")
+    if args.popsize is not None and args.budget is not None and args.popsize > args.budget:
+        raise ValueError(f"--popsize {args.popsize} is larger than --budget {args.budget}")
+    if args.plot:
+        Path(args.plot).mkdir(parents=True, exist_ok=True)
+    if args.problem == "dissertation":
+        out, text = _dissertation(args)
+    else:
+        if args.explain:
+            raise ValueError("--explain belongs to --problem dissertation")
+        out, text = _target(args)
+    emit(args, out, text)
+
+
+def _target(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
+    from .open_loop import plan_trajectory, solve_target
+    from .optimize_plots import plot_error_history, plot_trajectories
+
+    target = 2e-3 if args.target is None else args.target
+    kw = {} if args.popsize is None else {"popsize": args.popsize}
+    res = solve_target(target, args.method, args.budget or 2000, args.seed, **kw)
+    out: dict[str, Any] = {"problem": "target", **res.to_dict()}
+    if args.plot:
+        d = Path(args.plot)
+        out["plots"] = [
+            plot_error_history(res.history_episodes, res.history_best_abs_error_m,
+                               res.tolerance_m, str(d / "error_history.png"),
+                               f"{args.method}: target {target * 1e3:g} mm, seed {args.seed}"),
+            plot_trajectories({f"{args.method} best plan": plan_trajectory(res.plan, target)},
+                              str(d / "trajectory.png"), target,
+                              title=f"Best open-loop plan for {target * 1e3:g} mm")]
+    text = (f"target {target * 1e3:g} mm, {args.method}, {res.episodes} episodes in "
+            f"{res.wall_time_s:.2f} s: rests at {res.final_position_m * 1e3:.4f} mm "
+            f"(|error| {res.abs_error_m * 1e6:.2f} µm, {res.outcome}, success {res.success})")
+    return out, text
+
+
+def _dissertation(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
+    from .dissertation import TABLE_4_3, DissertationProblem, evaluate_parameters, \
+        solve_dissertation, trajectory
+    from .optimize_plots import plot_cost_history, plot_trajectories
+
+    prob = DissertationProblem() if args.target is None else DissertationProblem(args.target)
+    res = solve_dissertation(args.method, args.seed, args.budget, prob, args.popsize)
+    ours = evaluate_parameters(TABLE_4_3, prob)
+    out: dict[str, Any] = {
+        "problem": "dissertation", **res.to_dict(),
+        "cost_settings": {"target_m": prob.target_m, "x0_m": prob.x0_m,
+                          "time_weight_A_per_s": prob.time_weight, "scale_T_d_m": prob.scale_m,
+                          "exponent_C": prob.exponent, "detach_penalty_P": prob.penalty},
+        "table_4_3": {"dissertation": TABLE_4_3, "this_model": ours}}
+    if args.plot:
+        d = Path(args.plot)
+        label = (f"optimum ({res.parameters['frequency_hz']:.0f} Hz, "
+                 f"{res.parameters['spacing_m'] * 1e6:.0f} µm, "
+                 f"{res.parameters['delay_s'] * 1e3:.2f} ms, "
+                 f"{res.parameters['stroke_m'] * 1e6:.0f} µm)")
+        out["plots"] = [
+            plot_cost_history({args.method: (res.history_episodes, res.history_best_cost)},
+                              str(d / "cost_history.png")),
+            plot_trajectories({label: trajectory(res.parameters, prob),
+                               "Table 4.3 (719 Hz, 500 µm, 1 ms, 178 µm)":
+                               trajectory(TABLE_4_3, prob)},
+                              str(d / "trajectory.png"), prob.target_m)]
+    if args.explain:
+        from .table43 import explain
+
+        def progress(row: dict[str, Any]) -> None:
+            print(f"{row['variant']:62s} Table 4.3 -> "
+                  f"{row['table43_final_position_m'] * 1e3:7.3f} mm", file=sys.stderr,
+                  flush=True)
+
+        out["explain"] = explain(prob, seed=args.seed, progress=progress)
+    p = res.parameters
+    text = (f"{args.method} optimum: {p['frequency_hz']:.1f} Hz, spacing "
+            f"{p['spacing_m'] * 1e6:.1f} µm, delay {p['delay_s'] * 1e3:.3f} ms, stroke "
+            f"{p['stroke_m'] * 1e6:.1f} µm -> {res.final_position_m * 1e3:.3f} mm "
+            f"({res.outcome}) in {res.travel_time_s:.4f} s, cost {res.cost:.4g}; "
+            f"{res.episodes} episodes in {res.wall_time_s:.2f} s\n"
+            f"Table 4.3 (719 Hz, 500 µm, 1 ms, 178 µm): dissertation 10.02 mm in 0.037 s; "
+            f"this model {ours['final_position_m'] * 1e3:.3f} mm ({ours['outcome']}) in "
+            f"{ours['travel_time_s']:.4f} s")
+    return out, text
