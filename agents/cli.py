@@ -1,5 +1,5 @@
-"""The agents' ``microconveyor`` commands: ``reach``, ``optimize``, ``train``, ``evaluate`` and
-``demo`` (the last replaces the env package's demo with one that runs the shipped policy).
+"""The agents' ``microconveyor`` commands: ``reach``, ``optimize``, ``compare``, ``train``,
+``evaluate``, ``seeds`` and ``demo`` (the last replaces the env package's demo with one that runs the shipped policy).
 
 Loaded through the ``microconveyor_env.commands`` entry point (pyproject.toml): importing this
 module registers the commands with :func:`microconveyor_env.cli.base.command`.
@@ -69,6 +69,22 @@ def _optimize_args(p):
          _optimize_args)
 def cmd_optimize(args):
     from .cli_optimize import run
+
+    run(args)
+
+
+def _compare_args(p):
+    from .cli_compare import add_args
+
+    add_args(p)
+
+
+@command("compare", "closed loop vs open loop on fixed targets: PPO (shipped and trained with "
+                    "randomisation), DE and CMA-ES at several budgets, a random policy and a fixed "
+                    "schedule; accuracy vs compute, success vs tolerance and vs perturbation",
+         _compare_args)
+def cmd_compare(args):
+    from .cli_compare import run
 
     run(args)
 

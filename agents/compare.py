@@ -124,6 +124,10 @@ def compare(n_targets: int = 20, seed: int = 0, budgets: Sequence[int] = (100, 3
         rand_path = cand if (cand / "model.zip").is_file() else None
     elif randomised_policy != "":
         rand_path = Path(randomised_policy)
+    # warm-up (compilation, caches, torch): nothing below times a first call
+    rollout(ppo, targets[:1], cfg, seed=seed)
+    for method in methods:
+        solve_target(float(targets[0]), method, 40, seed, rollouts=Rollouts(cfg))
     rows = [_closed_loop("ppo", ppo, targets, cfg, seed, train_wall_s=train_wall,
                          train_episodes=train_steps // max(cfg.n_actuators, 1))]
     robust = None
