@@ -3,6 +3,7 @@ against perturbation."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -13,7 +14,7 @@ COLORS = {"ppo": "C0", "ppo_randomised": "C4", "random": "C7", "fixed_schedule":
           "de": "C1", "cmaes": "C2"}
 
 
-def _plt():
+def _plt() -> Any:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -35,7 +36,7 @@ def _color(key: str) -> str:
     return COLORS.get(key, COLORS.get(key.partition("_")[0], "k"))
 
 
-def accuracy_vs_compute(result: dict, path) -> str:
+def accuracy_vs_compute(result: dict, path: str | Path) -> str:
     """Median |error| and success against wall time per target (log axes)."""
     plt = _plt()
     fig, (a, b) = plt.subplots(1, 2, figsize=(10, 3.8), constrained_layout=True)
@@ -76,7 +77,7 @@ def accuracy_vs_compute(result: dict, path) -> str:
     return str(path)
 
 
-def success_vs_tolerance(result: dict, path) -> str:
+def success_vs_tolerance(result: dict, path: str | Path) -> str:
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6.4, 4), constrained_layout=True)
     tols = 1e6 * np.asarray(result["tolerance"]["tolerances_m"])
@@ -96,7 +97,7 @@ def success_vs_tolerance(result: dict, path) -> str:
     return str(path)
 
 
-def success_vs_perturbation(result: dict, path) -> str:
+def success_vs_perturbation(result: dict, path: str | Path) -> str:
     plt = _plt()
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), constrained_layout=True)
     titles = {"action_noise": ("execution noise σ [action units]", "actions executed with noise"),
@@ -122,7 +123,7 @@ def success_vs_perturbation(result: dict, path) -> str:
     return str(path)
 
 
-def plot_all(result: dict, out_dir) -> list[str]:
+def plot_all(result: dict, out_dir: str | Path) -> list[str]:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     return [accuracy_vs_compute(result, out / "compare_compute.png"),

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -20,8 +21,8 @@ class PolicyError(ValueError):
 
 @dataclass
 class Policy:
-    model: object           # stable_baselines3 PPO
-    obs_rms: object         # RunningMeanStd of the observations (None: no normalization)
+    model: Any              # stable_baselines3 PPO
+    obs_rms: Any            # RunningMeanStd of the observations (None: no normalization)
     clip_obs: float
     metadata: dict
     path: Path
@@ -78,7 +79,8 @@ def load_policy(path, config: EnvConfig | None = None) -> Policy:
 
 
 def fixed_targets(config: EnvConfig, n: int, seed: int) -> np.ndarray:
-    return np.random.default_rng(seed).uniform(*config.target_range, n)
+    lo, hi = config.target_range
+    return np.random.default_rng(seed).uniform(lo, hi, n)
 
 
 def rollout(policy, targets: np.ndarray, config: EnvConfig, seed: int = 0,

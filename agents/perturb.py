@@ -111,7 +111,7 @@ def _wilson(k: int, n: int, z: float = 1.96) -> list[float]:
     return [max(0.0, mid - c), min(1.0, mid + c)]
 
 
-def perturbation_table(run: RolloutFn, config: EnvConfig, targets: Sequence[float],
+def perturbation_table(run: RolloutFn, config: EnvConfig, targets: Sequence[float] | np.ndarray,
                        levels: Sequence[Level] = DEFAULT_LADDER, seed: int = 0,
                        repeats: int = 1, tolerance: float = 50e-6,
                        per_episode: bool = False) -> list[dict]:
