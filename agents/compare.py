@@ -29,7 +29,7 @@ from .perturb import Level, perturbation_table, plan_rollout, policy_rollout
 # the fixed schedule: every actuator at the single-firing optimum of the reference scene
 FIXED_SCHEDULE = {"frequency_hz": 950.0, "stroke_m": 200e-6, "delay_s": 0.0}
 # success against tolerance is read off the final errors at these tolerances [m]
-TOLERANCES = tuple(float(t) for t in np.geomspace(1e-6, 1e-3, 31))
+TOLERANCES = tuple(float(t) for t in np.geomspace(1e-8, 1e-3, 51))
 # perturbation ladders: execution noise alone [action units], model error alone (friction and
 # mass factors uniform in [1 - r, 1 + r])
 NOISE_LADDER = (0.0, 1e-3, 3e-3, 1e-2, 3e-2, 0.1)
