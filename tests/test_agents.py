@@ -161,3 +161,19 @@ def test_seeds_command_reports_curves_and_plots(tmp_path):
     assert (tmp_path / "curves.png").stat().st_size > 10_000
     r = run("seeds", str(tmp_path / "nope"), "--json")
     assert r.returncode == 2 and "error" in json.loads(r.stdout)
+
+
+def test_randomised_policy_reproduces_its_metadata():
+    """The PPO trained under randomisation: its evaluation, on the randomised config it was
+    trained on and on the nominal env, is what its metadata says."""
+    from microconveyor_env.envs import EnvConfig
+
+    pol = load_policy(shipped_path("policy_randomised"))
+    meta = pol.metadata
+    cfg = EnvConfig.from_yaml(**meta["hyperparams"]["env_kwargs"])
+    assert cfg.action_noise > 0 and cfg.friction_factor_range[0] < 1 < cfg.friction_factor_range[1]
+    for config, ev in ((cfg, meta["evaluation"]), (None, meta["evaluation_nominal"])):
+        res = evaluate(pol, ev["n_targets"], ev["seed"], config=config)
+        for key in ("success_rate_50um", "success_rate_100um", "success_rate_250um"):
+            assert res[key] == ev[key], key
+        assert res["median_abs_error_m"] == pytest.approx(ev["median_abs_error_m"], rel=1e-9)
