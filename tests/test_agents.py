@@ -126,10 +126,9 @@ def test_widest_robust_range():
     assert widest_robust_range([{"target_m": 1, "robust": False}]) is None
 
 
-def test_seed_aggregation(tmp_path):
-    from agents.seeds import aggregate, iqm
-
-    assert iqm([0.0, 1.0, 2.0, 3.0]) == 1.5 and iqm([1.0, 2.0, 4.0]) == pytest.approx(7 / 3)
+def fake_runs(tmp_path, curves=False):
+    """Three run folders with final evaluations at 20/50/80 % (and, with ``curves``, two
+    evaluations each in evaluations.jsonl)."""
     runs = []
     for i, rate in enumerate((0.2, 0.5, 0.8)):
         d = tmp_path / str(i)
@@ -137,21 +136,24 @@ def test_seed_aggregation(tmp_path):
         ev = {"success_rate_50um": rate, "success_rate_100um": rate, "success_rate_250um": rate,
               "median_abs_error_m": 1e-5 * (i + 1)}
         (d / "metadata.json").write_text(json.dumps({"evaluation": ev}))
+        if curves:
+            rows = [{**ev, "steps": s, "wall_time_s": s / 1e3} for s in (1000, 2000)]
+            (d / "evaluations.jsonl").write_text("\n".join(json.dumps(r) for r in rows) + "\n")
         runs.append(d)
-    out = aggregate(runs, reps=200)
+    return runs
+
+
+def test_seed_aggregation(tmp_path):
+    from agents.seeds import aggregate, iqm
+
+    assert iqm([0.0, 1.0, 2.0, 3.0]) == 1.5 and iqm([1.0, 2.0, 4.0]) == pytest.approx(7 / 3)
+    out = aggregate(fake_runs(tmp_path), reps=200)
     lo, hi = out["success_rate_50um"]["ci95"]
     assert 0.2 - 1e-12 <= lo <= out["success_rate_50um"]["iqm"] <= hi <= 0.8 + 1e-12
 
 
 def test_seeds_command_reports_curves_and_plots(tmp_path):
-    for i, rate in enumerate((0.2, 0.5, 0.8)):
-        d = tmp_path / str(i)
-        d.mkdir()
-        ev = {"success_rate_50um": rate, "success_rate_100um": rate, "success_rate_250um": rate,
-              "median_abs_error_m": 1e-5 * (i + 1)}
-        (d / "metadata.json").write_text(json.dumps({"evaluation": ev}))
-        rows = [{**ev, "steps": s, "wall_time_s": s / 1e3} for s in (1000, 2000)]
-        (d / "evaluations.jsonl").write_text("\n".join(json.dumps(r) for r in rows) + "\n")
+    fake_runs(tmp_path, curves=True)
     r = run("seeds", *(str(tmp_path / str(i)) for i in range(3)), "--plot",
             str(tmp_path / "curves.png"), "--json")
     assert r.returncode == 0, r.stderr
