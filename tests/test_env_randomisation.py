@@ -34,6 +34,7 @@ from microconveyor_env.envs import EnvConfig, MicroConveyorEnv, MicroConveyorVec
 from microconveyor_env.envs import actions, randomisation  # noqa: E402
 from microconveyor_env.physics import dynamics_kernel as kernel, forces  # noqa: E402
 from microconveyor_env.physics.materials import G0  # noqa: E402
+from test_env import _assert_infos_equal  # noqa: E402
 
 RAND = {"action_noise": 0.1, "friction_factor_range": (0.6, 1.4),
         "mass_factor_range": (0.5, 2.0)}
@@ -85,20 +86,6 @@ def test_randomisation_leaves_the_start_and_target_draws_alone():
         np.testing.assert_array_equal(o1, o2)
         for _ in range(3):  # later episodes too (np_random is not drawn from by the options)
             np.testing.assert_array_equal(plain.reset()[0], rand.reset()[0])
-
-
-def _assert_infos_equal(mine, ref):
-    for key, val in ref.items():
-        if key == "final_obs":
-            for a, b in zip(mine[key], val):
-                assert (a is None and b is None) or np.array_equal(a, b)
-        elif key == "final_info":
-            _assert_infos_equal(mine[key], val)
-        else:
-            np.testing.assert_array_equal(mine[key], val, err_msg=key)
-    for key in set(mine) - set(ref):
-        if key.startswith("_"):
-            assert not mine[key].any(), key
 
 
 @pytest.mark.parametrize("mode,threads", [(gym.vector.AutoresetMode.NEXT_STEP, 1),
