@@ -58,6 +58,7 @@ class EnvConfig:
     success_bonus: float = 10.0
     detach_penalty: float = 10.0
     max_time: float = 1.0
+    stop_at_target: bool = True  # end the episode once the part would rest within tolerance
     mode: str = "event"
     kinematics: str = "reduced"
     dt: float = 1e-4
@@ -87,6 +88,9 @@ class EnvConfig:
             raise ParameterError(f"EnvConfig.n_actuators = {n!r} is invalid: must be an integer "
                                  "in [1, 1000]")
         object.__setattr__(self, "n_actuators", int(n))
+        if not isinstance(self.stop_at_target, bool):
+            raise ParameterError(f"EnvConfig.stop_at_target = {self.stop_at_target!r} is invalid: "
+                                 "must be true or false")
         ms = self.min_steps
         if isinstance(ms, bool) or not isinstance(ms, (int, float)) or ms != int(ms) \
                 or not 2 <= ms <= 100000:

@@ -72,8 +72,10 @@ class MicroConveyorEnv(gym.Env):
     ``n_actuators`` actuators ``spacing`` apart and must come to rest within ``tolerance`` of a
     target downstream (+x). Each ``step`` fires the **next** actuator with the action's frequency,
     stroke and delay: the part coasts during the delay, the stroke runs, and the step returns when
-    the stroke ends; the last step also runs the part to rest. An episode therefore has at most
-    ``n_actuators`` steps.
+    the stroke ends; the last step also runs the part to rest. With ``stop_at_target`` (default
+    on) the conveyor stops as soon as the part is delivered: if after a stroke the part, left
+    alone, would come to rest within ``tolerance`` of the target, it does and the episode ends.
+    An episode therefore has at most ``n_actuators`` steps.
 
     ## Action space: ``Box(-1, 1, (3,), float32)``
 
@@ -106,7 +108,8 @@ class MicroConveyorEnv(gym.Env):
     any detaching one, and at equal time a closer rest returns more (:mod:`.task`).
 
     ## Episode end
-    ``terminated``: at rest after the last firing, or detachment. ``truncated``: the simulated
+    ``terminated``: at rest after the last firing, delivered (``stop_at_target``: at rest within
+    tolerance after any firing), or detachment. ``truncated``: the simulated
     time limit ``max_time`` (or an unresolved stick–slip chatter, reported in ``info["outcome"]``).
     ``info``: ``is_success``, ``position_error_m`` (signed x − target, now), ``outcome``
     (``moving``/``rest``/``detached``/``max_time``/``too_many_events``), ``sim_time_s``,

@@ -52,11 +52,14 @@ class MicroConveyorSB3VecEnv(VecEnv):
         dones = term | trunc
         src = infos.get("final_info", infos) if dones.any() else infos
         out = self._split(infos)
-        for i in np.flatnonzero(dones):
-            self.reset_infos[i] = out[i]  # top-level rows of finished envs hold the reset info
-            out[i] = {k: _py(src[k][i]) for k in _SCALAR_INFO if k in src and src["_" + k][i]}
-            out[i]["terminal_observation"] = infos["final_obs"][i]
-            out[i]["TimeLimit.truncated"] = bool(trunc[i] and not term[i])
+        finished = np.flatnonzero(dones)
+        if finished.size:
+            final = self._split(src, finished)
+            for j, i in enumerate(finished):
+                self.reset_infos[i] = out[i]  # top-level rows of finished envs: the reset info
+                out[i] = final[j]
+                out[i]["terminal_observation"] = infos["final_obs"][i]
+                out[i]["TimeLimit.truncated"] = bool(trunc[i] and not term[i])
         return obs, rew.astype(np.float32), dones, out
 
     def _merged_options(self) -> dict | None:
@@ -71,10 +74,15 @@ class MicroConveyorSB3VecEnv(VecEnv):
             raise ValueError("set a 'target' option for every sub-env (or for none)")
         return {"target": np.array([o["target"] for o in opts], dtype=float)}
 
-    def _split(self, infos: dict) -> list[dict]:
-        """Per-env info dicts with the keys the batched env's masks (``_key``) mark present."""
-        return [{k: _py(infos[k][i]) for k in _SCALAR_INFO if k in infos and infos["_" + k][i]}
-                for i in range(self.num_envs)]
+    def _split(self, infos: dict, rows: np.ndarray | None = None) -> list[dict]:
+        """Per-env info dicts (of ``rows``, default all) with the keys the batched env's masks
+        (``_key``) mark present, as Python scalars (``tolist`` converts a column at once: the
+        per-element conversion cost as much as the compiled step)."""
+        sel = slice(None) if rows is None else rows
+        cols = [(k, infos[k][sel].tolist(), infos["_" + k][sel].tolist())
+                for k in _SCALAR_INFO if k in infos]
+        n = self.num_envs if rows is None else len(rows)
+        return [{k: vals[j] for k, vals, present in cols if present[j]} for j in range(n)]
 
     def close(self) -> None:
         self.venv.close()
@@ -103,6 +111,3 @@ class MicroConveyorSB3VecEnv(VecEnv):
         frames = self.venv.render()
         return list(frames) if frames is not None else [None] * self.num_envs
 
-
-def _py(v: Any) -> Any:
-    return v.item() if isinstance(v, np.generic) else v

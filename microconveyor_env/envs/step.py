@@ -18,7 +18,7 @@ from numba import njit, prange
 from ..physics import dynamics_kernel as kernel
 from ..physics.jit_cache import refresh as refresh_jit_cache
 from .actions import A_NOISE, decode
-from .task import T_NACT, T_TMAX, is_success, observe_part, reward
+from .task import T_NACT, T_TMAX, is_success, observe_part, reward, stop_if_delivered
 
 NO_RECORD = np.zeros((0, kernel.N_REC))  # the env never records trajectories
 NO_NOISE = np.zeros((0, 0, 3))  # no execution noise (action_noise = 0)
@@ -43,6 +43,9 @@ def _step_part(i, actions, noise, x, v, t, fired, target, AC, TC, dt, min_steps,
     kernel.reset_out(out)
     x_new, v_new, t_new, code = kernel.fire(x[i], v[i], t[i], positions[fired[i]], f, h, d, dt,
                                        min_steps, last, TC[T_TMAX], P[i], tu, tq, tqu, rec, out)
+    if code == kernel.MOVING and not last:
+        x_new, v_new, t_new, code = stop_if_delivered(x_new, v_new, t_new, target[i], TC, P[i],
+                                                      tu, tq, tqu)
     kernel.finish_out(out, x_new, v_new, t_new, code)
     res[i, S_REWARD] = reward(code, x[i], x_new, t[i], t_new, target[i], TC)
     res[i, S_SUCCESS] = 1.0 if is_success(code, x_new, target[i], TC) else 0.0

@@ -37,8 +37,9 @@ OBS_BOUND = 10.0          # observations are clipped to [-OBS_BOUND, OBS_BOUND]
 LENGTH_SCALE = 10e-3      # m: position error and target are divided by this
 VELOCITY_SCALE = 0.5      # m/s
 
-T_NACT, T_SPACING, T_TMAX, T_PSCALE, T_TCOST, T_BONUS, T_PENALTY, T_TOL, T_HORIZON = range(9)
-N_T = 9
+T_NACT, T_SPACING, T_TMAX, T_PSCALE, T_TCOST, T_BONUS, T_PENALTY, T_TOL, T_HORIZON, T_STOP = \
+    range(10)
+N_T = 10
 
 
 def constants(cfg) -> np.ndarray:
@@ -48,6 +49,7 @@ def constants(cfg) -> np.ndarray:
     TC[T_PSCALE], TC[T_TCOST] = cfg.progress_scale, cfg.time_cost
     TC[T_BONUS], TC[T_PENALTY], TC[T_TOL] = cfg.success_bonus, cfg.detach_penalty, cfg.tolerance
     TC[T_HORIZON] = cfg.progress_horizon
+    TC[T_STOP] = 1.0 if cfg.stop_at_target else 0.0
     return TC
 
 
@@ -70,6 +72,22 @@ def potential(x, target, TC):
 def is_success(code, x, target, TC):
     """At rest within the tolerance of the target."""
     return code == kernel.REST and abs(x - target) <= TC[T_TOL]
+
+
+@njit(cache=True)
+def stop_if_delivered(x, v, t, target, TC, P, tu, tq, tqu):
+    """After a stroke that left the part moving (not the last): with ``stop_at_target`` on, if the
+    part left alone comes to rest within the tolerance of the target before ``max_time``, the
+    conveyor fires no more: the part coasts to rest there and the outcome is REST (the episode
+    ends in success). Otherwise the state is returned unchanged with outcome MOVING.
+
+    Stopping is what a resting part gets from any later firing that leaves it in place (e.g.
+    200 Hz, 100 um), so the option changes when the episode ends, not where a part can rest."""
+    if TC[T_STOP] > 0.0:
+        xr, _, used, rest, _ = kernel.coast(x, v, max(TC[T_TMAX] - t, 0.0), P, tu, tq, tqu)
+        if rest and abs(xr - target) <= TC[T_TOL]:
+            return xr, 0.0, t + used, kernel.REST
+    return x, v, t, kernel.MOVING
 
 
 @njit(cache=True)

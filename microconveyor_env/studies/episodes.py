@@ -46,13 +46,16 @@ def run_episodes(actions: np.ndarray, targets: np.ndarray | None = None, repeats
                  **config) -> dict:
     """Run episodes (actions (n, n_actuators, 3) in [-1, 1]) through the batched env, serially.
 
-    ``config``: EnvConfig overrides (integrator settings). Returns final positions [m] (rest
-    position, or detachment point), outcomes, the part speed at each firing's start [m/s], the
-    success flags and the best wall time of ``repeats`` runs [s].
+    ``config``: EnvConfig overrides (integrator settings). Every actuator fires
+    (``stop_at_target`` off): the study measures the integrator over whole schedules, the same
+    episodes whatever the targets. Returns final positions [m] (rest position, or detachment
+    point), outcomes, the part speed at each firing's start [m/s], the success flags and the
+    best wall time of ``repeats`` runs [s].
     """
     actions = np.asarray(actions, dtype=np.float64)
     n, k, _ = actions.shape
-    cfg = EnvConfig.from_yaml(**{"n_actuators": k, "num_threads": 1, **config})
+    cfg = EnvConfig.from_yaml(**{"n_actuators": k, "num_threads": 1, "stop_at_target": False,
+                                 **config})
     venv = MicroConveyorVectorEnv(n, config=cfg)
     walls = []
     for _ in range(max(1, repeats)):

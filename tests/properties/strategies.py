@@ -40,6 +40,7 @@ ENV_FIELDS = {
     "success_bonus": hostile(log_uniform(1e-3, 1e6)),
     "detach_penalty": hostile(log_uniform(1e-3, 1e6)),
     "max_time": hostile(log_uniform(1e-4, 1e6)),
+    "stop_at_target": hostile(st.booleans()),
     "mode": st.sampled_from(["event", "karnopp", "euler"]),
     "kinematics": st.sampled_from(["reduced", "exact", "seed", "other"]),
     "dt": hostile(log_uniform(1e-7, 1e-3)),
