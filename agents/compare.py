@@ -129,14 +129,13 @@ def compare(n_targets: int = 20, seed: int = 0, budgets: Sequence[int] = (100, 3
     for method in methods:
         solve_target(float(targets[0]), method, 40, seed, rollouts=Rollouts(cfg))
     rows = [_closed_loop("ppo", ppo, targets, cfg, seed, train_wall_s=train_wall,
-                         train_episodes=train_steps // max(cfg.n_actuators, 1))]
+                         train_steps=train_steps)]
     robust = None
     if rand_path is not None:
         robust = load_policy(rand_path, cfg)
         rows.append(_closed_loop("ppo_randomised", robust, targets, cfg, seed,
                                  train_wall_s=float(robust.metadata.get("wall_time_s", np.nan)),
-                                 train_episodes=int(robust.metadata.get("steps", 0))
-                                 // cfg.n_actuators))
+                                 train_steps=int(robust.metadata.get("steps", 0))))
     rows.append(_closed_loop("random", _RandomPolicy(seed), targets, cfg, seed))
     fixed = encode_actions(FIXED_SCHEDULE["frequency_hz"], FIXED_SCHEDULE["stroke_m"],
                            FIXED_SCHEDULE["delay_s"], cfg)
@@ -203,7 +202,8 @@ def summary_table(result: dict) -> str:
             f"{1e3 * r['wall_s_per_target']:>10.2f} ms{r['episodes_per_target']:>10.0f}"
             f"{'' if cross is None else f'{cross:.0f}':>13}")
     ppo = result["rows"][0]
-    lines.append(f"PPO training: {ppo['train_wall_s']:.0f} s, {ppo['train_episodes']} episodes; "
+    lines.append(f"PPO training: {ppo['train_wall_s']:.0f} s, {ppo['train_steps']:,} env steps "
+                 "(firings); "
                  f"amortised over {result['ppo_amortised']['over_targets']} targets: "
                  f"{result['ppo_amortised']['wall_s_per_target']:.2f} s per target")
     return "\n".join(lines)

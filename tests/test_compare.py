@@ -33,7 +33,7 @@ def test_compare_tiny_budget_writes_its_charts(tmp_path):
         assert row["wall_s_per_target"] > 0
         if "budget" in row:
             assert row["episodes_per_target"] <= row["budget"]
-    assert res["rows"][0]["train_wall_s"] > 0 and res["rows"][0]["train_episodes"] > 0
+    assert res["rows"][0]["train_wall_s"] > 0 and res["rows"][0]["train_steps"] > 0
     pert = res["perturbation"]
     assert set(pert) == {"ppo", "de_40_plan", "cmaes_40_plan"}
     assert [lvl["action_noise"] for lvl in pert["ppo"]["action_noise"]] == [0.0, 0.01]
