@@ -34,9 +34,22 @@ class BudgetPPO(PPO):
     fully decayed learning rate, as the shipped policy's recipe expects."""
 
     budget_clock = None  # set by train(); not saved with the model
+    # torch threads for the gradient updates (rollouts keep one). 2 gain 15 % on an idle 2-core
+    # machine but fall to ~450 steps/s when the cores are busy (benchmarks/train_speed.py)
+    update_threads = 1
 
     def _excluded_save_params(self) -> list:
-        return [*super()._excluded_save_params(), "budget_clock"]
+        return [*super()._excluded_save_params(), "budget_clock", "update_threads"]
+
+    def train(self) -> None:
+        import torch
+
+        before = torch.get_num_threads()
+        torch.set_num_threads(self.update_threads)
+        try:
+            super().train()
+        finally:
+            torch.set_num_threads(before)
 
     def _update_current_progress_remaining(self, num_timesteps: int, total_timesteps: int) -> None:
         super()._update_current_progress_remaining(num_timesteps, total_timesteps)

@@ -1,0 +1,90 @@
+"""PPO training throughput (env steps per second) with `configs/ppo.yml`, split into rollout
+collection and gradient updates, with the updates on 1 or 2 torch threads, idle and with the
+cores busy.
+
+    python benchmarks/train_speed.py [--steps 204800] [--threads 1,2]
+
+"Busy" runs one spinning process per core beside the training (as `env_speed.py` does). Each
+setting trains from scratch into a temporary folder (no evaluations, no checkpoints); the
+settings alternate within one run so they share the machine's state: compare them as ratios.
+"""
+from __future__ import annotations
+
+import argparse
+import multiprocessing as mp
+import os
+import tempfile
+import time
+
+from stable_baselines3 import PPO
+
+from agents import train as T
+
+
+def _spin(stop) -> None:
+    x = 0
+    while not stop.is_set():
+        x += 1
+
+
+def one(steps: int, update_threads: int) -> dict:
+    acc = {"collect": 0.0, "update": 0.0}
+    collect, update = PPO.collect_rollouts, T.BudgetPPO.train
+
+    def timed_collect(self, *a, **k):
+        t = time.perf_counter()
+        try:
+            return collect(self, *a, **k)
+        finally:
+            acc["collect"] += time.perf_counter() - t
+
+    def timed_update(self):
+        t = time.perf_counter()
+        try:
+            return update(self)
+        finally:
+            acc["update"] += time.perf_counter() - t
+
+    PPO.collect_rollouts, T.BudgetPPO.train = timed_collect, timed_update
+    T.BudgetPPO.update_threads = update_threads
+    try:
+        with tempfile.TemporaryDirectory() as out:
+            t0 = time.perf_counter()
+            meta = T.train(out, steps=steps, eval_targets=0, eval_freq=0, checkpoint_freq=10**12,
+                           progress_bar=False, tensorboard=False)
+            wall = time.perf_counter() - t0
+    finally:
+        PPO.collect_rollouts, T.BudgetPPO.train = collect, update
+        T.BudgetPPO.update_threads = 1
+    n = meta["steps"]
+    return {"steps_per_s": n / wall, "collect_s": acc["collect"], "update_s": acc["update"],
+            "wall_s": wall, "steps": n}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--steps", type=int, default=204_800)
+    ap.add_argument("--threads", default="1,2")
+    args = ap.parse_args()
+    threads = [int(t) for t in args.threads.split(",")]
+    one(4096, 1)  # warm-up: numba and torch caches
+    print(f"{'load':6} {'update threads':>14} {'steps/s':>9} {'collect s':>10} {'update s':>9}")
+    for load in ("idle", "busy"):
+        stop = mp.Event()
+        spinners = [mp.Process(target=_spin, args=(stop,)) for _ in range(
+            os.cpu_count() or 1)] if load == "busy" else []
+        for p in spinners:
+            p.start()
+        try:
+            for k in threads:
+                r = one(args.steps, k)
+                print(f"{load:6} {k:>14} {r['steps_per_s']:>9,.0f} {r['collect_s']:>10.1f} "
+                      f"{r['update_s']:>9.1f}", flush=True)
+        finally:
+            stop.set()
+            for p in spinners:
+                p.join()
+
+
+if __name__ == "__main__":
+    main()
