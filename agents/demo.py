@@ -47,15 +47,16 @@ def plot_trajectories(res: dict, cfg: EnvConfig, path: Path) -> str:
 
     path.parent.mkdir(parents=True, exist_ok=True)
     fig, ax = plt.subplots(figsize=(7, 4))
-    steps = np.arange(res["path_m"].shape[0])
     for i, tgt in enumerate(res["targets_m"]):
-        line, = ax.plot(steps, res["path_m"][:, i] * 1e3, "o-", ms=3)
+        k = int(res["firings"][i]) + 1  # the start and the position after each firing made
+        line, = ax.plot(np.arange(k), res["path_m"][:k, i] * 1e3, "o-", ms=3)
         ax.axhline(tgt * 1e3, color=line.get_color(), ls=":", lw=0.8)
     for xa in cfg.actuator_positions:
         ax.axhline(xa * 1e3, color="0.85", lw=0.6, zorder=0)
-    ax.set_xlabel("firings")
+    ax.set_xlabel("firings (the conveyor stops once the part is delivered)")
+    ax.xaxis.get_major_locator().set_params(integer=True)
     ax.set_ylabel("part position [mm] (dotted: targets, grey: actuators)")
-    ax.set_title("Shipped PPO policy: position after each firing")
+    ax.set_title("Shipped PPO policy: position after each firing (at its end: at rest)")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -85,7 +85,8 @@ def fixed_targets(config: EnvConfig, n: int, seed: int) -> np.ndarray:
 
 def rollout(policy, targets: np.ndarray, config: EnvConfig, seed: int = 0,
             record: bool = False) -> dict:
-    """One episode per target (batched, deterministic policy): final errors, outcomes, times;
+    """One episode per target (batched, deterministic policy): final errors, outcomes, times,
+    firings (steps: fewer than the actuators when the part was delivered early or detached);
     with ``record`` the positions after each firing. With randomisation on in ``config``
     (docs/randomisation.md) also each episode's ``friction_factor`` and ``mass_factor``; sub-env
     ``i`` is seeded ``seed + i``."""
@@ -97,6 +98,7 @@ def rollout(policy, targets: np.ndarray, config: EnvConfig, seed: int = 0,
     done = np.zeros(n, bool)
     err, outcome, t = np.full(n, np.nan), np.full(n, "", dtype=object), np.zeros(n)
     factors = {k: np.full(n, np.nan) for k in ("friction_factor", "mass_factor")}
+    firings = np.zeros(n, dtype=int)
     path = [env.x.copy()]
     while not done.all():
         obs, _, term, trunc, info = env.step(policy.act(obs))
@@ -108,12 +110,13 @@ def rollout(policy, targets: np.ndarray, config: EnvConfig, seed: int = 0,
         for key, val in factors.items():
             if key in src:
                 val[new] = src[key][new]
+        firings[~done] += 1
         done |= term | trunc
         if record:
             x = np.where(done & ~new, path[-1], np.where(new, np.asarray(targets) + err, env.x))
             path.append(x)
     out = {"targets_m": np.asarray(targets, float), "error_m": err, "outcome": outcome,
-           "time_s": t}
+           "time_s": t, "firings": firings}
     if config.randomised:
         out.update(factors)
     if record:
