@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -95,31 +95,35 @@ def find_window(sim: Simulator, stroke: float, x0: float, scan: Iterable[float] 
     if lo is None:
         return None, runs
     assert hi is not None  # set together with lo
-    if lo_below is not None:  # refine the lower edge between lo_below (no) and lo (yes)
-        a, b = lo_below, lo
-        for _ in range(refine):
-            m = math.sqrt(a * b)
-            res = fire(sim, m, stroke, x0)
-            runs.append(("edge", m, res))
-            if _moves(res):
-                b = m
-            elif _fails(res):
-                break
-            else:
-                a = m
-        lo = b
-    if stop is not None:  # refine the upper edge between hi (attached) and stop (fails)
-        a, b = hi, stop
-        for _ in range(refine):
-            m = math.sqrt(a * b)
-            res = fire(sim, m, stroke, x0)
-            runs.append(("edge", m, res))
-            if _fails(res):
-                b = m
-            else:
-                a = m
-        hi = a
+
+    def probe(m: float) -> dict[str, Any]:
+        res = fire(sim, m, stroke, x0)
+        runs.append(("edge", m, res))
+        return res
+
+    if lo_below is not None:  # the lower edge, between lo_below (stays) and lo (moves)
+        lo = _bisect_log(lo_below, lo, refine, lambda m: _edge_below(probe(m)))[1]
+    if stop is not None:  # the upper edge, between hi (attached) and stop (fails)
+        hi = _bisect_log(hi, stop, refine, lambda m: _fails(probe(m)))[0]
     return [lo, hi], runs
+
+
+def _edge_below(res: dict[str, Any]) -> bool | None:
+    """Lower-edge probe: the part moves (the edge is below), stays (above), or fails (stop)."""
+    return True if _moves(res) else None if _fails(res) else False
+
+
+def _bisect_log(a: float, b: float, steps: int, edge_below: Callable[[float], bool | None],
+                ) -> tuple[float, float]:
+    """``steps`` bisections of [a, b] [Hz] in log f: ``edge_below(m)`` True moves b to m, False
+    moves a to m, None stops. Returns the final (a, b)."""
+    for _ in range(steps):
+        m = math.sqrt(a * b)
+        side = edge_below(m)
+        if side is None:
+            break
+        a, b = (a, m) if side else (m, b)
+    return a, b
 
 
 def design(levels: Mapping[str, Sequence[float]] | None = None) -> list[dict[str, float]]:
