@@ -34,7 +34,7 @@ from microconveyor_env.envs import EnvConfig, MicroConveyorEnv, MicroConveyorVec
 from microconveyor_env.envs import actions, randomisation  # noqa: E402
 from microconveyor_env.physics import dynamics_kernel as kernel, forces  # noqa: E402
 from microconveyor_env.physics.materials import G0  # noqa: E402
-from test_env import _assert_infos_equal  # noqa: E402
+from test_env import _assert_lockstep_with_sync  # noqa: E402
 
 RAND = {"action_noise": 0.1, "friction_factor_range": (0.6, 1.4),
         "mass_factor_range": (0.5, 2.0)}
@@ -91,26 +91,11 @@ def test_randomisation_leaves_the_start_and_target_draws_alone():
 @pytest.mark.parametrize("mode,threads", [(gym.vector.AutoresetMode.NEXT_STEP, 1),
                                           (gym.vector.AutoresetMode.SAME_STEP, 2)])
 def test_single_env_equals_batched_env_part_for_part_with_randomisation(mode, threads):
-    n, seed = 4, 11
     kw = {"start_jitter": 30e-6, "n_actuators": 3, **RAND}
-    batched = MicroConveyorVectorEnv(n, autoreset_mode=mode, num_threads=threads, **kw)
-    sync = gym.vector.SyncVectorEnv([lambda: gym.make("MicroConveyor-v0", **kw) for _ in range(n)],
-                                    autoreset_mode=mode)
-    o1, i1 = batched.reset(seed=seed)
-    o2, i2 = sync.reset(seed=seed)
-    np.testing.assert_array_equal(o1, o2)
-    _assert_infos_equal(i1, i2)
-    assert "friction_factor" in i1 and "mass_factor" in i2
-    rng = np.random.default_rng(5)
-    ended = 0
-    for _ in range(14):
-        a = rng.uniform(-1.2, 1.2, (n, 3)).astype(np.float32)
-        r1, r2 = batched.step(a), sync.step(a)
-        for k in range(4):
-            np.testing.assert_array_equal(r1[k], r2[k])
-        _assert_infos_equal(r1[4], r2[4])
-        ended += int(r1[2].sum() + r1[3].sum())
-    assert ended >= n
+    batched = MicroConveyorVectorEnv(4, autoreset_mode=mode, num_threads=threads, **kw)
+    assert _assert_lockstep_with_sync(batched, kw, 11, 14, 5, 1.2, mode) >= 4
+    _, info = batched.reset(seed=11)
+    assert "friction_factor" in info and "mass_factor" in info
 
 
 def test_factors_stay_in_their_ranges_and_are_spread_over_them():

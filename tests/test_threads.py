@@ -1,33 +1,18 @@
 """Threads in the batched env: results never depend on them; the automatic choice measures."""
-import gymnasium as gym
-import numpy as np
 import pytest
 
 from microconveyor_env.envs import MicroConveyorVectorEnv
 from microconveyor_env.envs.threads import PROBE_EVERY, ThreadChooser
 
-from test_env import _assert_infos_equal
+from test_env import _assert_lockstep_with_sync
 
 
 @pytest.mark.parametrize("num_threads", [1, 2, None])
 def test_threads_change_no_result_bit(num_threads):
     """Batched (serial, parallel, automatic) = SyncVectorEnv of single envs, every obs, reward,
     flag and info key, through autoresets."""
-    n, seed = 16, 3
-    batched = MicroConveyorVectorEnv(n, num_threads=num_threads, n_actuators=3)
-    sync = gym.vector.SyncVectorEnv(
-        [lambda: gym.make("MicroConveyor-v0", n_actuators=3) for _ in range(n)])
-    o1, i1 = batched.reset(seed=seed)
-    o2, i2 = sync.reset(seed=seed)
-    np.testing.assert_array_equal(o1, o2)
-    _assert_infos_equal(i1, i2)
-    rng = np.random.default_rng(7)
-    for _ in range(12):
-        a = rng.uniform(-1, 1, (n, 3)).astype(np.float32)
-        r1, r2 = batched.step(a), sync.step(a)
-        for k in range(4):
-            np.testing.assert_array_equal(r1[k], r2[k])
-        _assert_infos_equal(r1[4], r2[4])
+    batched = MicroConveyorVectorEnv(16, num_threads=num_threads, n_actuators=3)
+    _assert_lockstep_with_sync(batched, {"n_actuators": 3}, 3, 12, 7, 1.0)
     if num_threads is None:
         assert set(batched.threads.cost) == {1, batched.threads.parallel}
 
