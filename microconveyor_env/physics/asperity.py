@@ -21,6 +21,8 @@ import numpy as np
 import numpy.typing as npt
 from scipy.optimize import brentq
 
+from .portable_math import power, spow
+
 # (lower w, upper w, coefficient, exponent) -- P/P_c = coef * w**exp on [lower, upper)
 LOAD_RANGES = ((0.0, 1.0, 1.0, 1.5), (1.0, 6.0, 1.03, 1.425), (6.0, 110.0, 1.40, 1.263))
 # beyond 110: P/P_c = (3/K) w  (fully plastic)
@@ -49,7 +51,7 @@ def load(w: npt.ArrayLike, K: float) -> np.ndarray:
     out = np.where(w >= LOAD_PLASTIC_FROM, (3.0 / K) * w, 0.0)
     for lo, hi, coef, ex in LOAD_RANGES:
         m = (w > lo) & (w < hi) if lo == 0.0 else (w >= lo) & (w < hi)
-        out = np.where(m, coef * np.abs(w) ** ex, out)
+        out = np.where(m, coef * power(np.abs(w), ex), out)
     return out
 
 
@@ -60,7 +62,7 @@ def adhesion_contact(w: npt.ArrayLike, eps_over_omega_c: float) -> np.ndarray:
     out = np.ones_like(w)
     for lo, hi, a, b, c in ADHESION_RANGES:
         m = (w >= lo) & (w < hi)
-        out = np.where(m, np.maximum(1.0, a * np.abs(w) ** b * eps_over_omega_c ** c), out)
+        out = np.where(m, np.maximum(1.0, a * power(np.abs(w), b) * spow(eps_over_omega_c, c)), out)
     return out
 
 
@@ -68,18 +70,20 @@ def adhesion_gap(h_over_eps: npt.ArrayLike) -> np.ndarray:
     """Lennard-Jones (DMT) adhesion of a non-touching asperity over ``F_s0`` [-]; ``h = d - z + eps``,
     ``h_over_eps`` [-]."""
     r = 1.0 / np.asarray(h_over_eps, dtype=float)
-    return (4.0 / 3.0) * (r ** 2 - 0.25 * r ** 8)
+    r2 = r * r
+    r4 = r2 * r2
+    return (4.0 / 3.0) * (r2 - 0.25 * (r4 * r4))
 
 
 def _friction_mid_raw(w: npt.ArrayLike) -> Any:  # an array, or a float for a scalar w
-    return sum(c * np.abs(w) ** e for c, e in FRICTION_MID)
+    return sum(c * power(np.abs(w), e) for c, e in FRICTION_MID)
 
 
 def friction(w: npt.ArrayLike) -> np.ndarray:
     """Maximum static friction of one asperity over ``P_c`` [-] at interference ratio ``w`` [-]
     (KE 2004 fits as chosen above)."""
     w = np.asarray(w, dtype=float)
-    low = FRICTION_LOW[0] * np.abs(w) ** FRICTION_LOW[1]
+    low = FRICTION_LOW[0] * power(np.abs(w), FRICTION_LOW[1])
     mid = np.maximum(_friction_mid_raw(w), 0.0)
     return np.where(w <= 0, 0.0, np.where(w < 1.0, low, np.where(w < FRICTION_ZERO_FROM, mid, 0.0)))
 
@@ -95,7 +99,7 @@ def adhesion_floor_crossings(eps_over_omega_c: float) -> list[float]:
     out: list[float] = []
     for lo, hi, a, b, c in ADHESION_RANGES:
         # a w^b k = 1  ->  w = (1 / (a k))^(1/b)
-        w = (1.0 / (a * eps_over_omega_c ** c)) ** (1.0 / b)
+        w = spow(1.0 / (a * spow(eps_over_omega_c, c)), 1.0 / b)
         if lo < w < hi:
             out.append(float(w))
     return out

@@ -15,6 +15,7 @@ calibration (which fits exactly these two) never rebuilds it.
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import math
@@ -35,7 +36,7 @@ from .materials import ContactParams, ParameterError, check_range
 from . import rough_surface
 from .rough_surface import Normalised, SurfaceIntegrals
 
-TABLE_FORMAT = 3                # bump when the stored layout or the quadrature changes
+TABLE_FORMAT = 4                # bump when the stored layout or the quadrature changes (4: portable math)
 DEFAULT_SPACING = 0.01          # node spacing in d* = d / sigma
 DEFAULT_LOAD_RATIO = 1e4        # table covers loads up to this many pull-off forces
 
@@ -152,6 +153,20 @@ def cache_dir() -> Path:
     return Path(platformdirs.user_cache_dir("microconveyor-env"))
 
 
+@functools.lru_cache(maxsize=1)
+def _code_hash() -> str:
+    """Hash of the source of every module the table's numbers come from: an edit to any of them
+    (a fit, the quadrature, the portable arithmetic) invalidates cached tables by itself, without
+    relying on someone bumping TABLE_FORMAT."""
+    from . import gauss_rules, portable_math
+
+    h = hashlib.sha256()
+    for mod in (asperity, rough_surface, gauss_rules, portable_math):
+        h.update(Path(str(mod.__file__)).read_bytes())
+    h.update(Path(__file__).read_bytes())
+    return h.hexdigest()[:16]
+
+
 def table_key(params: ContactParams, spacing: float, load_ratio: float) -> str:
     """Hash of everything the base table depends on (not beta, not friction_scale); ``spacing``
     [-] in d / sigma, ``load_ratio`` [-]."""
@@ -164,7 +179,7 @@ def table_key(params: ContactParams, spacing: float, load_ratio: float) -> str:
                   for k in ("H_MAX", "GL_ORDER", "JACOBI_ORDER", "GAP_DS", "TAIL")}
     blob = json.dumps({"inputs": inputs, "spacing": spacing, "load_ratio": load_ratio,
                        "format": TABLE_FORMAT, "fits": repr(asperity.KE_FITS),
-                       "quadrature": quadrature},
+                       "quadrature": quadrature, "code": _code_hash()},
                       sort_keys=True, default=repr)
     return hashlib.sha256(blob.encode()).hexdigest()[:32]
 

@@ -93,7 +93,8 @@ class Materials:
     @property
     def E(self) -> float:
         """Composite modulus ``1/E = (1-nu1^2)/E1 + (1-nu2^2)/E2`` [Pa]."""
-        return 1.0 / ((1 - self.nu1 ** 2) / self.E1 + (1 - self.nu2 ** 2) / self.E2)
+        # squares by multiplication, not pow(): libm's pow may differ in the last bit between CPUs
+        return 1.0 / ((1 - self.nu1 * self.nu1) / self.E1 + (1 - self.nu2 * self.nu2) / self.E2)
 
     @property
     def K(self) -> float:
@@ -179,13 +180,15 @@ class ContactParams:
     def asperity_radius(self) -> float:
         """R from ``psi = (2E/(pi K H)) sqrt(sigma/R)`` [m]."""
         m, s = self.materials, self.surface
-        return s.sigma * (2 * m.E / (math.pi * m.K * m.hardness * s.psi)) ** 2
+        r = 2 * m.E / (math.pi * m.K * m.hardness * s.psi)
+        return s.sigma * (r * r)
 
     @property
     def critical_interference(self) -> float:
         """``omega_c = (pi K H / (2E))^2 R`` [m] (equals sigma / psi^2)."""
         m = self.materials
-        return (math.pi * m.K * m.hardness / (2 * m.E)) ** 2 * self.asperity_radius
+        r = math.pi * m.K * m.hardness / (2 * m.E)
+        return (r * r) * self.asperity_radius
 
     @property
     def omega_c_star(self) -> float:

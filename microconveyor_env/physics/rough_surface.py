@@ -20,6 +20,12 @@ gap integral, whose integrand peaks over ``eps`` (~0.02 sigma) and decays like `
 ``s = ln(h/eps)``, which makes it smooth. The same nodes give the first and second derivatives in
 ``d*`` (``phi' = -z phi``, ``phi'' = (z^2 - 1) phi``), which the contact table uses for Hermite
 interpolation. Accuracy is checked against ``scipy.integrate.quad`` in the tests.
+
+*Same bits on every machine* (issue 17): the nodes come from :mod:`.gauss_rules` (decimal Newton,
+not LAPACK), ``exp``/``power`` from :mod:`.portable_math` (IEEE basic operations only, not numpy's
+CPU-dispatched ufuncs) and every sum over nodes runs in index order
+(:func:`.portable_math.ordered_dot`, not a BLAS dgemv), so the contact table, and everything
+computed from it, is bit-identical whatever the BLAS kernel or CPU features.
 """
 from __future__ import annotations
 
@@ -29,10 +35,10 @@ from typing import Callable
 
 import numpy as np
 import numpy.typing as npt
-from scipy.special import roots_jacobi, roots_legendre
-
 from . import asperity
+from .gauss_rules import gauss_jacobi, gauss_legendre
 from .materials import ContactParams
+from .portable_math import exp, log, ordered_dot, power, spow
 
 H_MAX = 0.25        # longest Gauss–Legendre sub-interval [sigma]
 GL_ORDER = 20       # nodes per sub-interval
@@ -63,7 +69,7 @@ def _gl_nodes(a: float, b: float, h_max: float) -> tuple[np.ndarray, np.ndarray]
     """Composite Gauss–Legendre nodes/weights on [a, b] (sub-intervals <= h_max)."""
     if b <= a:
         return np.empty(0), np.empty(0)
-    x, wts = roots_legendre(GL_ORDER)
+    x, wts = gauss_legendre(GL_ORDER)
     n = max(1, math.ceil((b - a) / h_max))
     edges = np.linspace(a, b, n + 1)
     half = 0.5 * np.diff(edges)
@@ -75,8 +81,8 @@ def _gl_nodes(a: float, b: float, h_max: float) -> tuple[np.ndarray, np.ndarray]
 
 def _jacobi_unit(alpha: float) -> tuple[np.ndarray, np.ndarray]:
     """Nodes/weights for int_0^1 w^alpha f(w) dw = sum W_i f(w_i)."""
-    x, wts = roots_jacobi(JACOBI_ORDER, 0.0, alpha)
-    return 0.5 * (1 + x), wts * 2.0 ** (-alpha - 1)
+    x, wts = gauss_jacobi(JACOBI_ORDER, alpha)
+    return 0.5 * (1 + x), wts * spow(2.0, -alpha - 1)
 
 
 def _pieces(breaks: list[float]) -> list[tuple[float, float]]:
@@ -96,9 +102,16 @@ class SurfaceIntegrals:
             raise ValueError(f"load_model must be 'ke' or 'elastic', got {load_model!r}")
         self.norm = norm
         self.load_model = load_model
+        self._rules: dict[tuple[str, float], tuple[np.ndarray, np.ndarray]] = {}
 
     # ---- node sets in w (interference ratio); weights already include d(z*) = omega_c* dw ----
     def _w_rule(self, kind: str, w_top: float) -> tuple[np.ndarray, np.ndarray]:
+        key = (kind, w_top)
+        if key not in self._rules:   # the table's many scalar evaluations share w_top
+            self._rules[key] = self._make_w_rule(kind, w_top)
+        return self._rules[key]
+
+    def _make_w_rule(self, kind: str, w_top: float) -> tuple[np.ndarray, np.ndarray]:
         oc = self.norm.omega_c_star
         h_w = H_MAX / oc  # sub-interval length in w
         nodes: list[np.ndarray] = []
@@ -112,7 +125,7 @@ class SurfaceIntegrals:
             if singular_alpha is not None:
                 assert a == 0.0 and b == 1.0
                 x, wt = _jacobi_unit(singular_alpha)
-                val = fun(x) / np.maximum(x, 1e-300) ** singular_alpha
+                val = fun(x) / power(np.maximum(x, 1e-300), singular_alpha)
             else:
                 x, wt = _gl_nodes(a, b, h_w)
                 val = fun(x)
@@ -122,9 +135,9 @@ class SurfaceIntegrals:
 
         if kind == "P":
             if self.load_model == "elastic":
-                add(0.0, 1.0, lambda w: np.abs(w) ** 1.5, 1.5)
+                add(0.0, 1.0, lambda w: power(np.abs(w), 1.5), 1.5)
                 for a, b in _pieces([1.0, w_top]):
-                    add(a, b, lambda w: w ** 1.5)
+                    add(a, b, lambda w: power(w, 1.5))
             else:
                 K = self.norm.K
                 add(0.0, 1.0, lambda w: asperity.load(w, K), 1.5)
@@ -147,9 +160,9 @@ class SurfaceIntegrals:
     def _gap_rule(self, h_top: float) -> tuple[np.ndarray, np.ndarray]:
         """Nodes in h* (gap + eps) and weights for int f_nc(h) phi(d* + eps* - h*) dh*."""
         e = self.norm.eps_star
-        s_top = math.log(max(h_top, 2 * e) / e)
+        s_top = float(log(max(h_top, 2 * e) / e))
         s, ws = _gl_nodes(0.0, s_top, GAP_DS)
-        h = e * np.exp(s)
+        h = e * exp(s)
         return h, ws * h * asperity.adhesion_gap(h / e)
 
     # ---- evaluation ----
@@ -178,12 +191,12 @@ class SurfaceIntegrals:
                 else:
                     w_nodes, wt = rules[key]
                     z = dd + oc * w_nodes[None, :]
-                phi = np.exp(-0.5 * z * z) / _SQRT2PI
-                out[key][i:i + chunk] = phi @ wt
+                phi = exp(-0.5 * z * z) / _SQRT2PI
+                out[key][i:i + chunk] = ordered_dot(phi, wt)
                 if derivatives >= 1:
-                    out["d" + key][i:i + chunk] = (-z * phi) @ wt
+                    out["d" + key][i:i + chunk] = ordered_dot(-z * phi, wt)
                 if derivatives >= 2:
-                    out["dd" + key][i:i + chunk] = ((z * z - 1.0) * phi) @ wt
+                    out["dd" + key][i:i + chunk] = ordered_dot((z * z - 1.0) * phi, wt)
         return out
 
 

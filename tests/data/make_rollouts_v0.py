@@ -1,9 +1,14 @@
 """Record seeded MicroConveyor-v0 rollouts (single and batched env) as JSON.
 
-``tests/data/rollouts_v0.json`` was written by this script with the env as it was before the
-randomisation options existed (commit 7497eb3), run as
+``tests/data/rollouts_v0.json`` is written by this script, run from the repository root as
 
-    PYTHONPATH=<checkout of 7497eb3> python tests/data/make_rollouts_v0.py
+    python tests/data/make_rollouts_v0.py
+
+and its ``meta`` block records the package version, the contact-table format and hash, the
+machine and the date. History: first recorded with the env as it was before the randomisation
+options existed (commit 7497eb3); re-recorded for issue 17 once the contact table became
+bit-identical on every CPU (table format 4: before it, the BLAS kernel moved 2-13 rows by
+1-248 ULP, so the data could only be replayed on the machine that wrote it).
 
 ``tests/test_env_randomisation.py`` replays the stored actions with today's env (randomisation
 off) and requires every observation, reward, flag and info value to be bit-identical. Floats are
@@ -70,8 +75,31 @@ def record_batched(kw: dict, seed: int, n: int, acts: np.ndarray) -> list:
     return rows
 
 
+def provenance() -> dict:
+    """How the data was produced: package version, table format and hash, machine, date."""
+    import datetime
+    import hashlib
+    import platform
+
+    import microconveyor_env
+    from microconveyor_env.physics import contact_table
+    from microconveyor_env.presets import load_preset
+
+    base = contact_table.base_table(load_preset("dissertation").contact, use_cache=False)
+    h = hashlib.sha256()
+    for key, value in base.arrays().items():
+        if key != "build_seconds":
+            h.update(key.encode() + np.ascontiguousarray(value, dtype=float).tobytes())
+    return {"package_version": microconveyor_env.__version__,
+            "table_format": contact_table.TABLE_FORMAT, "table_sha256": h.hexdigest(),
+            "numpy": np.__version__, "machine": platform.machine(),
+            "processor": platform.processor() or platform.machine(),
+            "recorded_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+            "command": "python tests/data/make_rollouts_v0.py"}
+
+
 def record() -> dict:
-    out: dict = {"single": {}, "batched": {}}
+    out: dict = {"meta": provenance(), "single": {}, "batched": {}}
     for name, kw, seed, steps, aseed in SINGLE:
         acts = actions_for(aseed, (steps, 3))
         out["single"][name] = {"config": kw, "seed": seed, "actions": _py(acts.astype(np.float64)),
