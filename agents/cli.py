@@ -89,17 +89,38 @@ def cmd_compare(args):
     run(args)
 
 
+def _minutes(text: str) -> float:
+    import argparse
+    import math
+
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of minutes") from None
+    if not math.isfinite(v) or v <= 0:
+        raise argparse.ArgumentTypeError(f"must be a positive finite number of minutes, got {text}")
+    return v
+
+
 def _train_args(p):
     p.add_argument("--out", default="runs/ppo", help="run folder (model, stats, checkpoints, logs)")
     p.add_argument("--steps", type=count(1), default=None,
                    help="total environment steps (default: n_timesteps of the conf file)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--conf-file", default=None, help="rl-zoo3 style YAML (default configs/ppo.yml)")
-    p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint")
-    p.add_argument("--checkpoint-freq", type=count(1), default=200_000)
+    p.add_argument("--resume", action="store_true",
+                   help="continue from the newest complete checkpoint in OUT/checkpoints "
+                        "(refused if there is none or the config differs)")
+    p.add_argument("--allow-config-change", action="store_true",
+                   help="with --resume: continue under a different config (recorded in the "
+                        "metadata)")
+    p.add_argument("--checkpoint-freq", type=count(1), default=200_000,
+                   help="steps between checkpoints (a kill loses at most this many)")
     p.add_argument("--eval-freq", type=count(0), default=250_000, help="0: no periodic evaluation")
-    p.add_argument("--eval-targets", type=count(1), default=100)
-    p.add_argument("--max-minutes", type=float, default=None, help="stop after this wall time")
+    p.add_argument("--eval-targets", type=count(0), default=100,
+                   help="targets per evaluation (0: no evaluation)")
+    p.add_argument("--max-minutes", type=_minutes, default=None,
+                   help="stop after this wall time [min], resumed time included")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -107,16 +128,45 @@ def _train_args(p):
 def cmd_train(args):
     from .train import train
 
+    def log(line: str) -> None:
+        print(line, file=sys.stderr, flush=True)
+
     meta = train(args.out, steps=args.steps, seed=args.seed, conf_file=args.conf_file,
                  resume=args.resume, checkpoint_freq=args.checkpoint_freq,
                  eval_freq=args.eval_freq, eval_targets=args.eval_targets,
-                 progress_bar=not args.no_progress, max_minutes=args.max_minutes)
+                 progress_bar=not args.no_progress, max_minutes=args.max_minutes,
+                 allow_config_change=args.allow_config_change, log=log)
     meta["out"] = args.out
     ev = meta["evaluation"]
-    emit(args, meta, f"{meta['steps']} steps in {meta['wall_time_s']:.0f} s -> {args.out}\n"
-                     f"success +-50/100/250 um: {ev['success_rate_50um']:.2f} / "
-                     f"{ev['success_rate_100um']:.2f} / {ev['success_rate_250um']:.2f}, median "
-                     f"|error| {ev['median_abs_error_m'] * 1e6:.1f} um")
+    text = f"{meta['steps']} steps in {meta['wall_time_s']:.0f} s -> {args.out}"
+    if ev:
+        text += (f"\nsuccess +-50/100/250 um: {ev['success_rate_50um']:.2f} / "
+                 f"{ev['success_rate_100um']:.2f} / {ev['success_rate_250um']:.2f}, median "
+                 f"|error| {ev['median_abs_error_m'] * 1e6:.1f} um")
+    emit(args, meta, text)
+
+
+def _convert_args(p):
+    p.add_argument("pickle", help="an SB3 vecnormalize.pkl you trust")
+    p.add_argument("--out", default=None,
+                   help="where to write the JSON (default: normalization.json beside it)")
+
+
+@command("convert-stats", "convert a trusted SB3 vecnormalize.pkl to normalization.json (this "
+                          "unpickles the file, which can run code: only for files you trust)",
+         _convert_args)
+def cmd_convert_stats(args):
+    from pathlib import Path
+
+    from .normalization import NORMALIZATION, convert_pickle
+
+    src = Path(args.pickle)
+    if not src.is_file():
+        raise ValueError(f"no file {args.pickle!r}")
+    out = Path(args.out) if args.out else src.parent / NORMALIZATION
+    stats = convert_pickle(src, out)
+    emit(args, {"normalization_json": str(out), "obs_dim": len(stats["obs_rms"]["mean"])},
+         f"wrote {out} (observation statistics of dimension {len(stats['obs_rms']['mean'])})")
 
 
 def _evaluate_args(p):
@@ -174,10 +224,11 @@ def cmd_demo(args):
     from microconveyor_env.cli.base import json_default
     from microconveyor_env.cli.demo import demo_summary
 
-    from .demo import policy_demo, table
+    from .demo import load_demo_policy, policy_demo, table
 
+    policy = load_demo_policy(args.policy)   # a bad --policy fails before any other work
     summary = demo_summary(args)
-    demo = policy_demo(args.out, args.policy)
+    demo = policy_demo(args.out, policy)
     summary["policy_demo"] = demo
     summary["charts"].append(demo["chart"])
     Path(summary["summary_json"]).write_text(json.dumps(summary, indent=2, default=json_default))

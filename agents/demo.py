@@ -11,11 +11,19 @@ from microconveyor_env.envs import EnvConfig
 from .evaluate import load_policy, rollout
 
 
-def policy_demo(out_dir, policy_path=None, n_targets: int = 6) -> dict:
+def load_demo_policy(policy_path=None):
+    """The demo's policy (default: the shipped one), loaded before any other work so that a bad
+    ``--policy`` fails at once."""
     from .policy import shipped_path
 
+    return load_policy(policy_path or shipped_path(), EnvConfig.from_yaml())
+
+
+def policy_demo(out_dir, policy=None, n_targets: int = 6) -> dict:
+    """The demo's policy part; ``policy`` a loaded :class:`~.policy_files.Policy` or a path
+    (default: the shipped policy)."""
     cfg = EnvConfig.from_yaml()
-    pol = load_policy(policy_path or shipped_path(), cfg)
+    pol = policy if hasattr(policy, "act") else load_demo_policy(policy)
     targets = np.linspace(*cfg.target_range, n_targets)
     res = rollout(pol, targets, cfg, seed=0, record=True)
     rows = []

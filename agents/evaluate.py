@@ -1,81 +1,17 @@
-"""Loading a saved PPO policy (model + VecNormalize statistics) and evaluating it on a fixed,
-seeded set of targets with the batched env."""
+"""Evaluating a policy on a fixed, seeded set of targets with the batched env (loading a policy
+folder: :mod:`.policy_files`)."""
 from __future__ import annotations
-
-import json
-from dataclasses import dataclass
-from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from microconveyor_env.envs import EnvConfig
 
-MODEL, STATS, META = "model.zip", "vecnormalize.pkl", "metadata.json"
+from .policy_files import Policy, PolicyError, load_policy
+
+__all__ = ["Policy", "PolicyError", "load_policy", "fixed_targets", "rollout", "summarize",
+           "evaluate", "TOLERANCES"]
+
 TOLERANCES = (50e-6, 100e-6, 250e-6)
-
-
-class PolicyError(ValueError):
-    """A policy path that cannot be loaded or does not fit the env."""
-
-
-@dataclass
-class Policy:
-    model: Any              # stable_baselines3 PPO
-    obs_rms: Any            # RunningMeanStd of the observations (None: no normalization)
-    clip_obs: float
-    metadata: dict
-    path: Path
-
-    def act(self, obs: np.ndarray) -> np.ndarray:
-        if self.obs_rms is not None:
-            obs = np.clip((obs - self.obs_rms.mean) / np.sqrt(self.obs_rms.var + 1e-8),
-                          -self.clip_obs, self.clip_obs).astype(np.float32)
-        action, _ = self.model.predict(obs, deterministic=True)
-        return action
-
-
-def load_policy(path, config: EnvConfig | None = None) -> Policy:
-    """A policy folder (``model.zip``, ``vecnormalize.pkl``, optional ``metadata.json``) or a
-    model zip with ``vecnormalize.pkl`` beside it; one clear :class:`PolicyError` otherwise."""
-    import pickle
-
-    from stable_baselines3 import PPO
-
-    path = Path(path)
-    folder, model_file = (path, path / MODEL) if path.is_dir() else (path.parent, path)
-    if not model_file.is_file():
-        raise PolicyError(f"no policy at {str(path)!r}: expected a folder with {MODEL} and "
-                          f"{STATS}, or a model .zip")
-    try:
-        model = PPO.load(model_file, device="cpu")
-    except Exception as exc:  # noqa: BLE001 - any unreadable file is the same user error
-        raise PolicyError(f"{str(model_file)!r} is not a stable-baselines3 PPO model "
-                          f"({type(exc).__name__}: {exc})") from None
-    cfg = config or EnvConfig.from_yaml()
-    from microconveyor_env.envs import task
-    from microconveyor_env.envs.actions import ACTION_DIM
-
-    obs_shape, act_shape = model.observation_space.shape, model.action_space.shape
-    if obs_shape != (task.OBS_DIM,) or act_shape != (ACTION_DIM,):
-        raise PolicyError(f"{str(model_file)!r} was trained for observations {obs_shape} and "
-                          f"actions {act_shape}; MicroConveyor-v0 has ({task.OBS_DIM},) and "
-                          f"({ACTION_DIM},)")
-    obs_rms, clip_obs = None, 10.0
-    stats = folder / STATS
-    if not stats.is_file() and (folder / model_file.stem / STATS).is_file():
-        stats = folder / model_file.stem / STATS  # rl-zoo3's layout: ENV_ID.zip + ENV_ID/
-    if stats.is_file():
-        with open(stats, "rb") as fh:
-            vn = pickle.load(fh)
-        if getattr(vn, "norm_obs", False):
-            obs_rms, clip_obs = vn.obs_rms, vn.clip_obs
-            if np.shape(obs_rms.mean) != (task.OBS_DIM,):
-                raise PolicyError(f"{str(stats)!r} normalizes observations of shape "
-                                  f"{np.shape(obs_rms.mean)}, not ({task.OBS_DIM},)")
-    meta_file = folder / META
-    meta = json.loads(meta_file.read_text()) if meta_file.is_file() else {}
-    return Policy(model, obs_rms, clip_obs, meta, folder)
 
 
 def fixed_targets(config: EnvConfig, n: int, seed: int) -> np.ndarray:

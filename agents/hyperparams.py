@@ -37,13 +37,51 @@ def linear_schedule(value: float):
     return schedule
 
 
-def _eval_dict(text: str) -> dict:
-    import torch.nn as nn
+# torch.nn activation classes a config may name as ``nn.<Name>`` (nothing else is resolved)
+ACTIVATIONS = ("Tanh", "ReLU", "ELU", "LeakyReLU", "GELU", "SiLU", "Sigmoid", "Softplus", "Mish")
 
-    value = eval(text, {"__builtins__": {}}, {"dict": dict, "nn": nn})  # noqa: S307 - rl-zoo3 format
+
+def _eval_dict(text: str) -> dict:
+    """rl-zoo3's ``dict(key=value, ...)`` strings, parsed as data: keyword arguments whose values
+    are literals (numbers, strings, booleans, None, lists, tuples, dicts), nested ``dict(...)``
+    or ``nn.<Activation>``. Nothing is evaluated: any other expression is a ValueError."""
+    import ast
+
+    try:
+        tree = ast.parse(text.strip(), mode="eval").body
+    except SyntaxError as exc:
+        raise ValueError(f"{text!r} is not a dict(...) expression ({exc.msg})") from None
+    value = _node_value(tree, text)
     if not isinstance(value, dict):
         raise ValueError(f"{text!r} is not a dict(...)")
     return value
+
+
+def _node_value(node, text: str):
+    import ast
+
+    if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "dict":
+        if node.args or any(k.arg is None for k in node.keywords):
+            raise ValueError(f"{text!r}: dict(...) takes keyword arguments only")
+        return {k.arg: _node_value(k.value, text) for k in node.keywords}
+    if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+            and node.value.id == "nn" and node.attr in ACTIVATIONS):
+        import torch.nn as nn
+
+        return getattr(nn, node.attr)
+    if isinstance(node, (ast.List, ast.Tuple)):
+        items = [_node_value(e, text) for e in node.elts]
+        return items if isinstance(node, ast.List) else tuple(items)
+    if isinstance(node, ast.Dict):
+        if any(k is None for k in node.keys):
+            raise ValueError(f"{text!r}: ** in a dict literal is not allowed")
+        return {_node_value(k, text): _node_value(v, text) for k, v in zip(node.keys, node.values)}
+    try:
+        return ast.literal_eval(node)
+    except ValueError:
+        raise ValueError(f"{text!r}: {ast.unparse(node)!r} is not a literal, dict(...) or "
+                         f"nn.<{'|'.join(ACTIVATIONS)}>; config files are data and nothing in "
+                         "them is evaluated") from None
 
 
 def ppo_kwargs(hp: dict) -> dict:

@@ -1,18 +1,26 @@
 """PPO (stable-baselines3) on the batched env through the SB3 adapter.
 
 Hyperparameters from ``configs/ppo.yml`` (:mod:`.hyperparams`). During training: a progress
-bar, tensorboard logs (``OUT/tb``), a checkpoint (model + VecNormalize + step count) every
-``checkpoint_freq`` steps in ``OUT/checkpoint`` (``resume=True`` continues from it: at most one
-checkpoint interval is lost) and an evaluation on a fixed seeded target set every ``eval_freq``
-steps (success at +-50/100/250 um, logged to tensorboard and ``OUT/evaluations.jsonl``). At the
-end ``OUT`` holds the final ``model.zip``, ``vecnormalize.pkl`` and ``metadata.json``.
+bar, tensorboard logs (``OUT/tb``), one line per checkpoint and per evaluation (through ``log``),
+a checkpoint generation every ``checkpoint_freq`` steps in ``OUT/checkpoints`` (written
+atomically, :mod:`.checkpoint`; ``resume=True`` continues from the newest complete one, so a
+kill loses at most one interval) and an evaluation on a fixed seeded target set every
+``eval_freq`` steps (success at +-50/100/250 um, to tensorboard and ``OUT/evaluations.jsonl``).
+At the end ``OUT`` holds the final ``model.zip``, ``normalization.json`` and ``metadata.json``.
+
+A folder is used by one training at a time (``OUT/.lock``). ``resume`` refuses what it cannot
+honour: nothing to resume, damaged checkpoints only, a config other than the checkpoint's (unless
+``allow_config_change``, which the metadata records).
 """
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
+import math
 import time
 from pathlib import Path
+from typing import Any, Callable
 
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList, ProgressBarCallback
@@ -21,10 +29,14 @@ from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 from microconveyor_env.envs import EnvConfig
 from microconveyor_env.envs.sb3 import MicroConveyorSB3VecEnv
 
-from . import hyperparams
-from .evaluate import META, MODEL, STATS, Policy, evaluate
+from . import checkpoint, hyperparams, normalization
+from .checkpoint import META, MODEL, NORMALIZATION, CheckpointError
+from .evaluate import Policy, evaluate
+from .sb3_files import ModelFileError, algo_of, read_data, safe_load
 
-CHECKPOINT = "checkpoint"
+FORMAT = 2          # run-folder layout: checkpoints/gen-*, normalization.json (1: pickles)
+LEGACY_CHECKPOINT = "checkpoint"
+Log = Callable[[str], None]
 
 
 class BudgetPPO(PPO):
@@ -59,21 +71,26 @@ class BudgetPPO(PPO):
 
 
 def config_hash(cfg: EnvConfig, hp: dict) -> str:
-    import dataclasses
-
     blob = json.dumps({"env": dataclasses.asdict(cfg), "ppo": hp}, sort_keys=True, default=str)
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
 
+def _changed_keys(old: dict, new: dict) -> list[str]:
+    """Top-level hyperparameter and env keys whose values differ (for the refusal message)."""
+    keys = sorted(set(old) | set(new))
+    return [k for k in keys if json.dumps(old.get(k), sort_keys=True, default=str)
+            != json.dumps(new.get(k), sort_keys=True, default=str)]
+
+
 class Periodic(BaseCallback):
-    """Checkpoints and fixed-target evaluations at step intervals."""
+    """Checkpoints and fixed-target evaluations at step intervals, with the wall-time budget."""
 
     def __init__(self, out: Path, cfg: EnvConfig, checkpoint_freq: int, eval_freq: int,
                  eval_targets: int, eval_seed: int, t_start: float, wall_before: float,
-                 max_seconds: float | None = None):
+                 run_meta: dict, max_seconds: float | None = None, log: Log | None = None):
         super().__init__()
         self.max_seconds = max_seconds
-        self.out, self.cfg = out, cfg
+        self.out, self.cfg, self.run_meta, self.log = out, cfg, run_meta, log
         self.checkpoint_freq, self.eval_freq = checkpoint_freq, eval_freq
         self.eval_targets, self.eval_seed = eval_targets, eval_seed
         self.t_start, self.wall_before = t_start, wall_before
@@ -94,12 +111,22 @@ class Periodic(BaseCallback):
             self.run_eval()
         if self.checkpoint_freq and n >= self.next_ckpt:
             self.next_ckpt += self.checkpoint_freq
-            save(self.model, self.out / CHECKPOINT, {"steps": n, "wall_time_s": self.wall()})
+            self.save_checkpoint({})
         return self.max_seconds is None or self.wall() < self.max_seconds
+
+    def save_checkpoint(self, extra: dict) -> Path:
+        n = int(self.model.num_timesteps)
+        meta = {**self.run_meta, "wall_time_s": self.wall(), **extra}
+        gen = checkpoint.write_generation(self.out, n, meta, lambda d: _write_model(self.model, d))
+        if self.log:
+            self.log(f"checkpoint: step {n} saved ({gen.relative_to(self.out)})")
+        return gen
 
     def run_eval(self) -> dict:
         vn = self.model.get_env()
-        pol = Policy(self.model, vn.obs_rms, vn.clip_obs, {}, self.out)
+        norm = (normalization.obs_normalizer(normalization.stats_of(vn))
+                if isinstance(vn, VecNormalize) else None)
+        pol = Policy(self.model, norm, {}, self.out)
         res = evaluate(pol, self.eval_targets, self.eval_seed, config=self.cfg)
         res.update(steps=int(self.model.num_timesteps), wall_time_s=self.wall())
         for k in ("success_rate_50um", "success_rate_100um", "success_rate_250um",
@@ -107,14 +134,19 @@ class Periodic(BaseCallback):
             self.logger.record(f"eval/{k}", res[k])
         with open(self.out / "evaluations.jsonl", "a") as fh:
             fh.write(json.dumps(res) + "\n")
+        if self.log:
+            self.log(f"eval: step {res['steps']}, {res['wall_time_s']:.0f} s: success +-50/100/250 "
+                     f"um {res['success_rate_50um']:.2f}/{res['success_rate_100um']:.2f}/"
+                     f"{res['success_rate_250um']:.2f}, median |error| "
+                     f"{res['median_abs_error_m'] * 1e6:.1f} um")
         return res
 
 
-def save(model, folder: Path, meta: dict) -> None:
-    folder.mkdir(parents=True, exist_ok=True)
+def _write_model(model, folder: Path) -> None:
     model.save(folder / MODEL)
-    model.get_env().save(str(folder / STATS))
-    (folder / META).write_text(json.dumps(meta, indent=2))
+    env = model.get_env()
+    if isinstance(env, VecNormalize):
+        normalization.write(env, folder / NORMALIZATION)
 
 
 def make_env(cfg: EnvConfig, hp: dict, seed: int):
@@ -123,40 +155,147 @@ def make_env(cfg: EnvConfig, hp: dict, seed: int):
     return VecMonitor(venv)
 
 
+def check_budgets(steps: int | None, max_minutes: float | None, checkpoint_freq: int,
+                  eval_freq: int, eval_targets: int) -> None:
+    """Refuse budgets that cannot mean anything: ValueError naming the argument."""
+    def whole(name: str, v: Any, lo: int) -> None:
+        if isinstance(v, bool) or not isinstance(v, int) or v < lo:
+            raise ValueError(f"{name} must be a whole number >= {lo}, got {v!r}")
+
+    if steps is not None:
+        whole("steps", steps, 1)
+    if max_minutes is not None and (isinstance(max_minutes, bool) or
+                                    not isinstance(max_minutes, (int, float)) or
+                                    not math.isfinite(max_minutes) or max_minutes <= 0):
+        raise ValueError(f"max_minutes must be a positive finite number of minutes, got "
+                         f"{max_minutes!r}")
+    whole("checkpoint_freq", checkpoint_freq, 1)
+    whole("eval_freq", eval_freq, 0)
+    whole("eval_targets", eval_targets, 0)
+
+
+def _refuse_used_folder(out: Path) -> None:
+    gens = checkpoint.generations(out)
+    if gens or (out / LEGACY_CHECKPOINT).exists() or (out / META).exists():
+        what = (f"{len(gens)} checkpoint(s), the newest {gens[0].name}" if gens
+                else "a finished or old-format training")
+        raise CheckpointError(f"{str(out)!r} already holds a training ({what}): pass --resume "
+                              "to continue it, or choose another --out")
+
+
+def _check_generation(need_stats: bool) -> Callable[[Path, dict], None]:
+    def check(folder: Path, meta: dict) -> None:
+        if meta.get("algo") != "ppo" or algo_of(read_data(folder / MODEL)) != "ppo":
+            raise CheckpointError("not a PPO checkpoint")
+        if need_stats:
+            normalization.read(folder / NORMALIZATION)
+    return check
+
+
+def _resumable(out: Path, chash: str, hp: dict, allow_config_change: bool,
+               log: Log | None) -> checkpoint.Generation:
+    need_stats = bool(hp.get("normalize"))
+    try:
+        gen = checkpoint.latest(out, _check_generation(need_stats))
+    except ModelFileError as exc:  # pragma: no cover - latest() turns these into skips
+        raise CheckpointError(str(exc)) from None
+    if gen is None:
+        if (out / LEGACY_CHECKPOINT).is_dir():
+            raise CheckpointError(
+                f"{str(out / LEGACY_CHECKPOINT)!r} is a checkpoint of an earlier version "
+                "(VecNormalize as a pickle, files overwritten in place); it cannot be resumed "
+                "safely: start a new --out")
+        damaged = checkpoint.generations(out)
+        raise CheckpointError(f"nothing to resume in {str(out)!r}: " + (
+            f"none of its {len(damaged)} checkpoint(s) is complete" if damaged else
+            "no checkpoint in it (run without --resume to start a training)"))
+    if log:
+        for skip in gen.skipped:
+            log(f"resume: skipped damaged checkpoint {skip}")
+    if gen.meta.get("config_hash") != chash:
+        changed = _changed_keys(gen.meta.get("hyperparams") or {}, hp)
+        what = (f"hyperparameters {', '.join(changed)}" if changed else "the env config")
+        if not allow_config_change:
+            raise CheckpointError(
+                f"the checkpoint at step {gen.steps} was trained with another config ({what} "
+                "differ); resume with the same --conf-file and env settings, or pass "
+                "--allow-config-change to change it on purpose (recorded in the metadata)")
+    return gen
+
+
+def _new_model(env, hp: dict, seed: int, tb: str | None):
+    norm = hp.get("normalize") or None
+    if norm is not None:
+        env = VecNormalize(env, **{"gamma": hp.get("gamma", 0.99), **norm})
+    return BudgetPPO(hp.get("policy", "MlpPolicy"), env, seed=seed, device="cpu", verbose=0,
+                     tensorboard_log=tb, **hyperparams.ppo_kwargs(hp))
+
+
+def _resumed_model(gen: checkpoint.Generation, env, hp: dict, tb: str | None):
+    if (gen.folder / NORMALIZATION).is_file():
+        env = normalization.restore(env, normalization.read(gen.folder / NORMALIZATION))
+    kw = hyperparams.ppo_kwargs(hp)
+    try:
+        return safe_load(gen.folder / MODEL, "ppo", env.observation_space, env.action_space,
+                         cls=BudgetPPO, env=env, load_kwargs={"tensorboard_log": tb},
+                         learning_rate=kw.get("learning_rate", 3e-4),
+                         clip_range=kw.get("clip_range", 0.2))
+    except ModelFileError as exc:
+        raise CheckpointError(str(exc)) from None
+
+
 def train(out, steps: int | None = None, seed: int = 0, conf_file: str | None = None,
           config: EnvConfig | None = None, resume: bool = False, checkpoint_freq: int = 200_000,
           eval_freq: int = 250_000, eval_targets: int = 100, eval_seed: int = 12345,
           progress_bar: bool = True, tensorboard: bool = True, overrides: dict | None = None,
-          max_minutes: float | None = None):
+          max_minutes: float | None = None, allow_config_change: bool = False,
+          log: Log | None = None):
     """Train (or resume) PPO into ``out`` for ``steps`` (or until ``max_minutes`` of wall time,
     resumed runs included); returns the metadata written there."""
     import torch
 
+    check_budgets(steps, max_minutes, checkpoint_freq, eval_freq, eval_targets)
     torch.set_num_threads(1)  # small nets: one thread is fastest, and 2 cores are shared with the env
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    hp = hyperparams.load(conf_file)
-    hp.update(overrides or {})
-    cfg = config or EnvConfig.from_yaml(**(hp.get("env_kwargs") or {}))
-    total = int(steps if steps is not None else hp.get("n_timesteps", 1e6))
-    norm = hp.get("normalize") or None
-    ckpt = out / CHECKPOINT
-    env = make_env(cfg, hp, seed)
-    wall_before = 0.0
-    if resume and (ckpt / MODEL).is_file():
-        env = VecNormalize.load(str(ckpt / STATS), env) if (ckpt / STATS).is_file() else env
-        model = BudgetPPO.load(ckpt / MODEL, env=env, device="cpu",
-                         tensorboard_log=str(out / "tb") if tensorboard else None)
-        wall_before = json.loads((ckpt / META).read_text()).get("wall_time_s", 0.0)
-    else:
-        if norm is not None:
-            env = VecNormalize(env, **{"gamma": hp.get("gamma", 0.99), **norm})
-        model = BudgetPPO(hp.get("policy", "MlpPolicy"), env, seed=seed, device="cpu", verbose=0,
-                    tensorboard_log=str(out / "tb") if tensorboard else None,
-                    **hyperparams.ppo_kwargs(hp))
+    with checkpoint.folder_lock(out):
+        hp = hyperparams.load(conf_file)
+        hp.update(overrides or {})
+        cfg = config or EnvConfig.from_yaml(**(hp.get("env_kwargs") or {}))
+        chash = config_hash(cfg, hp)
+        run_meta = {"format": FORMAT, "env_id": hyperparams.ENV_ID, "algo": "ppo",
+                    "config_hash": chash, "seed": seed, "hyperparams": hp,
+                    "env_config": dataclasses.asdict(cfg)}
+        tb = str(out / "tb") if tensorboard else None
+        env = make_env(cfg, hp, seed)
+        wall_before = 0.0
+        if resume:
+            gen = _resumable(out, chash, hp, allow_config_change, log)
+            model = _resumed_model(gen, env, hp, tb)
+            wall_before = float(gen.meta.get("wall_time_s", 0.0))
+            changes = list(gen.meta.get("config_changes", []))
+            if gen.meta.get("config_hash") != chash:
+                changes.append({"at_steps": gen.steps, "from": gen.meta.get("config_hash"),
+                                "to": chash})
+            if changes:
+                run_meta["config_changes"] = changes
+            if log:
+                log(f"resume: from step {gen.steps} ({gen.folder.name}), {wall_before:.0f} s "
+                    "of wall time already spent")
+        else:
+            _refuse_used_folder(out)
+            model = _new_model(env, hp, seed, tb)
+        total = int(steps if steps is not None else hp.get("n_timesteps", 1e6))
+        return _learn(model, out, cfg, total, resume, run_meta, wall_before, checkpoint_freq,
+                      eval_freq, eval_targets, eval_seed, progress_bar, max_minutes, log)
+
+
+def _learn(model, out: Path, cfg: EnvConfig, total: int, resume: bool, run_meta: dict,
+           wall_before: float, checkpoint_freq: int, eval_freq: int, eval_targets: int,
+           eval_seed: int, progress_bar: bool, max_minutes: float | None, log: Log | None):
     t0 = time.perf_counter()
     periodic = Periodic(out, cfg, checkpoint_freq, eval_freq, eval_targets, eval_seed, t0,
-                        wall_before, None if max_minutes is None else 60.0 * max_minutes)
+                        wall_before, run_meta,
+                        None if max_minutes is None else 60.0 * max_minutes, log)
     if max_minutes is not None:
         budget_s = 60.0 * max_minutes
         model.budget_clock = lambda: periodic.wall() / budget_s
@@ -166,11 +305,11 @@ def train(out, steps: int | None = None, seed: int = 0, conf_file: str | None = 
                 tb_log_name="ppo", progress_bar=False)
     wall = periodic.wall()
     final = periodic.run_eval() if eval_targets else {}
-    meta = {"env_id": hyperparams.ENV_ID, "algo": "ppo", "config_hash": config_hash(cfg, hp),
-            "seed": seed, "steps": int(model.num_timesteps), "wall_time_s": wall,
+    meta = {**run_meta, "steps": int(model.num_timesteps), "wall_time_s": wall,
             "steps_per_s": model.num_timesteps / max(wall, 1e-9),
-            "target_range_m": list(cfg.target_range), "hyperparams": hp,
-            "evaluation": final}
-    save(model, out, meta)
-    save(model, ckpt, {"steps": int(model.num_timesteps), "wall_time_s": wall})
-    return meta
+            "target_range_m": list(cfg.target_range), "evaluation": final}
+    gen = periodic.save_checkpoint({k: meta[k] for k in ("steps_per_s", "target_range_m",
+                                                           "evaluation")})
+    names = tuple(n for n in (MODEL, NORMALIZATION) if (gen / n).is_file()) + (META,)
+    checkpoint.replace_files(gen, out, names)
+    return checkpoint.read_meta(out)

@@ -1,0 +1,233 @@
+"""Checkpoints that survive a kill, and the lock that keeps two trainings out of one folder.
+
+A checkpoint is one **generation**: a folder ``OUT/checkpoints/gen-<steps>`` holding
+``model.zip``, ``normalization.json`` and ``metadata.json`` (which records the sha256 of the other
+two). It is written in a temporary folder, every file flushed to disk, read back and verified, and
+only then renamed into place (an atomic rename); the previous generation is deleted only after the
+new one is in place. A kill at any moment therefore leaves the newest complete generation intact
+(at most one checkpoint interval of training is lost), and a full disk fails the write of the new
+generation without touching the old. :func:`latest` picks the newest generation that verifies.
+
+The final policy files in ``OUT`` are replaced one by one with atomic renames, ``metadata.json``
+(with the hashes) last, so a folder caught between two versions is detected by
+:func:`verify_files` instead of being loaded half old, half new.
+"""
+from __future__ import annotations
+
+import contextlib
+import datetime
+import hashlib
+import json
+import os
+import shutil
+import socket
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Iterator
+
+CHECKPOINTS = "checkpoints"
+GEN_PREFIX = "gen-"
+TMP_PREFIX = ".tmp-"
+LOCK = ".lock"
+MODEL, NORMALIZATION, META = "model.zip", "normalization.json", "metadata.json"
+KEEP = 2  # complete generations kept: the newest and the one before it
+
+
+class CheckpointError(RuntimeError):
+    """A checkpoint that cannot be written, or a folder that cannot be resumed or used."""
+
+
+def sha256(path: Path) -> str:
+    """Hex sha256 of a file's bytes."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _fsync_file(path: Path) -> None:
+    with open(path, "rb") as fh:
+        os.fsync(fh.fileno())
+
+
+def _fsync_dir(path: Path) -> None:
+    with contextlib.suppress(OSError):  # not every platform can fsync a directory
+        fd = os.open(path, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+
+
+def verify_files(folder: Path, meta: dict[str, Any]) -> None:
+    """Check that every file ``meta["files"]`` lists exists in ``folder`` with its recorded
+    sha256; one :class:`CheckpointError` naming the first file that does not."""
+    files = meta.get("files")
+    if not isinstance(files, dict) or not files:
+        raise CheckpointError(f"{str(folder / META)!r} lists no files with their sha256")
+    for name, digest in files.items():
+        path = folder / str(name)
+        if not path.is_file():
+            raise CheckpointError(f"{str(path)!r} is missing (listed in {META})")
+        if sha256(path) != digest:
+            raise CheckpointError(f"{str(path)!r} is not the file {META} describes (sha256 "
+                                  "differs): the folder was changed or written only in part")
+
+
+def read_meta(folder: Path) -> dict[str, Any]:
+    """``folder/metadata.json`` as a dict; :class:`CheckpointError` if missing or damaged."""
+    path = folder / META
+    try:
+        meta = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise CheckpointError(f"{str(path)!r} is missing or not JSON ({exc})") from None
+    if not isinstance(meta, dict):
+        raise CheckpointError(f"{str(path)!r} is not a JSON object")
+    return meta
+
+
+def write_generation(root: Path, steps: int, meta: dict[str, Any],
+                     write_files: Callable[[Path], None]) -> Path:
+    """Write one generation for ``steps`` under ``root/checkpoints``: ``write_files(tmp)`` writes
+    the model and statistics into a temporary folder, this adds ``metadata.json`` (``meta`` plus
+    the files' sha256), flushes, verifies, renames into place and prunes old generations.
+    Returns the new generation's folder; on any OSError the temporary folder is removed, the older
+    generations are untouched and :class:`CheckpointError` says what failed."""
+    ckpts = root / CHECKPOINTS
+    ckpts.mkdir(parents=True, exist_ok=True)
+    tmp = ckpts / f"{TMP_PREFIX}{steps:012d}-{os.getpid()}"
+    final = ckpts / f"{GEN_PREFIX}{steps:012d}"
+    try:
+        shutil.rmtree(tmp, ignore_errors=True)
+        tmp.mkdir()
+        write_files(tmp)
+        files = {p.name: sha256(p) for p in sorted(tmp.iterdir()) if p.is_file()}
+        (tmp / META).write_text(json.dumps({**meta, "steps": int(steps), "files": files},
+                                           indent=2, default=str) + "\n")
+        for p in tmp.iterdir():
+            _fsync_file(p)
+        _fsync_dir(tmp)
+        verify_files(tmp, read_meta(tmp))
+        if final.exists():  # the same step written again (e.g. the final save): replace it
+            shutil.rmtree(final)
+        os.rename(tmp, final)
+        _fsync_dir(ckpts)
+    except OSError as exc:
+        shutil.rmtree(tmp, ignore_errors=True)
+        prev = latest_step(root)
+        raise CheckpointError(
+            f"checkpoint at step {steps:,} could not be written ({exc.strerror or exc}); "
+            + ("no earlier checkpoint exists" if prev is None else
+               f"the checkpoint at step {prev:,} is intact: free space and --resume")) from None
+    prune(root)
+    return final
+
+
+def generations(root: Path) -> list[Path]:
+    """Generation folders under ``root/checkpoints``, newest first (complete or not)."""
+    ckpts = root / CHECKPOINTS
+    if not ckpts.is_dir():
+        return []
+    gens = [p for p in ckpts.iterdir() if p.is_dir() and p.name.startswith(GEN_PREFIX)
+            and p.name[len(GEN_PREFIX):].isdigit()]
+    return sorted(gens, key=lambda p: int(p.name[len(GEN_PREFIX):]), reverse=True)
+
+
+@dataclass(frozen=True)
+class Generation:
+    """A complete, verified checkpoint generation."""
+
+    folder: Path
+    meta: dict[str, Any]
+    skipped: tuple[str, ...]   # newer generations that did not verify, with the reason
+
+    @property
+    def steps(self) -> int:
+        return int(self.meta["steps"])
+
+
+def latest(root: Path, check: Callable[[Path, dict[str, Any]], None] | None = None
+           ) -> Generation | None:
+    """The newest generation whose files verify (and pass ``check(folder, meta)``, which raises
+    on a problem), or None when there is none."""
+    skipped: list[str] = []
+    for gen in generations(root):
+        try:
+            meta = read_meta(gen)
+            verify_files(gen, meta)
+            if check is not None:
+                check(gen, meta)
+        except (CheckpointError, ValueError) as exc:
+            skipped.append(f"{gen.name}: {exc}")
+            continue
+        return Generation(gen, meta, tuple(skipped))
+    return None
+
+
+def latest_step(root: Path) -> int | None:
+    """Steps of the newest verified generation (None: none)."""
+    gen = latest(root)
+    return None if gen is None else gen.steps
+
+
+def prune(root: Path) -> None:
+    """Delete leftover temporary folders of dead writers and all but the :data:`KEEP` newest
+    complete generations (damaged ones go too once enough newer complete ones exist)."""
+    ckpts = root / CHECKPOINTS
+    for p in ckpts.glob(f"{TMP_PREFIX}*"):
+        pid = p.name.rsplit("-", 1)[-1]
+        if not (pid.isdigit() and int(pid) == os.getpid()):
+            shutil.rmtree(p, ignore_errors=True)
+    complete = 0
+    for gen in generations(root):
+        if complete >= KEEP:
+            shutil.rmtree(gen, ignore_errors=True)
+            continue
+        try:
+            verify_files(gen, read_meta(gen))
+            complete += 1
+        except CheckpointError:
+            pass
+
+
+def replace_files(src: Path, dst: Path, names: tuple[str, ...]) -> None:
+    """Copy ``names`` from ``src`` into ``dst``, each through a temporary file and an atomic
+    rename, in the order given (put ``metadata.json`` last)."""
+    for name in names:
+        tmp = dst / f".{name}.tmp-{os.getpid()}"
+        shutil.copyfile(src / name, tmp)
+        _fsync_file(tmp)
+        os.replace(tmp, dst / name)
+    _fsync_dir(dst)
+
+
+@contextlib.contextmanager
+def folder_lock(out: Path) -> Iterator[Path]:
+    """Hold an exclusive lock on ``out`` for a training (``out/.lock``, with the owner's pid,
+    host and start time). The kernel drops the lock when the process ends, even on kill -9, so a
+    stale lock file never blocks a later run. A second training into ``out`` gets a
+    :class:`CheckpointError` naming the owner."""
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / LOCK
+    fh = open(path, "a+")
+    try:
+        try:
+            import fcntl
+
+            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except ImportError:  # pragma: no cover - Windows: no advisory locks; best effort
+            pass
+        except OSError:
+            fh.seek(0)
+            owner = fh.read().strip() or "unknown owner"
+            raise CheckpointError(f"{str(out)!r} is in use by another training ({owner}); "
+                                  "wait for it to finish or choose another --out") from None
+        fh.seek(0)
+        fh.truncate()
+        fh.write(f"pid {os.getpid()} on {socket.gethostname()}, since "
+                 f"{datetime.datetime.now(datetime.timezone.utc).isoformat(timespec='seconds')}")
+        fh.flush()
+        yield path
+    finally:
+        fh.close()

@@ -1,0 +1,130 @@
+"""A policy folder, loaded as data and checked as a unit.
+
+A policy folder holds ``model.zip`` (stable-baselines3), ``normalization.json`` (observation
+statistics) and ``metadata.json`` (algorithm, env id, hyperparameters, evaluation and the sha256 of
+the other two files). Loading it runs no code from any of them (:mod:`.sb3_files`,
+:mod:`.normalization`), and every part must agree with the others: the algorithm the zip's keys
+identify with the one the metadata names, the zip's spaces with the env's, the statistics' shape
+with the observations, the files with their recorded hashes. A disagreement is one
+:class:`PolicyError` naming the file and the mismatch.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from microconveyor_env.envs import EnvConfig
+
+from . import normalization
+from .checkpoint import META, MODEL, CheckpointError, read_meta, verify_files
+from .normalization import NORMALIZATION, NormalizationError, ObsNormalizer
+from .sb3_files import ModelFileError, algo_of, check_spaces, read_data, safe_load
+
+ENV_NAME = "MicroConveyor-v0"
+
+
+class PolicyError(ValueError):
+    """A policy path that cannot be loaded or does not fit the env."""
+
+
+@dataclass
+class Policy:
+    """A loaded policy: the SB3 model, its observation normaliser (None: raw observations), its
+    metadata and the folder it came from."""
+
+    model: Any
+    normalizer: ObsNormalizer | None
+    metadata: dict[str, Any]
+    path: Path
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        """Deterministic actions in [-1, 1]^3 for a batch of raw observations."""
+        if self.normalizer is not None:
+            obs = self.normalizer(obs)
+        action, _ = self.model.predict(obs, deterministic=True)
+        return action
+
+
+def _locate(path: Path) -> tuple[Path, Path]:
+    folder, model_file = (path, path / MODEL) if path.is_dir() else (path.parent, path)
+    if not model_file.is_file():
+        raise PolicyError(f"no policy at {str(path)!r}: expected a folder with {MODEL}, "
+                          f"{NORMALIZATION} and {META}, or a model .zip")
+    return folder, model_file
+
+
+def _metadata(folder: Path) -> dict[str, Any]:
+    if not (folder / META).exists():
+        return {}
+    try:
+        meta = read_meta(folder)
+        if "files" in meta:
+            verify_files(folder, meta)
+    except CheckpointError as exc:
+        raise PolicyError(str(exc)) from None
+    return meta
+
+
+def _spaces(config: EnvConfig) -> tuple[Any, Any]:
+    from microconveyor_env.envs import MicroConveyorEnv
+
+    env = MicroConveyorEnv(config=config)
+    return env.observation_space, env.action_space
+
+
+def _normalizer(folder: Path, model_file: Path, meta: dict[str, Any],
+                obs_shape: tuple[int, ...]) -> ObsNormalizer | None:
+    path = folder / NORMALIZATION
+    if path.is_file():
+        try:
+            return normalization.obs_normalizer(normalization.read(path, obs_shape))
+        except NormalizationError as exc:
+            raise PolicyError(str(exc)) from None
+    for pkl in (folder / normalization.LEGACY_PICKLE,
+                folder / model_file.stem / normalization.LEGACY_PICKLE):  # rl-zoo3's layout
+        if pkl.is_file():
+            raise PolicyError(
+                f"{str(pkl)!r} is a pickle: loading it can run any code it names, so it is not "
+                f"loaded. If you trust where it came from, convert it once with `microconveyor "
+                f"convert-stats {pkl}` (writes {NORMALIZATION} beside it)")
+    if "hyperparams" in meta and not (meta["hyperparams"] or {}).get("normalize"):
+        return None  # the metadata says the policy was trained on raw observations
+    raise PolicyError(f"{str(folder)!r} has no {NORMALIZATION}: a policy trained on normalised "
+                      f"observations acts blindly without it. If it was trained on raw "
+                      f"observations, say so in {META}: {{\"hyperparams\": {{\"normalize\": null}}}}")
+
+
+def load_policy(path: str | Path, config: EnvConfig | None = None) -> Policy:
+    """The policy at ``path`` (a policy folder, or a model zip with its files beside it) for the
+    env ``config`` (default: the packaged MicroConveyor-v0 config), checked as a unit."""
+    from .hyperparams import ENV_ID
+
+    folder, model_file = _locate(Path(path))
+    meta = _metadata(folder)
+    try:
+        data = read_data(model_file)
+    except ModelFileError as exc:
+        raise PolicyError(f"{exc}; not a stable-baselines3 PPO model") from None
+    algo = algo_of(data)
+    if meta.get("algo") and algo is not None and meta["algo"] != algo:
+        raise PolicyError(f"{str(folder / META)!r} says {str(meta['algo']).upper()}, but "
+                          f"{str(model_file)!r} is an {algo.upper()} model")
+    if algo != "ppo":
+        raise PolicyError(f"{str(model_file)!r} is not a stable-baselines3 PPO model (it is "
+                          f"{'of an unknown kind' if algo is None else algo.upper()}); "
+                          "evaluate loads PPO policies")
+    if meta.get("env_id", ENV_ID) != ENV_ID:
+        raise PolicyError(f"{str(folder / META)!r}: the policy was trained on "
+                          f"{meta['env_id']!r}, not {ENV_ID!r}")
+    cfg = config or EnvConfig.from_yaml()
+    obs_space, act_space = _spaces(cfg)
+    try:
+        check_spaces(model_file, data, obs_space.shape, act_space.shape, ENV_NAME)
+        normalizer = _normalizer(folder, model_file, meta, obs_space.shape)
+        model = safe_load(model_file, "ppo", obs_space, act_space)
+    except ModelFileError as exc:
+        raise PolicyError(str(exc)) from None
+    return Policy(model, normalizer, meta, folder)

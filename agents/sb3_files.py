@@ -1,0 +1,185 @@
+"""Loading stable-baselines3 model zips without running code from them.
+
+An SB3 ``model.zip`` holds the network weights (``*.pth``, which SB3 reads with
+``torch.load(weights_only=True)``: tensors only) and a ``data`` JSON in which every value that is not
+plain JSON (the policy class, the spaces, the learning-rate schedule, buffers) is a base64
+cloudpickle. Unpickling those runs whatever code they name (issue 17: a crafted entry ran a shell
+command on ``evaluate``). Here the ``data`` JSON is read as text, every pickled entry is *replaced*
+through SB3's ``custom_objects`` by an object this module builds itself (so SB3 never unpickles
+any), an entry this module does not know is refused, and the policy class a pickle *names* is read
+with :mod:`pickletools` (which parses opcodes and executes nothing) and must be the expected one.
+"""
+from __future__ import annotations
+
+import base64
+import binascii
+import json
+import pickletools
+import zipfile
+from pathlib import Path
+from typing import Any
+
+SERIALIZED = ":serialized:"
+
+
+class ModelFileError(ValueError):
+    """A model zip that is not a stable-baselines3 model of the expected kind."""
+
+
+# algorithm -> (keys its data JSON always has, the policy class its pickle must name)
+ALGOS: dict[str, tuple[frozenset[str], str]] = {
+    "ppo": (frozenset({"n_epochs", "clip_range", "n_steps", "batch_size"}),
+            "stable_baselines3.common.policies.ActorCriticPolicy"),
+    "a2c": (frozenset({"n_steps", "normalize_advantage"}),
+            "stable_baselines3.common.policies.ActorCriticPolicy"),
+    "sac": (frozenset({"target_entropy", "tau", "buffer_size"}),
+            "stable_baselines3.sac.policies.SACPolicy"),
+    "td3": (frozenset({"policy_delay", "target_policy_noise"}),
+            "stable_baselines3.td3.policies.TD3Policy"),
+}
+
+
+def read_data(path: Path) -> dict[str, Any]:
+    """The ``data`` JSON of the zip at ``path``, as plain JSON (nothing deserialised)."""
+    try:
+        with zipfile.ZipFile(path) as zf:
+            text = zf.read("data").decode()
+    except (OSError, zipfile.BadZipFile, KeyError, UnicodeDecodeError) as exc:
+        raise ModelFileError(f"{str(path)!r} is not a stable-baselines3 model zip "
+                             f"({type(exc).__name__}: {exc})") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ModelFileError(f"{str(path)!r}: its data entry is not JSON ({exc})") from None
+    if not isinstance(data, dict):
+        raise ModelFileError(f"{str(path)!r}: its data entry is not a JSON object")
+    return data
+
+
+def algo_of(data: dict[str, Any]) -> str | None:
+    """The algorithm a model's ``data`` keys identify (``ppo``, ``a2c``, ``sac``, ``td3``), or None.
+    PPO is checked before A2C (PPO's keys include A2C's)."""
+    for algo, (keys, _) in ALGOS.items():
+        if keys <= set(data):
+            return algo
+    return None
+
+
+def pickled_globals(entry: dict[str, Any]) -> list[str]:
+    """The ``module.name`` globals a serialized entry's pickle refers to, read with
+    :mod:`pickletools` (parses the opcodes; runs nothing). Raises on a damaged pickle."""
+    raw = base64.b64decode(entry[SERIALIZED].encode(), validate=True)
+    found, strings, memo = [], [], {}
+    for op, arg, _ in pickletools.genops(raw):
+        if op.name in ("SHORT_BINUNICODE", "BINUNICODE", "UNICODE", "BINUNICODE8"):
+            strings.append(arg)
+        elif op.name == "MEMOIZE" and strings:
+            memo[len(memo)] = strings[-1]
+        elif op.name in ("BINGET", "LONG_BINGET", "GET") and arg in memo:
+            strings.append(memo[arg])
+        elif op.name == "GLOBAL":
+            found.append(str(arg).replace(" ", "."))
+        elif op.name == "STACK_GLOBAL":
+            if len(strings) < 2:
+                raise ValueError("STACK_GLOBAL without its module and name")
+            found.append(f"{strings[-2]}.{strings[-1]}")
+    return found
+
+
+def _shape_of(entry: Any) -> tuple[int, ...] | None:
+    """A space's shape from the readable ``_shape`` SB3 writes beside the pickle (e.g. '[6]')."""
+    try:
+        return tuple(int(v) for v in json.loads(str(entry["_shape"]).replace("(", "[")
+                                                .replace(")", "]").replace(",]", "]")))
+    except (KeyError, TypeError, ValueError, json.JSONDecodeError):
+        return None
+
+
+def check_spaces(path: Path, data: dict[str, Any], obs_shape: tuple[int, ...],
+                 act_shape: tuple[int, ...], env_name: str) -> None:
+    """Refuse a model whose observation or action shape is not ``obs_shape``/``act_shape``."""
+    got_obs, got_act = _shape_of(data.get("observation_space")), _shape_of(data.get("action_space"))
+    if got_obs is None or got_act is None:
+        raise ModelFileError(f"{str(path)!r} does not state its observation and action shapes")
+    if got_obs != obs_shape or got_act != act_shape:
+        raise ModelFileError(f"{str(path)!r} was trained for observations {got_obs} and actions "
+                             f"{got_act}; {env_name} has {obs_shape} and {act_shape}")
+
+
+def custom_objects(path: Path, data: dict[str, Any], algo: str, observation_space: Any,
+                   action_space: Any, learning_rate: Any = 0.0,
+                   clip_range: Any = 0.2) -> dict[str, Any]:
+    """Replacements for every pickled entry of ``data``, so that SB3's ``load`` unpickles none:
+    the spaces given, the schedules given (they only matter to a resumed training), fresh buffers
+    (SB3 rebuilds them at the next ``learn``). Unknown pickled entries and a policy class other
+    than the algorithm's are refused."""
+    from stable_baselines3.common.buffers import ReplayBuffer, RolloutBuffer
+
+    _, policy_name = ALGOS[algo]
+    known: dict[str, Any] = {
+        "observation_space": observation_space, "action_space": action_space,
+        "learning_rate": learning_rate, "lr_schedule": lambda _: 0.0, "clip_range": clip_range,
+        "clip_range_vf": None, "_last_obs": None, "_last_episode_starts": None,
+        "_last_original_obs": None, "ep_info_buffer": None, "ep_success_buffer": None,
+        "rollout_buffer_class": RolloutBuffer, "rollout_buffer_kwargs": {},
+        "replay_buffer_class": ReplayBuffer, "replay_buffer_kwargs": {}, "action_noise": None,
+        "target_policy_noise": None, "target_noise_clip": None, "ent_coef": None,
+        "train_freq": None, "use_sde_at_warmup": None,
+    }
+    out: dict[str, Any] = {}
+    for key, value in data.items():
+        if not (isinstance(value, dict) and SERIALIZED in value):
+            continue
+        if key == "policy_class":
+            try:
+                names = pickled_globals(value)
+            except (ValueError, binascii.Error, TypeError) as exc:
+                raise ModelFileError(f"{str(path)!r}: its policy_class entry is not a readable "
+                                     f"pickle ({exc})") from None
+            if names != [policy_name]:
+                raise ModelFileError(f"{str(path)!r}: its policy_class names {names or 'nothing'}, "
+                                     f"not {policy_name} ({algo.upper()}'s policy); refusing "
+                                     "to load it")
+            out[key] = _policy_class(policy_name)
+        elif key in known:
+            out[key] = known[key]
+        else:
+            raise ModelFileError(f"{str(path)!r}: its data entry {key!r} holds a pickled Python "
+                                 "object this loader does not know; it is not unpickled (that "
+                                 "could run code), so the model is refused")
+    return out
+
+
+def _policy_class(dotted: str) -> Any:
+    import importlib
+
+    module, name = dotted.rsplit(".", 1)
+    return getattr(importlib.import_module(module), name)
+
+
+def algo_class(algo: str) -> Any:
+    """The SB3 algorithm class of ``algo``."""
+    import stable_baselines3 as sb3
+
+    return getattr(sb3, algo.upper())
+
+
+def safe_load(path: Path, algo: str, observation_space: Any, action_space: Any,
+              cls: Any = None, env: Any = None, load_kwargs: dict[str, Any] | None = None,
+              **schedules: Any) -> Any:
+    """``cls.load(path)`` (default: SB3's class of ``algo``) with every pickled entry replaced
+    (see :func:`custom_objects`) and the weights read by torch with ``weights_only=True``; on
+    CPU, around ``env`` if given, with ``load_kwargs`` set on the model. Shape mismatches of the
+    network raise :class:`ModelFileError`."""
+    data = read_data(path)
+    found = algo_of(data)
+    if found != algo:
+        raise ModelFileError(f"{str(path)!r} is {'an unknown kind of' if found is None else 'a'} "
+                             f"{(found or 'model').upper()} model, not {algo.upper()}")
+    objs = custom_objects(path, data, algo, observation_space, action_space, **schedules)
+    try:
+        return (cls or algo_class(algo)).load(path, env=env, device="cpu", custom_objects=objs,
+                                              **(load_kwargs or {}))
+    except (RuntimeError, ValueError, KeyError, OSError, zipfile.BadZipFile) as exc:
+        raise ModelFileError(f"{str(path)!r} could not be loaded as {algo.upper()} "
+                             f"({type(exc).__name__}: {str(exc).splitlines()[0]})") from None

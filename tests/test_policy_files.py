@@ -1,0 +1,205 @@
+"""Policy files are data: loading a policy folder runs no code from it, and a folder whose parts
+disagree is refused with one error naming the file (issue 17, items 4 and 5)."""
+import base64
+import json
+import os
+import pickle
+import shutil
+import subprocess
+import sys
+import zipfile
+
+import pytest
+
+pytest.importorskip("stable_baselines3")
+
+from agents.evaluate import PolicyError, load_policy  # noqa: E402
+from agents.policy import shipped_path  # noqa: E402
+
+
+class _Payload:
+    """Pickles to ``os.system("touch MARKER")``: what an attacker puts in a policy file."""
+
+    def __init__(self, marker):
+        self.marker = str(marker)
+
+    def __reduce__(self):
+        return (os.system, (f"touch {self.marker}",))
+
+
+def _copy_shipped(tmp_path, name="policy"):
+    dst = tmp_path / name
+    shutil.copytree(shipped_path(name), dst)
+    return dst
+
+
+def _cli(*args):
+    return subprocess.run([sys.executable, "-m", "microconveyor_env.cli", *args],
+                          capture_output=True, text=True, timeout=300)
+
+
+def _rewrite_data(zip_path, edit):
+    """Rewrite the ``data`` JSON inside an SB3 zip with ``edit(dict)``."""
+    with zipfile.ZipFile(zip_path) as zf:
+        items = {n: zf.read(n) for n in zf.namelist()}
+    data = json.loads(items["data"])
+    edit(data)
+    items["data"] = json.dumps(data).encode()
+    with zipfile.ZipFile(zip_path, "w") as zf:
+        for n, b in items.items():
+            zf.writestr(n, b)
+
+
+def _drop_hashes(folder):
+    meta = json.loads((folder / "metadata.json").read_text())
+    meta.pop("files")
+    (folder / "metadata.json").write_text(json.dumps(meta))
+
+
+def test_shipped_folders_hold_no_pickle_and_load():
+    for name in ("policy", "policy_randomised"):
+        folder = shipped_path(name)
+        assert not list(folder.glob("*.pkl"))
+        pol = load_policy(folder)
+        assert pol.normalizer is not None and pol.metadata["algo"] == "ppo"
+
+
+def test_malicious_vecnormalize_pickle_is_never_loaded(tmp_path):
+    folder = _copy_shipped(tmp_path)
+    (folder / "normalization.json").unlink()
+    _drop_hashes(folder)
+    marker = tmp_path / "pwned-by-pickle"
+    (folder / "vecnormalize.pkl").write_bytes(pickle.dumps(_Payload(marker)))
+    with pytest.raises(PolicyError, match="is a pickle.*convert-stats"):
+        load_policy(folder)
+    for cmd in (("evaluate", "--policy", str(folder), "--targets", "2", "--json"),
+                ("demo", "--policy", str(folder), "--out", str(tmp_path / "demo"), "--json")):
+        r = _cli(*cmd)
+        assert r.returncode == 2 and "is a pickle" in json.loads(r.stdout)["error"], r.stdout
+        assert len(r.stderr.strip().splitlines()) == 1
+    assert not marker.exists()
+
+
+def test_malicious_entry_in_model_zip_is_never_unpickled(tmp_path):
+    marker = tmp_path / "pwned-by-zip"
+    evil = {":type:": "<class 'function'>",
+            ":serialized:": base64.b64encode(pickle.dumps(_Payload(marker))).decode()}
+    folder = _copy_shipped(tmp_path)
+    _drop_hashes(folder)
+    _rewrite_data(folder / "model.zip", lambda d: d.update(evil_entry=evil))
+    with pytest.raises(PolicyError, match="'evil_entry' holds a pickled Python object"):
+        load_policy(folder)
+    _rewrite_data(folder / "model.zip", lambda d: (d.pop("evil_entry"), d.update(policy_class=evil)))
+    with pytest.raises(PolicyError, match=r"policy_class names \['posix.system'\]"):
+        load_policy(folder)
+    _rewrite_data(folder / "model.zip", lambda d: d.update(learning_rate=evil))  # a known key
+    r = _cli("evaluate", "--policy", str(folder), "--targets", "2", "--json")
+    assert r.returncode == 2 and "policy_class names" in r.stdout
+    assert not marker.exists()
+
+
+def test_known_pickled_entries_are_replaced_not_unpickled(tmp_path):
+    """A payload in an entry the loader replaces (the schedule) is ignored: the policy loads,
+    acts, and nothing ran."""
+    marker = tmp_path / "pwned-by-schedule"
+    evil = {":type:": "<class 'function'>",
+            ":serialized:": base64.b64encode(pickle.dumps(_Payload(marker))).decode()}
+    folder = _copy_shipped(tmp_path)
+    _drop_hashes(folder)
+    _rewrite_data(folder / "model.zip", lambda d: d.update(learning_rate=evil, lr_schedule=evil))
+    pol = load_policy(folder)
+    assert pol.act(pol.normalizer.mean[None, :]).shape == (1, 3)
+    assert not marker.exists()
+
+
+def test_conf_file_is_parsed_as_data(tmp_path):
+    from agents import hyperparams
+
+    marker = tmp_path / "pwned-by-yaml"
+    conf = tmp_path / "ppo.yml"
+    conf.write_text("MicroConveyor-v0:\n  normalize: \"dict(x=__import__('os').system('touch "
+                    f"{marker}'))\"\n")
+    with pytest.raises(ValueError, match="nothing in them is evaluated"):
+        hyperparams.load(str(conf))
+    r = _cli("train", "--conf-file", str(conf), "--out", str(tmp_path / "run"), "--json")
+    assert r.returncode == 2 and "nothing in them is evaluated" in r.stdout
+    assert not marker.exists()
+    ok = hyperparams._eval_dict("dict(net_arch=dict(pi=[64]), activation_fn=nn.ReLU, x=-1e-3)")
+    import torch.nn as nn
+
+    assert ok == {"net_arch": {"pi": [64]}, "activation_fn": nn.ReLU, "x": -1e-3}
+
+
+def test_a2c_zip_is_not_evaluated_as_ppo(tmp_path):
+    from stable_baselines3 import A2C
+
+    from microconveyor_env.envs import MicroConveyorEnv
+
+    folder = _copy_shipped(tmp_path)
+    A2C("MlpPolicy", MicroConveyorEnv(), n_steps=5, device="cpu").save(folder / "model.zip")
+    with pytest.raises(PolicyError, match="not the file metadata.json describes"):
+        load_policy(folder)                                   # the recorded hash catches it
+    _drop_hashes(folder)
+    with pytest.raises(PolicyError, match="says PPO, but .* is an A2C model"):
+        load_policy(folder)
+    bare = tmp_path / "bare"
+    bare.mkdir()
+    shutil.copy(folder / "model.zip", bare / "model.zip")
+    with pytest.raises(PolicyError, match="is not a stable-baselines3 PPO model .*A2C"):
+        load_policy(bare / "model.zip")
+
+
+@pytest.mark.parametrize("damage, message", [
+    ("pickled_dict", "is not readable JSON"),
+    ("wrong_shape", r"obs_rms.mean has shape \(4,\), expected \(6,\)"),
+    ("nan", "obs_rms.var holds NaN or inf"),
+    ("missing", "has no normalization.json"),
+    ("metadata", "metadata.json' is missing or not JSON"),
+])
+def test_damaged_or_mismatched_folder_is_one_clear_error(tmp_path, damage, message):
+    folder = _copy_shipped(tmp_path)
+    _drop_hashes(folder)
+    stats_path = folder / "normalization.json"
+    stats = json.loads(stats_path.read_text())
+    if damage == "pickled_dict":
+        stats_path.write_bytes(pickle.dumps({"obs_rms": 1}))
+    elif damage == "wrong_shape":
+        stats["obs_rms"]["mean"] = stats["obs_rms"]["mean"][:4]
+        stats["obs_rms"]["var"] = stats["obs_rms"]["var"][:4]
+        stats_path.write_text(json.dumps(stats))
+    elif damage == "nan":
+        stats["obs_rms"]["var"][0] = float("nan")
+        stats_path.write_text(json.dumps(stats))
+    elif damage == "missing":
+        stats_path.unlink()
+    else:
+        (folder / "metadata.json").write_text("{ truncated")
+    with pytest.raises(PolicyError, match=message):
+        load_policy(folder)
+
+
+def test_changed_file_is_caught_by_the_recorded_hash(tmp_path):
+    folder = _copy_shipped(tmp_path)
+    stats = json.loads((folder / "normalization.json").read_text())
+    stats["obs_rms"]["mean"][0] += 1.0
+    (folder / "normalization.json").write_text(json.dumps(stats))
+    with pytest.raises(PolicyError, match="normalization.json' is not the file metadata.json"):
+        load_policy(folder)
+
+
+def test_convert_stats_turns_a_trusted_pickle_into_json(tmp_path):
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    from agents.normalization import read
+    from microconveyor_env.envs import MicroConveyorEnv
+
+    vn = VecNormalize(DummyVecEnv([MicroConveyorEnv]), gamma=0.95)
+    vn.reset()
+    vn.obs_rms.mean[:] = 0.25
+    vn.save(str(tmp_path / "vecnormalize.pkl"))
+    r = _cli("convert-stats", str(tmp_path / "vecnormalize.pkl"), "--json")
+    assert r.returncode == 0, r.stderr
+    stats = read(tmp_path / "normalization.json", (6,))
+    assert stats["gamma"] == 0.95 and stats["obs_rms"]["mean"] == [0.25] * 6
+    r = _cli("convert-stats", str(tmp_path / "nope.pkl"), "--json")
+    assert r.returncode == 2
