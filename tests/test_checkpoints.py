@@ -1,0 +1,281 @@
+"""Checkpoints survive kill -9 and a full disk; --resume refuses what it cannot honour; one
+training per folder (issue 17, items 2 and 3)."""
+import errno
+import json
+import math
+import os
+import random
+import resource
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+
+pytest.importorskip("stable_baselines3")
+
+from agents import checkpoint as ck  # noqa: E402
+from agents.checkpoint import CheckpointError  # noqa: E402
+
+SMALL = {"n_envs": 16, "n_steps": 32, "batch_size": 256, "n_epochs": 1}
+SMALL_YAML = ("MicroConveyor-v0:\n  env_kwargs: {num_threads: 1}\n  n_envs: 16\n  n_steps: 32\n"
+              "  batch_size: 256\n  n_epochs: 1\n  n_timesteps: 1000000\n  policy: 'MlpPolicy'\n"
+              "  normalize: \"dict(norm_obs=True, norm_reward=True, gamma=0.99)\"\n"
+              "  learning_rate: lin_3e-4\n  policy_kwargs: \"dict(net_arch=dict(pi=[32], vf=[32]))\"\n")
+
+
+def _files(folder):
+    (folder / "model.zip").write_bytes(os.urandom(1000))
+    (folder / "normalization.json").write_text("{}")
+
+
+# ------------------------------------------------------------------------ generations
+def test_generations_are_complete_verified_and_pruned(tmp_path):
+    for steps in (100, 200, 300):
+        gen = ck.write_generation(tmp_path, steps, {"algo": "x"}, _files)
+        assert gen.name == f"gen-{steps:012d}"
+    assert [g.name for g in ck.generations(tmp_path)] == ["gen-000000000300", "gen-000000000200"]
+    assert ck.latest(tmp_path).steps == 300
+    (ck.generations(tmp_path)[0] / "model.zip").write_bytes(b"truncated")  # damage the newest
+    latest = ck.latest(tmp_path)
+    assert latest.steps == 200 and "sha256 differs" in latest.skipped[0]
+    dead = tmp_path / "checkpoints" / ".tmp-000000000400-999999999"  # a killed writer's leftovers
+    dead.mkdir()
+    ck.prune(tmp_path)
+    assert not dead.exists()
+
+
+def test_a_failed_write_keeps_the_previous_generation(tmp_path):
+    ck.write_generation(tmp_path, 100, {}, _files)
+
+    def full_disk(folder):
+        (folder / "model.zip").write_bytes(b"partial")
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    with pytest.raises(CheckpointError, match="step 200 could not be written .No space left on "
+                                              "device.; the checkpoint at step 100 is intact"):
+        ck.write_generation(tmp_path, 200, {}, full_disk)
+    assert ck.latest(tmp_path).steps == 100
+    assert not list((tmp_path / "checkpoints").glob(".tmp-*"))
+
+
+def test_one_training_per_folder_and_the_lock_dies_with_its_owner(tmp_path):
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import sys, time; from pathlib import Path; "
+         "from agents.checkpoint import folder_lock\n"
+         f"with folder_lock(Path({str(tmp_path)!r})):\n print('locked', flush=True); time.sleep(120)"],
+        stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "locked"
+        with pytest.raises(CheckpointError, match=f"in use by another training .pid {holder.pid}"):
+            with ck.folder_lock(tmp_path):
+                pass
+    finally:
+        holder.send_signal(signal.SIGKILL)
+        holder.wait()
+    with ck.folder_lock(tmp_path):  # kill -9 released it: no stale lock
+        pass
+
+
+# ------------------------------------------------------------------------ resume refusals
+def test_resume_refuses_what_it_cannot_honour(tmp_path):
+    from agents.train import train
+
+    kw = dict(steps=512, seed=0, overrides=SMALL, checkpoint_freq=512, eval_freq=0,
+              eval_targets=0, progress_bar=False, tensorboard=False)
+    with pytest.raises(CheckpointError, match="nothing to resume .* no checkpoint in it"):
+        train(tmp_path / "empty", resume=True, **kw)
+    train(tmp_path / "a", **kw)
+    with pytest.raises(CheckpointError, match="already holds a training .*--resume"):
+        train(tmp_path / "a", **kw)
+    with pytest.raises(CheckpointError, match="another config .*gamma.*--allow-config-change"):
+        train(tmp_path / "a", resume=True, **{**kw, "overrides": {**SMALL, "gamma": 0.9}})
+    meta = train(tmp_path / "a", resume=True, allow_config_change=True,
+                 **{**kw, "steps": 1024, "overrides": {**SMALL, "gamma": 0.9}})
+    assert meta["config_changes"][0]["at_steps"] == 512 and meta["hyperparams"]["gamma"] == 0.9
+    for gen in ck.generations(tmp_path / "a"):            # only damaged checkpoints left
+        (gen / "normalization.json").write_text("{")
+    with pytest.raises(CheckpointError, match="none of its 2 checkpoint.s. is complete"):
+        train(tmp_path / "a", resume=True, allow_config_change=True, **kw)
+    (tmp_path / "old" / "checkpoint").mkdir(parents=True)     # an earlier version's layout
+    with pytest.raises(CheckpointError, match="earlier version .*cannot be resumed safely"):
+        train(tmp_path / "old", resume=True, **kw)
+
+
+@pytest.mark.parametrize("bad", [{"max_minutes": math.nan}, {"max_minutes": -1.0},
+                                 {"max_minutes": 0}, {"steps": 0}, {"steps": 1.5},
+                                 {"checkpoint_freq": 0}, {"eval_freq": -1}])
+def test_invalid_budgets_are_refused(tmp_path, bad):
+    from agents.train import train
+
+    with pytest.raises(ValueError, match=next(iter(bad))):
+        train(tmp_path, **{"steps": 512, "progress_bar": False, **bad})
+    assert not tmp_path.joinpath("checkpoints").exists()
+
+
+def test_cli_refuses_bad_budgets_and_empty_resume(tmp_path):
+    for args in (["--max-minutes", "nan"], ["--max-minutes", "-1"], ["--max-minutes", "0"],
+                 ["--resume"]):
+        r = _cli("train", "--out", str(tmp_path / "run"), *args, "--json")
+        assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+        assert "error" in json.loads(r.stdout)
+
+
+# ------------------------------------------------------------------------ kill -9 and full disk
+def _cli(*args, **kw):
+    return subprocess.run([sys.executable, "-m", "microconveyor_env.cli", *args],
+                          capture_output=True, text=True, timeout=600, **kw)
+
+
+def _train_cmd(out, conf, *extra):
+    return [sys.executable, "-m", "microconveyor_env.cli", "train", "--out", str(out),
+            "--conf-file", str(conf), "--checkpoint-freq", "512", "--eval-freq", "0",
+            "--eval-targets", "0", "--no-progress", *extra]
+
+
+class _Lines:
+    """Collects a child's stderr lines in a thread (so the test can wait for them)."""
+
+    def __init__(self, proc):
+        self.lines, self.proc = [], proc
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self):
+        for line in self.proc.stderr:
+            self.lines.append(line.strip())
+
+    def saved(self):
+        return [int(x.split()[2]) for x in list(self.lines) if x.startswith("checkpoint: step")]
+
+    def wait_for(self, pred, timeout=120):
+        t0 = time.time()
+        while not pred() and time.time() - t0 < timeout and self.proc.poll() is None:
+            time.sleep(0.02)
+        return pred()
+
+
+def kill_and_resume(tmp_path, kills: int, seed: int = 0) -> list[dict]:
+    """Train, kill -9 at a random moment after the first checkpoint, resume; ``kills`` times.
+    After every kill the newest complete checkpoint is at least the last one the run reported
+    saved (so at most one interval of training is lost) and the next run resumes from it."""
+    rng = random.Random(seed)
+    conf = tmp_path / "small.yml"
+    conf.write_text(SMALL_YAML)
+    out = tmp_path / "run"
+    report = []
+    for i in range(kills):
+        proc = subprocess.Popen(_train_cmd(out, conf, *(["--resume"] if i else [])),
+                                stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
+        lines = _Lines(proc)
+        start = len(lines.saved())
+        assert lines.wait_for(lambda: len(lines.saved()) > start), lines.lines
+        time.sleep(rng.uniform(0.0, 1.5))
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+        last_saved = max(lines.saved())
+        mid_write = bool(list((out / "checkpoints").glob(".tmp-*")))
+        gen = ck.latest(out)
+        assert gen is not None and gen.steps >= last_saved, (gen, last_saved)
+        resumed = [x for x in lines.lines if x.startswith("resume: from step")]
+        report.append({"kill": i, "last_saved": last_saved, "resumable_from": gen.steps,
+                       "killed_mid_write": mid_write, "resumed_line": resumed[:1]})
+        if i:
+            assert resumed and int(resumed[0].split()[3]) == report[i - 1]["resumable_from"]
+    final = _cli(*_train_cmd(out, conf, "--resume", "--steps", str(ck.latest(out).steps + 512))[3:])
+    assert final.returncode == 0, final.stderr
+    from agents.evaluate import evaluate, load_policy
+
+    assert evaluate(load_policy(out), 4, seed=1)["n_targets"] == 4
+    return report
+
+
+def test_kill_9_at_random_moments_then_resume(tmp_path):
+    report = kill_and_resume(tmp_path, kills=3)
+    assert len(report) == 3
+
+
+@pytest.mark.slow
+def test_kill_9_twenty_times(tmp_path):
+    report = kill_and_resume(tmp_path, kills=20, seed=1)
+    print(json.dumps(report))
+    assert len(report) == 20
+
+
+def _limit_file_size(limit):
+    def pre():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)   # the write fails with EFBIG instead
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+    return pre
+
+
+def test_write_failure_at_the_first_save_leaves_nothing_broken(tmp_path):
+    """A write that fails part-way (a file-size limit standing in for a full disk) at the first
+    checkpoint: a clear error, no truncated checkpoint, and the folder can start again."""
+    conf = tmp_path / "small.yml"
+    conf.write_text(SMALL_YAML)
+    out = tmp_path / "run"
+    r = subprocess.run(_train_cmd(out, conf, "--steps", "2048", "--json"), capture_output=True,
+                       text=True, timeout=600, preexec_fn=_limit_file_size(20_000))
+    assert r.returncode == 2, r.stderr
+    err = json.loads(r.stdout)["error"]
+    assert "step 512 could not be written" in err and "no earlier checkpoint" in err
+    assert ck.generations(out) == [] and not list((out / "checkpoints").glob(".tmp-*"))
+    r = _cli(*_train_cmd(out, conf, "--resume", "--json")[3:])
+    assert r.returncode == 2 and "nothing to resume" in r.stdout
+    r = _cli(*_train_cmd(out, conf, "--steps", "1024")[3:])   # space back: it starts afresh
+    assert r.returncode == 0, r.stderr
+    assert ck.latest(out).steps == 1024
+
+
+def _fill(path, leave_bytes):
+    """Fill the file system of ``path`` with a file until it is full, then give back
+    ``leave_bytes`` (so small writes still work but a checkpoint does not fit)."""
+    with open(path, "wb") as fh:
+        block = b"\0" * (1 << 16)
+        try:
+            while True:
+                fh.write(block)
+                fh.flush()
+        except OSError as exc:
+            assert exc.errno == errno.ENOSPC
+        size = fh.tell()
+    os.truncate(path, max(0, size - leave_bytes))
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(os.geteuid() != 0 or shutil.which("mount") is None,
+                    reason="mounting a small tmpfs needs root")
+def test_full_disk_mid_training_keeps_the_previous_checkpoint(tmp_path):
+    """A real full disk: the run's folder is on a 64 MB tmpfs that is filled up right after the
+    first checkpoint; the next checkpoint fails, the run stops with one clear line, the first
+    checkpoint is intact, and --resume works once there is room again."""
+    conf = tmp_path / "small.yml"
+    conf.write_text(SMALL_YAML)
+    mnt = tmp_path / "disk"
+    mnt.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64m", "tmpfs", str(mnt)]).returncode:
+        pytest.skip("cannot mount tmpfs here")
+    try:
+        out = mnt / "run"
+        proc = subprocess.Popen(_train_cmd(out, conf, "--steps", "1000000", "--json"),
+                                stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        lines = _Lines(proc)
+        assert lines.wait_for(lambda: len(lines.saved()) >= 1), lines.lines
+        _fill(mnt / "filler", leave_bytes=8192)
+        stdout = proc.stdout.read()
+        assert proc.wait(timeout=300) == 2
+        err = json.loads(stdout)["error"]
+        assert "could not be written (No space left on device)" in err and "is intact" in err
+        gen = ck.latest(out)
+        assert gen is not None and gen.steps >= lines.saved()[0]
+        assert not list((out / "checkpoints").glob(".tmp-*"))
+        (mnt / "filler").unlink()
+        r = subprocess.run(_train_cmd(out, conf, "--resume", "--steps", str(gen.steps + 512)),
+                           capture_output=True, text=True, timeout=600)
+        assert r.returncode == 0, r.stderr
+        assert f"resume: from step {gen.steps}" in r.stderr
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)])
