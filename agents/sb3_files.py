@@ -69,20 +69,31 @@ def pickled_globals(entry: dict[str, Any]) -> list[str]:
     """The ``module.name`` globals a serialized entry's pickle refers to, read with
     :mod:`pickletools` (parses the opcodes; runs nothing). Raises on a damaged pickle."""
     raw = base64.b64decode(entry[SERIALIZED].encode(), validate=True)
-    found, strings, memo = [], [], {}
+    found: list[str] = []
+    strings: list[str] = []
+    memo: dict[int, str | None] = {}
+    last: str | None = None           # the string the previous opcode pushed, if any
     for op, arg, _ in pickletools.genops(raw):
+        pushed: str | None = None
         if op.name in ("SHORT_BINUNICODE", "BINUNICODE", "UNICODE", "BINUNICODE8"):
-            strings.append(arg)
-        elif op.name == "MEMOIZE" and strings:
-            memo[len(memo)] = strings[-1]
-        elif op.name in ("BINGET", "LONG_BINGET", "GET") and arg in memo:
-            strings.append(memo[arg])
+            pushed = str(arg)
+        elif op.name == "MEMOIZE":
+            memo[len(memo)] = last
+            pushed = last
+        elif op.name in ("BINPUT", "LONG_BINPUT", "PUT") and isinstance(arg, int):
+            memo[arg] = last
+            pushed = last
+        elif op.name in ("BINGET", "LONG_BINGET", "GET") and isinstance(arg, int):
+            pushed = memo.get(arg)
         elif op.name == "GLOBAL":
             found.append(str(arg).replace(" ", "."))
         elif op.name == "STACK_GLOBAL":
             if len(strings) < 2:
                 raise ValueError("STACK_GLOBAL without its module and name")
             found.append(f"{strings[-2]}.{strings[-1]}")
+        if pushed is not None and op.name not in ("MEMOIZE", "BINPUT", "LONG_BINPUT", "PUT"):
+            strings.append(pushed)
+        last = pushed
     return found
 
 
