@@ -29,8 +29,8 @@ def _busy(stop: Any) -> None:
 
 
 def cases() -> dict[str, Callable[[int], Any]]:
-    from agents.dissertation import solve_dissertation
-    from agents.open_loop import Rollouts, solve_target
+    from agents.openloop.dissertation import solve_dissertation
+    from agents.openloop.target import Rollouts, solve_target
 
     roll = Rollouts()
     return {

@@ -18,7 +18,7 @@ import time
 
 from stable_baselines3 import PPO
 
-from agents import train as T
+from agents.rl import train as T
 
 
 def _spin(stop) -> None:

@@ -19,14 +19,14 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.checkpoint import MODEL, NORMALIZATION, sha256
-from agents.evaluate import fixed_targets, load_policy, rollout, summarize
-from agents.policy import shipped_path
+from agents.rl.checkpoint import MODEL, NORMALIZATION, sha256
+from agents.rl.evaluate import fixed_targets, load_policy, rollout, summarize
+from agents.rl.shipped import shipped_path
 from microconveyor_env.envs import EnvConfig
 
 # folder -> {evaluation key: which env config ("nominal" or "trained": the run's env_kwargs)}
-EVALUATIONS = {"policy": {"evaluation": "nominal", "evaluation_fresh": "nominal"},
-               "policy_randomised": {"evaluation": "trained", "evaluation_nominal": "nominal"}}
+EVALUATIONS = {"ppo": {"evaluation": "nominal", "evaluation_fresh": "nominal"},
+               "ppo_randomised": {"evaluation": "trained", "evaluation_nominal": "nominal"}}
 EPISODES = "episodes.json"
 
 

@@ -9,11 +9,11 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from agents import hyperparams  # noqa: E402
-from agents.evaluate import PolicyError, evaluate, load_policy  # noqa: E402
-from agents.policy import shipped_path  # noqa: E402
-from agents.reach import reach_study, widest_robust_range  # noqa: E402
-from agents.train import train  # noqa: E402
+from agents.rl import hyperparams  # noqa: E402
+from agents.rl.evaluate import PolicyError, evaluate, load_policy  # noqa: E402
+from agents.rl.shipped import shipped_path  # noqa: E402
+from agents.experiments.reach import reach_study, widest_robust_range  # noqa: E402
+from agents.rl.train import train  # noqa: E402
 
 SMALL = {"n_envs": 16, "n_steps": 32, "batch_size": 256, "n_epochs": 1}
 
@@ -34,7 +34,7 @@ def test_ppo_config_is_rl_zoo_format():
 
 
 def test_ppo_trains_saves_loads_and_resumes(tmp_path):
-    from agents.checkpoint import generations
+    from agents.rl.checkpoint import generations
 
     lines = []
     meta = train(tmp_path, steps=1024, seed=1, overrides=SMALL, checkpoint_freq=512,
@@ -68,7 +68,7 @@ def test_schedules_run_out_with_the_wall_time_budget(tmp_path):
     """With --max-minutes the lin_ learning rate decays over whichever budget ends first."""
     from stable_baselines3.common.vec_env import DummyVecEnv
 
-    from agents.train import BudgetPPO
+    from agents.rl.train import BudgetPPO
     from microconveyor_env.envs import MicroConveyorEnv
 
     model = BudgetPPO("MlpPolicy", DummyVecEnv([MicroConveyorEnv]), n_steps=16, batch_size=16,
@@ -82,7 +82,7 @@ def test_schedules_run_out_with_the_wall_time_budget(tmp_path):
     model._update_current_progress_remaining(10, 100)
     assert model._current_progress_remaining == 0.0
     model.save(tmp_path / "m.zip")                                    # the clock is not saved
-    from agents.sb3_files import read_data
+    from agents.rl.sb3_files import read_data
 
     assert "budget_clock" not in read_data(tmp_path / "m.zip")
     assert BudgetPPO.load(tmp_path / "m.zip", device="cpu").budget_clock is None
@@ -147,7 +147,7 @@ def fake_runs(tmp_path, curves=False):
 
 
 def test_seed_aggregation(tmp_path):
-    from agents.seeds import aggregate, iqm
+    from agents.rl.seeds import aggregate, iqm
 
     assert iqm([0.0, 1.0, 2.0, 3.0]) == 1.5 and iqm([1.0, 2.0, 4.0]) == pytest.approx(7 / 3)
     out = aggregate(fake_runs(tmp_path), reps=200)

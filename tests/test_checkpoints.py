@@ -17,8 +17,8 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from agents import checkpoint as ck  # noqa: E402
-from agents.checkpoint import CheckpointError  # noqa: E402
+from agents.rl import checkpoint as ck  # noqa: E402
+from agents.rl.checkpoint import CheckpointError  # noqa: E402
 
 SMALL = {"n_envs": 16, "n_steps": 32, "batch_size": 256, "n_epochs": 1}
 SMALL_YAML = ("MicroConveyor-v0:\n  env_kwargs: {num_threads: 1}\n  n_envs: 16\n  n_steps: 32\n"
@@ -65,7 +65,7 @@ def test_a_failed_write_keeps_the_previous_generation(tmp_path):
 def test_one_training_per_folder_and_the_lock_dies_with_its_owner(tmp_path):
     holder = subprocess.Popen(
         [sys.executable, "-c", "import sys, time; from pathlib import Path; "
-         "from agents.checkpoint import folder_lock\n"
+         "from agents.rl.checkpoint import folder_lock\n"
          f"with folder_lock(Path({str(tmp_path)!r})):\n print('locked', flush=True); time.sleep(120)"],
         stdout=subprocess.PIPE, text=True)
     try:
@@ -82,7 +82,7 @@ def test_one_training_per_folder_and_the_lock_dies_with_its_owner(tmp_path):
 
 # ------------------------------------------------------------------------ resume refusals
 def test_resume_refuses_what_it_cannot_honour(tmp_path):
-    from agents.train import train
+    from agents.rl.train import train
 
     kw = dict(steps=512, seed=0, overrides=SMALL, checkpoint_freq=512, eval_freq=0,
               eval_targets=0, progress_bar=False, tensorboard=False)
@@ -109,7 +109,7 @@ def test_resume_refuses_what_it_cannot_honour(tmp_path):
                                  {"max_minutes": 0}, {"steps": 0}, {"steps": 1.5},
                                  {"checkpoint_freq": 0}, {"eval_freq": -1}])
 def test_invalid_budgets_are_refused(tmp_path, bad):
-    from agents.train import train
+    from agents.rl.train import train
 
     with pytest.raises(ValueError, match=next(iter(bad))):
         train(tmp_path, **{"steps": 512, "progress_bar": False, **bad})
@@ -186,7 +186,7 @@ def kill_and_resume(tmp_path, kills: int, seed: int = 0) -> list[dict]:
             assert resumed and int(resumed[0].split()[3]) == report[i - 1]["resumable_from"]
     final = _cli(*_train_cmd(out, conf, "--resume", "--steps", str(ck.latest(out).steps + 512))[3:])
     assert final.returncode == 0, final.stderr
-    from agents.evaluate import evaluate, load_policy
+    from agents.rl.evaluate import evaluate, load_policy
 
     assert evaluate(load_policy(out), 4, seed=1)["n_targets"] == 4
     return report

@@ -9,7 +9,7 @@ import pytest
 pytest.importorskip("stable_baselines3")
 pytest.importorskip("cma")
 
-from agents.compare import crossover  # noqa: E402
+from agents.experiments.compare import crossover  # noqa: E402
 
 
 def test_crossover():

@@ -10,10 +10,10 @@ import pytest
 
 pytest.importorskip("cma")
 
-from agents.dissertation import TABLE_4_3, DissertationProblem, dissertation_cost, \
+from agents.openloop.dissertation import TABLE_4_3, DissertationProblem, dissertation_cost, \
     evaluate_parameters, solve_dissertation  # noqa: E402
-from agents.open_loop import Rollouts, replay, solve_target  # noqa: E402
-from agents.search import cmaes_minimize, de_minimize, de_population, minimize  # noqa: E402
+from agents.openloop.target import Rollouts, replay, solve_target  # noqa: E402
+from agents.openloop.search import cmaes_minimize, de_minimize, de_population, minimize  # noqa: E402
 
 
 def run(*args):

@@ -1,9 +1,9 @@
-"""agents.perturb (success against perturbation) and agents.evaluate with randomisation on."""
+"""agents.experiments.perturb (success against perturbation) and agents.rl.evaluate with randomisation on."""
 import numpy as np
 import pytest
 
-from agents.evaluate import evaluate, rollout
-from agents.perturb import Level, ladder, perturbation_table, plan_rollout, policy_rollout
+from agents.rl.evaluate import evaluate, rollout
+from agents.experiments.perturb import Level, ladder, perturbation_table, plan_rollout, policy_rollout
 from microconveyor_env.envs import EnvConfig, MicroConveyorEnv
 from microconveyor_env.envs.actions import encode_actions
 

@@ -13,8 +13,8 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from agents.evaluate import PolicyError, load_policy  # noqa: E402
-from agents.policy import shipped_path  # noqa: E402
+from agents.rl.evaluate import PolicyError, load_policy  # noqa: E402
+from agents.rl.shipped import shipped_path  # noqa: E402
 
 
 class _Payload:
@@ -27,7 +27,7 @@ class _Payload:
         return (os.system, (f"touch {self.marker}",))
 
 
-def _copy_shipped(tmp_path, name="policy"):
+def _copy_shipped(tmp_path, name="ppo"):
     dst = tmp_path / name
     shutil.copytree(shipped_path(name), dst)
     return dst
@@ -57,7 +57,7 @@ def _drop_hashes(folder):
 
 
 def test_shipped_folders_hold_no_pickle_and_load():
-    for name in ("policy", "policy_randomised"):
+    for name in ("ppo", "ppo_randomised"):
         folder = shipped_path(name)
         assert not list(folder.glob("*.pkl"))
         pol = load_policy(folder)
@@ -113,7 +113,7 @@ def test_known_pickled_entries_are_replaced_not_unpickled(tmp_path):
 
 
 def test_conf_file_is_parsed_as_data(tmp_path):
-    from agents import hyperparams
+    from agents.rl import hyperparams
 
     marker = tmp_path / "pwned-by-yaml"
     conf = tmp_path / "ppo.yml"
@@ -190,7 +190,7 @@ def test_changed_file_is_caught_by_the_recorded_hash(tmp_path):
 def test_convert_stats_turns_a_trusted_pickle_into_json(tmp_path):
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-    from agents.normalization import read
+    from agents.rl.normalization import read
     from microconveyor_env.envs import MicroConveyorEnv
 
     vn = VecNormalize(DummyVecEnv([MicroConveyorEnv]), gamma=0.95)

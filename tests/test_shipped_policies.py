@@ -19,8 +19,8 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from agents.evaluate import TOLERANCES, fixed_targets, load_policy, rollout, summarize  # noqa: E402
-from agents.policy import shipped_path  # noqa: E402
+from agents.rl.evaluate import TOLERANCES, fixed_targets, load_policy, rollout, summarize  # noqa: E402
+from agents.rl.shipped import shipped_path  # noqa: E402
 from microconveyor_env.envs import EnvConfig  # noqa: E402
 
 EPISODE_TOL_M = 1e-6
@@ -64,7 +64,7 @@ def test_shipped_policy_loads_and_reproduces_its_metadata():
     meta = load_policy(shipped_path()).metadata
     assert meta["steps"] > 0 and meta["wall_time_s"] <= 15 * 60 + 60 and meta["config_hash"]
     assert meta["evaluation_provenance"]["package_version"] and meta["files"]
-    res = assert_reproduces("policy", "evaluation")
+    res = assert_reproduces("ppo", "evaluation")
     # issue 11's bar, on the final checkpoint
     assert res["success_rate_50um"] >= 0.9 and res["median_abs_error_m"] <= 20e-6
 
@@ -72,17 +72,17 @@ def test_shipped_policy_loads_and_reproduces_its_metadata():
 def test_randomised_policy_reproduces_its_metadata():
     """The PPO trained under randomisation: its evaluation on the randomised config it was
     trained on and on the nominal env."""
-    meta = load_policy(shipped_path("policy_randomised")).metadata
+    meta = load_policy(shipped_path("ppo_randomised")).metadata
     cfg = _config(meta, "trained")
     assert cfg.action_noise > 0 and cfg.friction_factor_range[0] < 1 < cfg.friction_factor_range[1]
     for key in ("evaluation", "evaluation_nominal"):
-        assert_reproduces("policy_randomised", key)
+        assert_reproduces("ppo_randomised", key)
 
 
 @pytest.mark.slow
 def test_shipped_policy_full_evaluation():
     """1,000 fresh targets (not the set monitored in training): the bar holds and the figures are
     those in the metadata (``evaluation_fresh``) and the README."""
-    res = assert_reproduces("policy", "evaluation_fresh")
+    res = assert_reproduces("ppo", "evaluation_fresh")
     assert res["n_targets"] == 1000 and res["detach_rate"] == 0.0
     assert res["success_rate_50um"] >= 0.9 and res["median_abs_error_m"] <= 20e-6

@@ -299,7 +299,9 @@ def _learn(model, out: Path, cfg: EnvConfig, total: int, resume: bool, run_meta:
     if max_minutes is not None:
         budget_s = 60.0 * max_minutes
         model.budget_clock = lambda: periodic.wall() / budget_s
-    callbacks = [periodic] + ([ProgressBarCallback()] if progress_bar else [])
+    callbacks: list[BaseCallback] = [periodic]
+    if progress_bar:
+        callbacks.append(ProgressBarCallback())
     remaining = max(0, total - model.num_timesteps)
     model.learn(remaining, callback=CallbackList(callbacks), reset_num_timesteps=not resume,
                 tb_log_name="ppo", progress_bar=False)

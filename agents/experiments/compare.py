@@ -22,8 +22,8 @@ import numpy as np
 from microconveyor_env.envs import EnvConfig
 from microconveyor_env.envs.actions import encode_actions
 
-from .evaluate import fixed_targets, load_policy, rollout
-from .open_loop import Rollouts, solve_target
+from ..rl.evaluate import fixed_targets, load_policy, rollout
+from ..openloop.target import Rollouts, solve_target
 from .perturb import Level, perturbation_table, plan_rollout, policy_rollout
 
 # the fixed schedule: every actuator at the single-firing optimum of the reference scene
@@ -104,14 +104,14 @@ def compare(n_targets: int = 20, seed: int = 0, budgets: Sequence[int] = (100, 3
     """Run the comparison on ``n_targets`` fixed targets (drawn with ``seed`` from the default
     range); ``budgets``: episodes per target for each open-loop ``method``; ``policy``: the PPO
     policy (default: shipped), ``randomised_policy``: the PPO trained under randomisation
-    (default: shipped ``agents/policy_randomised`` if present; ``""`` to skip);
+    (default: shipped ``ppo_randomised`` if present; ``""`` to skip);
     ``amortise_over``: N targets for the amortised PPO point; the ladders: execution noise σ
     [action units] and factor spread r [-] of the perturbation charts, each replayed
     ``perturb_repeats`` times per target. Returns a JSON-able dict (``rows``, ``tolerance``,
     ``perturbation``, ``crossover``)."""
     from tqdm import tqdm
 
-    from .policy import shipped_path
+    from ..rl.shipped import shipped_path
 
     cfg = config or EnvConfig.from_yaml()
     targets = fixed_targets(cfg, n_targets, seed)
@@ -120,7 +120,7 @@ def compare(n_targets: int = 20, seed: int = 0, budgets: Sequence[int] = (100, 3
     train_wall, train_steps = float(meta.get("wall_time_s", np.nan)), int(meta.get("steps", 0))
     rand_path: Path | None = None
     if randomised_policy is None:
-        cand = shipped_path("policy_randomised")
+        cand = shipped_path("ppo_randomised")
         rand_path = cand if (cand / "model.zip").is_file() else None
     elif randomised_policy != "":
         rand_path = Path(randomised_policy)

@@ -1,13 +1,13 @@
 """The dissertation's shared-parameter problem on this model (a study script, not a test):
 the figures and numbers of docs/agents.md.
 
-    python benchmarks/dissertation_study.py [--seeds 10] [--long-seeds 4]
+    python scripts/dissertation_study.py [--seeds 10] [--long-seeds 4]
         [--out docs/figures/dissertation.json] [--figures docs/figures]
 
 Runs DE (population 50, 50 generations, CR 0.8, F 0.9: 2,550 episodes) and CMA-ES with the
 same budget for seeds 0..seeds-1, both again with ten times the budget for ``--long-seeds``
 seeds; replays Table 4.3's schedule here; replays it under one-at-a-time model changes and
-re-runs the DE under each (:func:`agents.table43.explain`). Writes the JSON and the charts
+re-runs the DE under each (:func:`agents.openloop.table43.explain`). Writes the JSON and the charts
 ``dissertation_cost_history.png``, ``dissertation_trajectory.png`` and ``table43_variants.png``.
 """
 from __future__ import annotations
@@ -23,10 +23,11 @@ import numpy as np
 
 
 def main() -> None:
-    from agents.dissertation import TABLE_4_3, DissertationProblem, evaluate_parameters, \
+    from agents.openloop.dissertation import TABLE_4_3, DissertationProblem, evaluate_parameters, \
         solve_dissertation, trajectory
-    from agents.optimize_plots import plot_cost_history, plot_trajectories
-    from agents.table43 import explain
+    from agents.plots.optimize import plot_cost_history
+    from agents.plots.trajectories import plot_plan_trajectories
+    from agents.openloop.table43 import explain
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=10)
@@ -84,7 +85,7 @@ def main() -> None:
         return (f"{what} ({p['frequency_hz']:.0f} Hz, {p['spacing_m'] * 1e6:.0f} µm, "
                 f"{p['delay_s'] * 1e3:.2f} ms, {p['stroke_m'] * 1e6:.0f} µm)")
 
-    plot_trajectories({label(de0["parameters"], "DE seed 0, 2,550 ep."):
+    plot_plan_trajectories({label(de0["parameters"], "DE seed 0, 2,550 ep."):
                        trajectory(de0["parameters"], prob),
                        label(far.parameters, f"best DE, 25,500 ep."):
                        trajectory(far.parameters, prob),
@@ -93,7 +94,7 @@ def main() -> None:
     contact = prob.simulator().contact
     variant = prob.replace(config__wavelength=0.95e-3,
                            contact=contact.replace(friction_scale=contact.friction_scale * 0.25))
-    plot_trajectories({"this model (WL 0.6 mm, friction as calibrated)":
+    plot_plan_trajectories({"this model (WL 0.6 mm, friction as calibrated)":
                        trajectory(TABLE_4_3, prob),
                        "WL 0.95 mm and friction x 0.25": trajectory(TABLE_4_3, variant)},
                       str(fig / "table43_variants.png"), prob.target_m,

@@ -7,19 +7,13 @@ from typing import Any
 
 import numpy as np
 
+from .common import pyplot
+
 LABELS = {"ppo": "PPO (shipped)", "ppo_randomised": "PPO trained with randomisation",
           "random": "random policy", "fixed_schedule": "fixed schedule (950 Hz, 200 µm)",
           "de": "DE (open loop)", "cmaes": "CMA-ES (open loop)"}
 COLORS = {"ppo": "C0", "ppo_randomised": "C4", "random": "C7", "fixed_schedule": "C5",
           "de": "C1", "cmaes": "C2"}
-
-
-def _plt() -> Any:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
 
 
 def _label(key: str) -> str:
@@ -38,7 +32,7 @@ def _color(key: str) -> str:
 
 def accuracy_vs_compute(result: dict, path: str | Path) -> str:
     """Median |error| and success against wall time per target (log axes)."""
-    plt = _plt()
+    plt = pyplot()
     fig, (a, b) = plt.subplots(1, 2, figsize=(10, 3.8), constrained_layout=True)
     tol = 1e6 * result["tolerance_m"]
     for method in ("de", "cmaes"):
@@ -78,7 +72,7 @@ def accuracy_vs_compute(result: dict, path: str | Path) -> str:
 
 
 def success_vs_tolerance(result: dict, path: str | Path) -> str:
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 4), constrained_layout=True)
     tols = 1e6 * np.asarray(result["tolerance"]["tolerances_m"])
     budgets = sorted({r["budget"] for r in result["rows"] if "budget" in r})
@@ -98,7 +92,7 @@ def success_vs_tolerance(result: dict, path: str | Path) -> str:
 
 
 def success_vs_perturbation(result: dict, path: str | Path) -> str:
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), constrained_layout=True)
     titles = {"action_noise": ("execution noise σ [action units]", "actions executed with noise"),
               "spread": ("friction and mass factors in [1 − r, 1 + r]: r [-]",

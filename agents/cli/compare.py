@@ -1,4 +1,4 @@
-"""The ``microconveyor compare`` command (registered by :mod:`.cli`)."""
+"""The ``microconveyor compare`` command."""
 from __future__ import annotations
 
 import argparse
@@ -7,65 +7,40 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from microconveyor_env.cli.base import count, emit
+from microconveyor_env.cli.base import command, count, emit
 
-
-def _ints(text: str) -> list[int]:
-    try:
-        vals = [int(float(v)) for v in text.split(",") if v.strip()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: give a comma list of integers") from None
-    if not vals or min(vals) < 10:
-        raise argparse.ArgumentTypeError(f"{text!r}: budgets must be integers >= 10 episodes")
-    return sorted(set(vals))
-
-
-def _floats(text: str) -> list[float]:
-    try:
-        vals = [float(v) for v in text.split(",") if v.strip()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: give a comma list of numbers") from None
-    if not vals or min(vals) < 0:
-        raise argparse.ArgumentTypeError(f"{text!r}: levels must be >= 0")
-    return vals
-
-
-def _folder(text: str) -> str:
-    p = Path(text)
-    if not text.strip() or (p.exists() and not p.is_dir()):
-        raise argparse.ArgumentTypeError(f"{text!r} is not a folder for the charts")
-    return str(p)
+from .args import budgets, folder, levels
 
 
 def add_args(p: argparse.ArgumentParser) -> None:
-    from .compare import NOISE_LADDER, SPREAD_LADDER
+    from ..experiments.compare import NOISE_LADDER, SPREAD_LADDER
 
     p.add_argument("--targets", type=count(1, 10_000), default=20,
                    help="number of fixed targets (drawn with --seed from the default range)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--budgets", type=_ints, default=[100, 300, 1000, 2000, 5000],
+    p.add_argument("--budgets", type=budgets, default=[100, 300, 1000, 2000, 5000],
                    help="episodes per target for DE and CMA-ES (comma list)")
     p.add_argument("--methods", default="de,cmaes", help="open-loop methods: de, cmaes or both")
     p.add_argument("--policy", default=None, help="PPO policy folder (default: the shipped one)")
     p.add_argument("--randomised-policy", default=None,
                    help="PPO trained with randomisation (default: the shipped one; '' to skip)")
-    p.add_argument("--noise", type=_floats, default=list(NOISE_LADDER),
+    p.add_argument("--noise", type=levels, default=list(NOISE_LADDER),
                    help="execution-noise ladder σ [action units]")
-    p.add_argument("--spread", type=_floats, default=list(SPREAD_LADDER),
+    p.add_argument("--spread", type=levels, default=list(SPREAD_LADDER),
                    help="model-error ladder r [-]: friction and mass factors in [1-r, 1+r]")
     p.add_argument("--repeats", type=count(1, 1000), default=5,
                    help="perturbed replays per target and level")
     p.add_argument("--amortise-over", type=count(1), default=100,
                    help="targets over which PPO's training is amortised in the chart")
-    p.add_argument("--plot", type=_folder, default=None,
+    p.add_argument("--plot", type=folder, default=None,
                    help="folder for compare_{compute,tolerance,perturbation}.png and compare.json")
 
 
 def run(args: Any) -> None:
     from microconveyor_env.cli.base import json_default
 
-    from .compare import compare, summary_table
-    from .compare_plots import plot_all
+    from ..experiments.compare import compare, summary_table
+    from ..plots.compare import plot_all
 
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     bad = sorted(set(methods) - {"de", "cmaes"})
@@ -84,3 +59,15 @@ def run(args: Any) -> None:
     if args.json:
         print(text, file=sys.stderr)
     emit(args, res, text + "".join(f"\nwrote {c}" for c in res.get("charts", [])))
+
+
+def _compare_args(p: argparse.ArgumentParser) -> None:
+    add_args(p)
+
+
+@command("compare", "closed loop vs open loop on fixed targets: PPO (shipped and trained with "
+                    "randomisation), DE and CMA-ES at several budgets, a random policy and a fixed "
+                    "schedule; accuracy vs compute, success vs tolerance and vs perturbation",
+         _compare_args)
+def cmd_compare(args: Any) -> None:
+    run(args)

@@ -1,5 +1,5 @@
-"""Charts of the optimisers: the dissertation's cost history (its Fig. 4.11) and trajectory
-with velocity (its Fig. 4.13), a per-target best-error history, and budget versus error."""
+"""Charts of the optimisers: the dissertation's cost history (its Fig. 4.11), a per-target
+best-error history, and budget versus error (trajectories: :mod:`.trajectories`)."""
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
@@ -7,12 +7,7 @@ from typing import Any
 
 import numpy as np
 
-
-def _plt() -> Any:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
+from .common import pyplot
 
 
 def plot_cost_history(history: Mapping[str, tuple[Sequence[int], Sequence[float]]],
@@ -20,7 +15,7 @@ def plot_cost_history(history: Mapping[str, tuple[Sequence[int], Sequence[float]
     """Best cost so far after each generation against the episodes used, one line per run:
     ``{label: (episodes, best cost)}`` (one point per generation: for the dissertation's DE,
     50 episodes each, so the x axis is 50 x the generation of its Fig. 4.11)."""
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.5, 4))
     for label, (episodes, cost) in history.items():
         ax.semilogy(episodes, cost, "o-", ms=3, label=label)
@@ -36,35 +31,10 @@ def plot_cost_history(history: Mapping[str, tuple[Sequence[int], Sequence[float]
     return path
 
 
-def plot_trajectories(runs: Mapping[str, Mapping[str, np.ndarray]], path: str,
-                      target_m: float | None = None, spacing: Mapping[str, float] | None = None,
-                      title: str = "") -> str:
-    """Position and velocity against time, one line per run ``{label: {"t_s", "x_m",
-    "v_m_s"}}`` (cf. Fig. 4.13); the target as a dashed line."""
-    plt = _plt()
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(6.5, 6), sharex=True)
-    for label, tr in runs.items():
-        a1.plot(tr["t_s"] * 1e3, tr["x_m"] * 1e3, label=label)
-        a2.plot(tr["t_s"] * 1e3, tr["v_m_s"], label=label)
-    if target_m is not None:
-        a1.axhline(target_m * 1e3, color="k", ls="--", lw=0.8, label="target")
-    a1.set_ylabel("position x [mm]")
-    a2.set_ylabel("velocity [m/s]")
-    a2.set_xlabel("time [ms]")
-    for ax in (a1, a2):
-        ax.grid(True, alpha=0.3)
-    a1.legend(fontsize=7)
-    a1.set_title(title or "Trajectory and velocity of the optimum (cf. Fig. 4.13)", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
-
-
 def plot_error_history(episodes: Sequence[int], best_abs_error_m: Sequence[float | None],
                        tolerance_m: float, path: str, title: str = "") -> str:
     """Best |error| at rest so far against episodes used (one point per generation)."""
-    plt = _plt()
+    plt = pyplot()
     e = np.array(episodes, float)
     err = np.array([np.nan if v is None else max(v, 1e-9) for v in best_abs_error_m], float)
     fig, ax = plt.subplots(figsize=(6.5, 4))
@@ -84,7 +54,7 @@ def plot_error_history(episodes: Sequence[int], best_abs_error_m: Sequence[float
 def plot_budget_errors(rows: Sequence[Mapping[str, Any]], path: str, tolerance_m: float) -> str:
     """Median |error| and success rate against budget, one line per method; ``rows``: dicts
     with ``method``, ``budget``, ``median_abs_error_m``, ``success_rate``."""
-    plt = _plt()
+    plt = pyplot()
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(6.5, 6), sharex=True)
     for method in sorted({r["method"] for r in rows}):
         rs = sorted((r for r in rows if r["method"] == method), key=lambda r: r["budget"])

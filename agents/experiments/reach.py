@@ -15,8 +15,8 @@ import numpy as np
 
 from microconveyor_env.envs import EnvConfig
 
-from .open_loop import MISS, Rollouts, solve_target
-from .search import de_minimize
+from ..openloop.target import MISS, Rollouts, solve_target
+from ..openloop.search import de_minimize
 
 
 def best_schedule(roll: Rollouts, target: float, budget: int, seed: int):
@@ -97,39 +97,10 @@ def reach_study(targets, budget: int = 3000, sigma: float = 1e-3, n_noisy: int =
 
 def widest_robust_range(rows) -> list | None:
     """[low, high] of the longest run of consecutive robust grid targets (None: none robust)."""
-    best, cur = None, []
+    best: list | None = None
+    cur: list = []
     for r in sorted(rows, key=lambda r: r["target_m"]):
         cur = cur + [r["target_m"]] if r["robust"] else []
         if cur and (best is None or cur[-1] - cur[0] > best[1] - best[0]):
             best = [cur[0], cur[-1]]
     return best
-
-
-def plot_reach(study: dict, path: str) -> str:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    rows = study["rows"]
-    t = np.array([r["target_m"] for r in rows]) * 1e3
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
-    a1.semilogy(t, [max(r["best_abs_error_m"], 1e-9) * 1e6 for r in rows], "o-")
-    a1.axhline(study["tolerance_m"] * 1e6, color="k", ls="--", lw=0.8, label="tolerance")
-    a1.set_ylabel("best open-loop |error| [µm]")
-    a1.legend()
-    a2.plot(t, [100 * r["noisy_success_rate"] for r in rows], "s-", label="best-error answer")
-    a2.plot(t, [100 * r["best_noisy_success_rate"] for r in rows], "o-",
-            label="best of it and the noise-robust answer")
-    a2.legend(fontsize=8)
-    a2.axhline(100 * study["robust_rate"], color="k", ls="--", lw=0.8)
-    a2.set_ylabel(f"success under noise σ={study['sigma']:g} [%]")
-    a2.set_xlabel("target [mm]")
-    rr = study["robust_target_range_m"]
-    if rr:
-        for ax in (a1, a2):
-            ax.axvspan(rr[0] * 1e3, rr[1] * 1e3, color="g", alpha=0.1)
-    fig.suptitle(f"Reach of open-loop schedules (DE, {study['budget_episodes']} episodes/target)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path

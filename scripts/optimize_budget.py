@@ -1,11 +1,11 @@
 """Budget versus accuracy of the per-target open-loop search, DE against CMA-ES (a study
 script, not a test).
 
-    python benchmarks/optimize_budget.py [--targets 10] [--budgets 100,300,1000,2000,5000,20000]
+    python scripts/optimize_budget.py [--targets 10] [--budgets 100,300,1000,2000,5000,20000]
         [--out docs/figures/optimize_budget.json] [--plot docs/figures/optimize_budget.png]
 
 Targets evenly over 0.5-3 mm (the env's default range); target i is solved with seed i by both
-methods at every budget (:func:`agents.open_loop.solve_target`). Per (method, budget): the median
+methods at every budget (:func:`agents.openloop.target.solve_target`). Per (method, budget): the median
 best |error| [m] (a part not at rest counts as infinitely far), the success rate (at rest within
 ±50 µm), the mean episodes used and wall time. Writes the JSON (with every run) and a chart.
 """
@@ -21,8 +21,8 @@ import numpy as np
 
 
 def main() -> None:
-    from agents.open_loop import Rollouts, solve_target
-    from agents.optimize_plots import plot_budget_errors
+    from agents.openloop.target import Rollouts, solve_target
+    from agents.plots.optimize import plot_budget_errors
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--targets", type=int, default=10)

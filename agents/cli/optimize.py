@@ -1,4 +1,4 @@
-"""The ``microconveyor optimize`` command (registered by :mod:`.cli`)."""
+"""The ``microconveyor optimize`` command."""
 from __future__ import annotations
 
 import argparse
@@ -6,19 +6,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from microconveyor_env.cli.base import count, emit
+from microconveyor_env.cli.base import command, count, emit
+
+from .args import folder
 
 PROBLEMS = ("target", "dissertation")
-
-
-def plot_dir(text: str) -> str:
-    """``--plot`` value: a folder (created if missing) for the charts."""
-    p = Path(text)
-    if not text.strip():
-        raise argparse.ArgumentTypeError("empty folder name")
-    if p.exists() and not p.is_dir():
-        raise argparse.ArgumentTypeError(f"{text!r} is a file; give a folder for the charts")
-    return str(p)
 
 
 def add_args(p: argparse.ArgumentParser) -> None:
@@ -36,7 +28,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    help="population per generation (default: 15 for DE on target, 50 for DE on "
                         "dissertation, pycma's for CMA-ES)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--plot", type=plot_dir, default=None, help="folder for the PNG charts")
+    p.add_argument("--plot", type=folder, default=None, help="folder for the PNG charts")
     p.add_argument("--explain", action="store_true",
                    help="dissertation: also replay Table 4.3's schedule under one-at-a-time model "
                         "changes and re-run the DE under each (~20-60 s)")
@@ -61,8 +53,9 @@ def run(args: argparse.Namespace) -> None:
 
 
 def _target(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
-    from .open_loop import plan_trajectory, solve_target
-    from .optimize_plots import plot_error_history, plot_trajectories
+    from ..openloop.target import plan_trajectory, solve_target
+    from ..plots.optimize import plot_error_history
+    from ..plots.trajectories import plot_plan_trajectories
 
     target = 2e-3 if args.target is None else args.target
     kw = {} if args.popsize is None else {"popsize": args.popsize}
@@ -74,7 +67,7 @@ def _target(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
             plot_error_history(res.history_episodes, res.history_best_abs_error_m,
                                res.tolerance_m, str(d / "error_history.png"),
                                f"{args.method}: target {target * 1e3:g} mm, seed {args.seed}"),
-            plot_trajectories({f"{args.method} best plan": plan_trajectory(res.plan, target)},
+            plot_plan_trajectories({f"{args.method} best plan": plan_trajectory(res.plan, target)},
                               str(d / "trajectory.png"), target,
                               title=f"Best open-loop plan for {target * 1e3:g} mm")]
     text = (f"target {target * 1e3:g} mm, {args.method}, {res.episodes} episodes in "
@@ -84,9 +77,10 @@ def _target(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
 
 
 def _dissertation(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
-    from .dissertation import TABLE_4_3, DissertationProblem, evaluate_parameters, \
+    from ..openloop.dissertation import TABLE_4_3, DissertationProblem, evaluate_parameters, \
         solve_dissertation, trajectory
-    from .optimize_plots import plot_cost_history, plot_trajectories
+    from ..plots.optimize import plot_cost_history
+    from ..plots.trajectories import plot_plan_trajectories
 
     prob = DissertationProblem() if args.target is None else DissertationProblem(args.target)
     res = solve_dissertation(args.method, args.seed, args.budget, prob, args.popsize)
@@ -106,12 +100,12 @@ def _dissertation(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
         out["plots"] = [
             plot_cost_history({args.method: (res.history_episodes, res.history_best_cost)},
                               str(d / "cost_history.png")),
-            plot_trajectories({label: trajectory(res.parameters, prob),
+            plot_plan_trajectories({label: trajectory(res.parameters, prob),
                                "Table 4.3 (719 Hz, 500 µm, 1 ms, 178 µm)":
                                trajectory(TABLE_4_3, prob)},
                               str(d / "trajectory.png"), prob.target_m)]
     if args.explain:
-        from .table43 import explain
+        from ..openloop.table43 import explain
 
         def progress(row: dict[str, Any]) -> None:
             print(f"{row['variant']:62s} Table 4.3 -> "
@@ -129,3 +123,14 @@ def _dissertation(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
             f"this model {ours['final_position_m'] * 1e3:.3f} mm ({ours['outcome']}) in "
             f"{ours['travel_time_s']:.4f} s")
     return out, text
+
+
+def _optimize_args(p: argparse.ArgumentParser) -> None:
+    add_args(p)
+
+
+@command("optimize", "open-loop optimisation: the env's per-firing plan for one target, or the "
+                     "dissertation's shared-parameter problem (DE or CMA-ES, batched, seeded)",
+         _optimize_args)
+def cmd_optimize(args: argparse.Namespace) -> None:
+    run(args)

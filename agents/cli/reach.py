@@ -1,0 +1,45 @@
+"""The ``microconveyor reach`` command."""
+from __future__ import annotations
+
+import sys
+
+from microconveyor_env.cli.base import command, count, emit, plot_path
+
+from .args import floats
+
+
+def _reach_args(p):
+    p.add_argument("--targets", type=floats, default=floats("0.5e-3:10e-3:0.5e-3"),
+                   help="targets [m]: lo:hi:step or a comma list (default 0.5-10 mm by 0.5 mm)")
+    p.add_argument("--budget", type=count(10), default=3000,
+                   help="DE episodes per target for the best nominal error")
+    p.add_argument("--robust-budget", type=count(0), default=100000,
+                   help="episodes per target for the noise-robust DE (0: skip)")
+    p.add_argument("--sigma", type=float, default=1e-3, help="action noise (in [-1, 1] units)")
+    p.add_argument("--noisy", type=count(1), default=200, help="noisy rollouts per answer")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--plot", type=plot_path, default=None, help="write the reach chart here")
+
+
+@command("reach", "open-loop reach study: best DE error per target and its success under "
+                  "action noise; the widest robust target range", _reach_args)
+def cmd_reach(args):
+    from ..experiments.reach import reach_study
+    from ..plots.reach import plot_reach
+
+    def progress(r):
+        print(f"target {r['target_m'] * 1e3:6.2f} mm  best |err| {r['best_abs_error_m'] * 1e6:10.2f}"
+              f" um  noisy success {r['noisy_success_rate']:.2f} / best "
+              f"{r['best_noisy_success_rate']:.2f}  ({r['wall_time_s']:.1f} s)", file=sys.stderr,
+              flush=True)
+
+    study = reach_study(args.targets, budget=args.budget, sigma=args.sigma, n_noisy=args.noisy,
+                        seed=args.seed, robust_budget=args.robust_budget, progress=progress)
+    if args.plot:
+        study["plot"] = plot_reach(study, args.plot)
+    rows = "\n".join(f"{r['target_m'] * 1e3:6.2f} mm  {r['best_abs_error_m'] * 1e6:10.2f} um  "
+                     f"{r['best_noisy_success_rate']:.2f}  {'robust' if r['robust'] else ''}"
+                     for r in study["rows"])
+    emit(args, study, rows + f"\nrobust target range: {study['robust_target_range_m']}")
+
+

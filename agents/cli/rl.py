@@ -1,0 +1,119 @@
+"""The RL commands: ``train``, ``evaluate``, ``seeds`` and ``convert-stats``."""
+from __future__ import annotations
+
+import sys
+
+from microconveyor_env.cli.base import command, count, emit, plot_path
+
+from .args import minutes
+
+
+def _train_args(p):
+    p.add_argument("--out", default="runs/ppo", help="run folder (model, stats, checkpoints, logs)")
+    p.add_argument("--steps", type=count(1), default=None,
+                   help="total environment steps (default: n_timesteps of the conf file)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--conf-file", default=None, help="rl-zoo3 style YAML (default configs/ppo.yml)")
+    p.add_argument("--resume", action="store_true",
+                   help="continue from the newest complete checkpoint in OUT/checkpoints "
+                        "(refused if there is none or the config differs)")
+    p.add_argument("--allow-config-change", action="store_true",
+                   help="with --resume: continue under a different config (recorded in the "
+                        "metadata)")
+    p.add_argument("--checkpoint-freq", type=count(1), default=200_000,
+                   help="steps between checkpoints (a kill loses at most this many)")
+    p.add_argument("--eval-freq", type=count(0), default=250_000, help="0: no periodic evaluation")
+    p.add_argument("--eval-targets", type=count(0), default=100,
+                   help="targets per evaluation (0: no evaluation)")
+    p.add_argument("--max-minutes", type=minutes, default=None,
+                   help="stop after this wall time [min], resumed time included")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+@command("train", "train PPO (stable-baselines3) on the batched env", _train_args)
+def cmd_train(args):
+    from ..rl.train import train
+
+    def log(line: str) -> None:
+        print(line, file=sys.stderr, flush=True)
+
+    meta = train(args.out, steps=args.steps, seed=args.seed, conf_file=args.conf_file,
+                 resume=args.resume, checkpoint_freq=args.checkpoint_freq,
+                 eval_freq=args.eval_freq, eval_targets=args.eval_targets,
+                 progress_bar=not args.no_progress, max_minutes=args.max_minutes,
+                 allow_config_change=args.allow_config_change, log=log)
+    meta["out"] = args.out
+    ev = meta["evaluation"]
+    text = f"{meta['steps']} steps in {meta['wall_time_s']:.0f} s -> {args.out}"
+    if ev:
+        text += (f"\nsuccess +-50/100/250 um: {ev['success_rate_50um']:.2f} / "
+                 f"{ev['success_rate_100um']:.2f} / {ev['success_rate_250um']:.2f}, median "
+                 f"|error| {ev['median_abs_error_m'] * 1e6:.1f} um")
+    emit(args, meta, text)
+
+
+def _convert_args(p):
+    p.add_argument("pickle", help="an SB3 vecnormalize.pkl you trust")
+    p.add_argument("--out", default=None,
+                   help="where to write the JSON (default: normalization.json beside it)")
+
+
+@command("convert-stats", "convert a trusted SB3 vecnormalize.pkl to normalization.json (this "
+                          "unpickles the file, which can run code: only for files you trust)",
+         _convert_args)
+def cmd_convert_stats(args):
+    from pathlib import Path
+
+    from ..rl.normalization import NORMALIZATION, convert_pickle
+
+    src = Path(args.pickle)
+    if not src.is_file():
+        raise ValueError(f"no file {args.pickle!r}")
+    out = Path(args.out) if args.out else src.parent / NORMALIZATION
+    stats = convert_pickle(src, out)
+    emit(args, {"normalization_json": str(out), "obs_dim": len(stats["obs_rms"]["mean"])},
+         f"wrote {out} (observation statistics of dimension {len(stats['obs_rms']['mean'])})")
+
+
+def _evaluate_args(p):
+    p.add_argument("--policy", default=None, help="policy folder or model zip (default: shipped)")
+    p.add_argument("--targets", type=count(1, 100000), default=100, help="number of targets")
+    p.add_argument("--seed", type=int, default=0, help="seed of the fixed target set")
+    p.add_argument("--tolerance", type=float, default=None,
+                   help="success tolerance [m] (default: the env's, 50 um)")
+
+
+@command("evaluate", "evaluate a PPO policy on a fixed seeded set of targets", _evaluate_args)
+def cmd_evaluate(args):
+    from ..rl.evaluate import evaluate, load_policy
+    from ..rl.shipped import shipped_path
+
+    if args.tolerance is not None and not 0 < args.tolerance < 1:
+        raise ValueError(f"--tolerance {args.tolerance!r} must be in (0, 1) m")
+    pol = load_policy(args.policy or shipped_path())
+    res = evaluate(pol, args.targets, args.seed, args.tolerance)
+    res["policy"] = str(pol.path)
+    emit(args, res)
+
+
+def _seeds_args(p):
+    p.add_argument("runs", nargs="+", help="run folders of `microconveyor train`")
+    p.add_argument("--plot", type=plot_path, default=None, help="write the learning curves here")
+
+
+@command("seeds", "aggregate training runs over seeds: IQM and bootstrap CI of the final "
+                  "evaluations, learning curves", _seeds_args)
+def cmd_seeds(args):
+    from ..plots.seeds import plot_curves
+    from ..rl.seeds import aggregate, curves
+
+    res = aggregate(args.runs)
+    res["curves"] = curves(args.runs)
+    if args.plot:
+        res["plot"] = plot_curves(res["curves"], args.plot)
+    lines = [f"{k}: IQM {v['iqm']:.4g}, 95 % CI [{v['ci95'][0]:.4g}, {v['ci95'][1]:.4g}], per "
+             f"seed {', '.join(f'{x:.4g}' for x in v['per_seed'])}"
+             for k, v in res.items() if isinstance(v, dict) and "iqm" in v]
+    emit(args, res, "\n".join(lines))
+
+

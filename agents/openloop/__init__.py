@@ -1,0 +1,1 @@
+"""Open-loop planning: the black-box optimisers and the problems they solve (per-target plans, the dissertation's shared-parameter problem, Table 4.3)."""

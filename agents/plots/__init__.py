@@ -1,0 +1,1 @@
+"""Charts of the agents' results (matplotlib, Agg backend)."""

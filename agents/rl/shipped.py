@@ -1,0 +1,24 @@
+"""The shipped policies, one folder per env id and run name under ``agents/policies``:
+``agents/policies/<env id>/<name>/`` with ``model.zip``, ``normalization.json``,
+``metadata.json`` (config hash, steps, wall time, evaluations and how they were produced, the
+files' sha256) and ``episodes.json`` (every evaluated episode)."""
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+
+DEFAULT_ENV_ID = "MicroConveyor-v0"
+
+
+def shipped_path(name: str = "ppo", env_id: str = DEFAULT_ENV_ID) -> Path:
+    """The folder of a shipped policy of ``env_id``: ``ppo`` (the default, trained on the
+    nominal env) or ``ppo_randomised`` (trained under per-episode randomisation,
+    configs/ppo_randomised.yml)."""
+    return Path(str(resources.files("agents") / "policies" / env_id / name))
+
+
+def shipped_policies() -> dict[str, list[str]]:
+    """Every shipped policy, as {env id: [names]}."""
+    root = Path(str(resources.files("agents") / "policies"))
+    return {env.name: sorted(p.name for p in env.iterdir() if (p / "model.zip").is_file())
+            for env in sorted(root.iterdir()) if env.is_dir()}
