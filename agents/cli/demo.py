@@ -1,19 +1,21 @@
 """The ``microconveyor demo`` command: the env package's demo plus the shipped policy."""
 from __future__ import annotations
 
+import argparse
 import sys
+from typing import Any
 
 from microconveyor_env.cli.base import command, emit
 
 
-def _demo_args(p):
+def _demo_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="out", help="output folder for charts and the summary JSON")
     p.add_argument("--policy", default=None, help="policy folder (default: the shipped one)")
 
 
 @command("demo", "the main job: contact report, a firing, a frequency sweep, an env episode and "
                  "the shipped PPO policy on a few targets; charts written to --out", _demo_args)
-def cmd_demo(args):
+def cmd_demo(args: argparse.Namespace) -> None:
     import json
     from pathlib import Path
 

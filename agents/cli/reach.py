@@ -1,14 +1,16 @@
 """The ``microconveyor reach`` command."""
 from __future__ import annotations
 
+import argparse
 import sys
+from typing import Any
 
 from microconveyor_env.cli.base import command, count, emit, plot_path
 
 from .args import floats
 
 
-def _reach_args(p):
+def _reach_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--targets", type=floats, default=floats("0.5e-3:10e-3:0.5e-3"),
                    help="targets [m]: lo:hi:step or a comma list (default 0.5-10 mm by 0.5 mm)")
     p.add_argument("--budget", type=count(10), default=3000,
@@ -23,11 +25,11 @@ def _reach_args(p):
 
 @command("reach", "open-loop reach study: best DE error per target and its success under "
                   "action noise; the widest robust target range", _reach_args)
-def cmd_reach(args):
+def cmd_reach(args: argparse.Namespace) -> None:
     from ..experiments.reach import reach_study
     from ..plots.reach import plot_reach
 
-    def progress(r):
+    def progress(r: dict[str, Any]) -> None:
         print(f"target {r['target_m'] * 1e3:6.2f} mm  best |err| {r['best_abs_error_m'] * 1e6:10.2f}"
               f" um  noisy success {r['noisy_success_rate']:.2f} / best "
               f"{r['best_noisy_success_rate']:.2f}  ({r['wall_time_s']:.1f} s)", file=sys.stderr,

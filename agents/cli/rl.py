@@ -1,14 +1,16 @@
 """The RL commands: ``train``, ``evaluate``, ``seeds`` and ``convert-stats``."""
 from __future__ import annotations
 
+import argparse
 import sys
+from typing import Any
 
 from microconveyor_env.cli.base import command, count, emit, plot_path
 
 from .args import minutes
 
 
-def _train_args(p):
+def _train_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="runs/ppo", help="run folder (model, stats, checkpoints, logs)")
     p.add_argument("--steps", type=count(1), default=None,
                    help="total environment steps (default: n_timesteps of the conf file)")
@@ -31,7 +33,7 @@ def _train_args(p):
 
 
 @command("train", "train PPO (stable-baselines3) on the batched env", _train_args)
-def cmd_train(args):
+def cmd_train(args: argparse.Namespace) -> None:
     from ..rl.train import train
 
     def log(line: str) -> None:
@@ -52,7 +54,7 @@ def cmd_train(args):
     emit(args, meta, text)
 
 
-def _convert_args(p):
+def _convert_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("pickle", help="an SB3 vecnormalize.pkl you trust")
     p.add_argument("--out", default=None,
                    help="where to write the JSON (default: normalization.json beside it)")
@@ -61,7 +63,7 @@ def _convert_args(p):
 @command("convert-stats", "convert a trusted SB3 vecnormalize.pkl to normalization.json (this "
                           "unpickles the file, which can run code: only for files you trust)",
          _convert_args)
-def cmd_convert_stats(args):
+def cmd_convert_stats(args: argparse.Namespace) -> None:
     from pathlib import Path
 
     from ..rl.normalization import NORMALIZATION, convert_pickle
@@ -75,7 +77,7 @@ def cmd_convert_stats(args):
          f"wrote {out} (observation statistics of dimension {len(stats['obs_rms']['mean'])})")
 
 
-def _evaluate_args(p):
+def _evaluate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--policy", default=None, help="policy folder or model zip (default: shipped)")
     p.add_argument("--targets", type=count(1, 100000), default=100, help="number of targets")
     p.add_argument("--seed", type=int, default=0, help="seed of the fixed target set")
@@ -84,7 +86,7 @@ def _evaluate_args(p):
 
 
 @command("evaluate", "evaluate a PPO policy on a fixed seeded set of targets", _evaluate_args)
-def cmd_evaluate(args):
+def cmd_evaluate(args: argparse.Namespace) -> None:
     from ..rl.evaluate import evaluate, load_policy
     from ..rl.shipped import shipped_path
 
@@ -96,14 +98,14 @@ def cmd_evaluate(args):
     emit(args, res)
 
 
-def _seeds_args(p):
+def _seeds_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("runs", nargs="+", help="run folders of `microconveyor train`")
     p.add_argument("--plot", type=plot_path, default=None, help="write the learning curves here")
 
 
 @command("seeds", "aggregate training runs over seeds: IQM and bootstrap CI of the final "
                   "evaluations, learning curves", _seeds_args)
-def cmd_seeds(args):
+def cmd_seeds(args: argparse.Namespace) -> None:
     from ..plots.seeds import plot_curves
     from ..rl.seeds import aggregate, curves
 

@@ -9,10 +9,10 @@ import numpy as np
 from microconveyor_env.envs import EnvConfig
 
 from ..plots.trajectories import plot_policy_paths
-from ..rl.evaluate import load_policy, rollout
+from ..rl.evaluate import Policy, load_policy, rollout
 
 
-def load_demo_policy(policy_path=None):
+def load_demo_policy(policy_path: str | Path | None = None) -> Policy:
     """The demo's policy (default: the shipped one), loaded before any other work so that a bad
     ``--policy`` fails at once."""
     from ..rl.shipped import shipped_path
@@ -20,11 +20,12 @@ def load_demo_policy(policy_path=None):
     return load_policy(policy_path or shipped_path(), EnvConfig.from_yaml())
 
 
-def policy_demo(out_dir, policy=None, n_targets: int = 6) -> dict:
+def policy_demo(out_dir: str | Path, policy: Policy | str | Path | None = None,
+                n_targets: int = 6) -> dict:
     """The demo's policy part; ``policy`` a loaded :class:`~.policy_files.Policy` or a path
     (default: the shipped policy)."""
     cfg = EnvConfig.from_yaml()
-    pol = policy if hasattr(policy, "act") else load_demo_policy(policy)
+    pol = policy if isinstance(policy, Policy) else load_demo_policy(policy)
     lo, hi = cfg.target_range
     targets = np.linspace(lo, hi, n_targets)
     res = rollout(pol, targets, cfg, seed=0, record=True)

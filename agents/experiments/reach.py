@@ -10,6 +10,8 @@ success rate says whether the answer is robust or fragile.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -19,7 +21,7 @@ from ..openloop.target import MISS, Rollouts, solve_target
 from ..openloop.search import de_minimize
 
 
-def best_schedule(roll: Rollouts, target: float, budget: int, seed: int):
+def best_schedule(roll: Rollouts, target: float, budget: int, seed: int) -> Any:
     """Differential evolution over the schedule for the smallest nominal |error|
     (:func:`.open_loop.solve_target`): (best error [m], schedule (n, 3), episodes)."""
     res = solve_target(target, "de", budget, seed, rollouts=roll)
@@ -28,7 +30,7 @@ def best_schedule(roll: Rollouts, target: float, budget: int, seed: int):
 
 
 def robust_schedule(roll: Rollouts, target: float, budget: int, seed: int, sigma: float,
-                    k: int = 8, x0=None):
+                    k: int = 8, x0: np.ndarray | None = None) -> tuple[np.ndarray, int]:
     """Differential evolution for the schedule whose ``k`` noisy copies (noise ``sigma``) end
     closest on average (error in tolerances, capped at 10; not at rest: 10), started from
     ``x0``: (schedule (n, 3), episodes)."""
@@ -36,7 +38,7 @@ def robust_schedule(roll: Rollouts, target: float, budget: int, seed: int, sigma
     rng = np.random.default_rng(seed)
     start = roll.episodes
 
-    def cost(x):
+    def cost(x: np.ndarray) -> np.ndarray:
         s = x.reshape(-1, n, 3)
         noisy = np.clip(s[:, None] + rng.normal(0.0, sigma, (s.shape[0], k, n, 3)), -1, 1)
         r = roll.run(noisy.reshape(-1, n, 3), target)
@@ -55,9 +57,10 @@ def noisy_success(roll: Rollouts, schedule: np.ndarray, target: float, sigma: fl
     return float(roll.run(noisy, target, seed=seed, same_episode=False).success.mean())
 
 
-def reach_study(targets, budget: int = 3000, sigma: float = 1e-3, n_noisy: int = 200,
+def reach_study(targets: Sequence[float], budget: int = 3000, sigma: float = 1e-3, n_noisy: int = 200,
                 seed: int = 0, robust_rate: float = 0.9, robust_budget: int = 0,
-                config: EnvConfig | None = None, progress=None) -> dict:
+                config: EnvConfig | None = None,
+                progress: Callable[[dict], None] | None = None) -> dict:
     """The study over ``targets`` [m]; rows per target and the widest robust target range.
 
     Per target: DE for the best nominal error (``budget`` episodes), that answer's success
@@ -95,7 +98,7 @@ def reach_study(targets, budget: int = 3000, sigma: float = 1e-3, n_noisy: int =
             "robust_target_range_m": widest_robust_range(rows)}
 
 
-def widest_robust_range(rows) -> list | None:
+def widest_robust_range(rows: Sequence[dict]) -> list | None:
     """[low, high] of the longest run of consecutive robust grid targets (None: none robust)."""
     best: list | None = None
     cur: list = []

@@ -8,7 +8,7 @@ import numpy as np
 from .common import pyplot
 
 
-def plot_curves(curve: dict, path, tolerance_um: int = 50) -> str:
+def plot_curves(curve: dict, path: str | Path, tolerance_um: int = 50) -> str:
     """Success within +-``tolerance_um`` and median |error| against steps, one line per run."""
     plt = pyplot()
 

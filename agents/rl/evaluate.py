@@ -2,11 +2,19 @@
 folder: :mod:`.policy_files`)."""
 from __future__ import annotations
 
+from typing import Protocol
+
 import numpy as np
 
 from microconveyor_env.envs import EnvConfig
 
 from .policy_files import Policy, PolicyError, load_policy
+
+
+class Actor(Protocol):
+    """Anything with ``act(observations) -> actions`` (a loaded :class:`Policy`, a wrapper)."""
+
+    def act(self, obs: np.ndarray) -> np.ndarray: ...
 
 __all__ = ["Policy", "PolicyError", "load_policy", "fixed_targets", "rollout", "summarize",
            "evaluate", "TOLERANCES"]
@@ -19,7 +27,7 @@ def fixed_targets(config: EnvConfig, n: int, seed: int) -> np.ndarray:
     return np.random.default_rng(seed).uniform(lo, hi, n)
 
 
-def rollout(policy, targets: np.ndarray, config: EnvConfig, seed: int = 0,
+def rollout(policy: Actor, targets: np.ndarray, config: EnvConfig, seed: int = 0,
             record: bool = False) -> dict:
     """One episode per target (batched, deterministic policy): final errors, outcomes, times,
     firings (steps: fewer than the actuators when the part was delivered early or detached);
@@ -71,7 +79,7 @@ def summarize(res: dict, tolerance: float) -> dict:
     return out
 
 
-def evaluate(policy, n_targets: int = 100, seed: int = 0, tolerance: float | None = None,
+def evaluate(policy: Actor, n_targets: int = 100, seed: int = 0, tolerance: float | None = None,
              config: EnvConfig | None = None) -> dict:
     cfg = config or EnvConfig.from_yaml()
     targets = fixed_targets(cfg, n_targets, seed)

@@ -1,7 +1,9 @@
 """PPO hyperparameters from ``configs/ppo.yml`` (rl-zoo3's format, keyed by env id)."""
 from __future__ import annotations
 
+from collections.abc import Callable
 from importlib import resources
+from typing import Any
 
 import yaml
 
@@ -30,7 +32,7 @@ def load(path: str | None = None, env_id: str = ENV_ID) -> dict:
     return hp
 
 
-def linear_schedule(value: float):
+def linear_schedule(value: float) -> Callable[[float], float]:
     """rl-zoo3's ``lin_<value>``: decays linearly from ``value`` to 0 over the run."""
     def schedule(progress_remaining: float) -> float:
         return progress_remaining * value
@@ -57,7 +59,7 @@ def _eval_dict(text: str) -> dict:
     return value
 
 
-def _node_value(node, text: str):
+def _node_value(node: Any, text: str) -> Any:
     import ast
 
     if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "dict":

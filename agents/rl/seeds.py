@@ -9,6 +9,7 @@ computed here with numpy and scipy.
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -17,11 +18,11 @@ from scipy.stats import trim_mean
 KEYS = ("success_rate_50um", "success_rate_100um", "success_rate_250um", "median_abs_error_m")
 
 
-def iqm(x) -> float:
+def iqm(x: Sequence[float] | np.ndarray) -> float:
     return float(trim_mean(np.asarray(x, float), 0.25))
 
 
-def aggregate(runs, reps: int = 2000, seed: int = 0) -> dict:
+def aggregate(runs: Sequence[str | Path], reps: int = 2000, seed: int = 0) -> dict:
     evs = [json.loads((Path(r) / "metadata.json").read_text())["evaluation"] for r in runs]
     rng = np.random.default_rng(seed)
     out: dict = {"runs": [str(r) for r in runs]}
@@ -33,7 +34,7 @@ def aggregate(runs, reps: int = 2000, seed: int = 0) -> dict:
     return out
 
 
-def curves(runs) -> dict:
+def curves(runs: Sequence[str | Path]) -> dict:
     """Learning curves of each run: its ``evaluations.jsonl`` (steps, success within
     +-50/100/250 um, median error) as lists."""
     out = {}

@@ -23,8 +23,9 @@ from pathlib import Path
 from typing import Any, Callable
 
 from stable_baselines3 import PPO
+from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList, ProgressBarCallback
-from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
+from stable_baselines3.common.vec_env import VecEnv, VecMonitor, VecNormalize
 
 from microconveyor_env.envs import EnvConfig
 from microconveyor_env.envs.sb3 import MicroConveyorSB3VecEnv
@@ -45,7 +46,7 @@ class BudgetPPO(PPO):
     budget used``). So a run capped by ``--max-minutes`` on a busy machine still ends with a
     fully decayed learning rate, as the shipped policy's recipe expects."""
 
-    budget_clock = None  # set by train(); not saved with the model
+    budget_clock: Callable[[], float] | None = None  # set by train(); not saved with the model
     # torch threads for the gradient updates (rollouts keep one). 2 gain 15 % on an idle 2-core
     # machine but fall to ~450 steps/s when the cores are busy (benchmarks/train_speed.py)
     update_threads = 1
@@ -96,7 +97,7 @@ class Periodic(BaseCallback):
         self.t_start, self.wall_before = t_start, wall_before
         self.next_ckpt = self.next_eval = 0
 
-    def _on_training_start(self):
+    def _on_training_start(self) -> None:
         n = self.model.num_timesteps
         self.next_ckpt = n + self.checkpoint_freq
         self.next_eval = (n // self.eval_freq + 1) * self.eval_freq if self.eval_freq else 0
@@ -142,14 +143,14 @@ class Periodic(BaseCallback):
         return res
 
 
-def _write_model(model, folder: Path) -> None:
+def _write_model(model: BaseAlgorithm, folder: Path) -> None:
     model.save(folder / MODEL)
     env = model.get_env()
     if isinstance(env, VecNormalize):
         normalization.write(env, folder / NORMALIZATION)
 
 
-def make_env(cfg: EnvConfig, hp: dict, seed: int):
+def make_env(cfg: EnvConfig, hp: dict, seed: int) -> VecMonitor:
     venv = MicroConveyorSB3VecEnv(int(hp.get("n_envs", 64)), config=cfg)
     venv.seed(seed)
     return VecMonitor(venv)
@@ -223,7 +224,7 @@ def _resumable(out: Path, chash: str, hp: dict, allow_config_change: bool,
     return gen
 
 
-def _new_model(env, hp: dict, seed: int, tb: str | None):
+def _new_model(env: VecEnv, hp: dict, seed: int, tb: str | None) -> BudgetPPO:
     norm = hp.get("normalize") or None
     if norm is not None:
         env = VecNormalize(env, **{"gamma": hp.get("gamma", 0.99), **norm})
@@ -231,7 +232,8 @@ def _new_model(env, hp: dict, seed: int, tb: str | None):
                      tensorboard_log=tb, **hyperparams.ppo_kwargs(hp))
 
 
-def _resumed_model(gen: checkpoint.Generation, env, hp: dict, tb: str | None):
+def _resumed_model(gen: checkpoint.Generation, env: VecEnv, hp: dict, tb: str | None
+                   ) -> BudgetPPO:
     if (gen.folder / NORMALIZATION).is_file():
         env = normalization.restore(env, normalization.read(gen.folder / NORMALIZATION))
     kw = hyperparams.ppo_kwargs(hp)
@@ -244,12 +246,12 @@ def _resumed_model(gen: checkpoint.Generation, env, hp: dict, tb: str | None):
         raise CheckpointError(str(exc)) from None
 
 
-def train(out, steps: int | None = None, seed: int = 0, conf_file: str | None = None,
+def train(out: str | Path, steps: int | None = None, seed: int = 0, conf_file: str | None = None,
           config: EnvConfig | None = None, resume: bool = False, checkpoint_freq: int = 200_000,
           eval_freq: int = 250_000, eval_targets: int = 100, eval_seed: int = 12345,
           progress_bar: bool = True, tensorboard: bool = True, overrides: dict | None = None,
           max_minutes: float | None = None, allow_config_change: bool = False,
-          log: Log | None = None):
+          log: Log | None = None) -> dict:
     """Train (or resume) PPO into ``out`` for ``steps`` (or until ``max_minutes`` of wall time,
     resumed runs included); returns the metadata written there."""
     import torch
@@ -289,9 +291,10 @@ def train(out, steps: int | None = None, seed: int = 0, conf_file: str | None = 
                       eval_freq, eval_targets, eval_seed, progress_bar, max_minutes, log)
 
 
-def _learn(model, out: Path, cfg: EnvConfig, total: int, resume: bool, run_meta: dict,
+def _learn(model: BudgetPPO, out: Path, cfg: EnvConfig, total: int, resume: bool, run_meta: dict,
            wall_before: float, checkpoint_freq: int, eval_freq: int, eval_targets: int,
-           eval_seed: int, progress_bar: bool, max_minutes: float | None, log: Log | None):
+           eval_seed: int, progress_bar: bool, max_minutes: float | None, log: Log | None
+           ) -> dict:
     t0 = time.perf_counter()
     periodic = Periodic(out, cfg, checkpoint_freq, eval_freq, eval_targets, eval_seed, t0,
                         wall_before, run_meta,
