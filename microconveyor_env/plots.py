@@ -152,11 +152,11 @@ def plot_accuracy(study: dict[str, Any], path: str | Path) -> Path:
         w = [r["wall_time_s"] * 1e6 for r in rows]
         e = [max(r["error_m"], floor) * 1e6 for r in rows]
         line, = ax.loglog(w, e, st, label=f"{mode}, {kin} kinematics")
-        clipped = [(wi, ei) for r, wi, ei in zip(rows, w, e) if r["error_m"] < floor]
+        clipped = [(wi, ei) for r, wi, ei in zip(rows, w, e, strict=True) if r["error_m"] < floor]
         if clipped:
             clipped_any = True
-            ax.plot(*zip(*clipped), "v", color=line.get_color(), ms=9, mfc="none")
-        for r, wi, ei in zip(rows, w, e):  # dt labels, offset per series so they do not overlap
+            ax.plot(*zip(*clipped, strict=True), "v", color=line.get_color(), ms=9, mfc="none")
+        for r, wi, ei in zip(rows, w, e, strict=True):  # dt labels, offset per series so they do not overlap
             ax.annotate(f"{r['dt_s']:.2g}", (wi, ei), fontsize=6, alpha=0.75,
                         xytext=(4, 6 - 7 * i), textcoords="offset points", color=line.get_color())
     if clipped_any:
@@ -196,7 +196,7 @@ def plot_episode_accuracy(study: dict[str, Any], path: str | Path) -> Path:
                   label=label)
         ax.loglog(x, [max(r["max_error_m"], floor) * 1e6 for r in sel], "o", color=colour,
                   mfc="none", alpha=0.6)
-        for r, xi in zip(sel, x):
+        for r, xi in zip(sel, x, strict=True):
             note = f"{r['min_steps']}" if mode == "event" else f"{r['dt_s']:.2g} s"
             if r["outcome_disagreements"]:
                 note += f", {r['outcome_disagreements']} outcome flips"
@@ -232,6 +232,6 @@ def save_frames(frames: Sequence[np.ndarray], path: str | Path, cols: int = 2) -
     fig, axes = _subplots(rows, cols, figsize=(cols * w / 100, rows * h / 100), squeeze=False)
     for ax in axes.ravel():
         ax.axis("off")
-    for ax, fr in zip(axes.ravel(), frames):
+    for ax, fr in zip(axes.ravel(), frames, strict=False):  # spare cells stay blank
         ax.imshow(fr)
     return _save(fig, path)

@@ -87,7 +87,7 @@ def main() -> None:
 
     plot_plan_trajectories({label(de0["parameters"], "DE seed 0, 2,550 ep."):
                        trajectory(de0["parameters"], prob),
-                       label(far.parameters, f"best DE, 25,500 ep."):
+                       label(far.parameters, "best DE, 25,500 ep."):
                        trajectory(far.parameters, prob),
                        label(TABLE_4_3, "Table 4.3"): trajectory(TABLE_4_3, prob)},
                       str(fig / "dissertation_trajectory.png"), prob.target_m)

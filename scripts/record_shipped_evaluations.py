@@ -15,7 +15,6 @@ import datetime
 import json
 import platform
 import sys
-from pathlib import Path
 
 import numpy as np
 

@@ -11,7 +11,6 @@ pytest.importorskip("stable_baselines3")
 
 from agents.rl import hyperparams  # noqa: E402
 from agents.rl.evaluate import PolicyError, evaluate, load_policy  # noqa: E402
-from agents.rl.shipped import shipped_path  # noqa: E402
 from agents.experiments.reach import reach_study, widest_robust_range  # noqa: E402
 from agents.rl.train import train  # noqa: E402
 

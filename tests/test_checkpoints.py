@@ -171,7 +171,7 @@ def kill_and_resume(tmp_path, kills: int, seed: int = 0) -> list[dict]:
                                 stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
         lines = _Lines(proc)
         start = len(lines.saved())
-        assert lines.wait_for(lambda: len(lines.saved()) > start), lines.lines
+        assert lines.wait_for(lambda lines=lines, start=start: len(lines.saved()) > start), lines.lines
         time.sleep(rng.uniform(0.0, 1.5))
         proc.send_signal(signal.SIGKILL)
         proc.wait()

@@ -31,7 +31,7 @@ def test_solve_target_is_deterministic_and_within_budget(method):
     assert a.history_episodes == b.history_episodes
     assert a.plan.shape == (5, 3) and np.all(np.abs(a.plan) <= 1)
     hist = [np.inf if e is None else e for e in a.history_best_abs_error_m]
-    assert all(x >= y for x, y in zip(hist, hist[1:]))  # best so far never worsens
+    assert all(x >= y for x, y in zip(hist, hist[1:], strict=False))  # best so far never worsens
     if a.outcome == "rest":
         assert hist[-1] == a.abs_error_m
     assert a.final_position_m == pytest.approx(1e-3 + a.error_m, abs=1e-15)

@@ -54,7 +54,7 @@ def ladder(action_noise: Sequence[float], spread: Sequence[float]) -> list[Level
     """Levels pairing ``action_noise[k]`` with ``spread[k]``."""
     if len(action_noise) != len(spread):
         raise ValueError(f"{len(action_noise)} noise levels for {len(spread)} spreads")
-    return [Level(float(s), float(r)) for s, r in zip(action_noise, spread)]
+    return [Level(float(s), float(r)) for s, r in zip(action_noise, spread, strict=True)]
 
 
 DEFAULT_LADDER = tuple(ladder((0.0, 0.01, 0.02, 0.05, 0.1, 0.2),

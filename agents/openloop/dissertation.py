@@ -86,7 +86,7 @@ class DissertationProblem:
                          max_time=cfg.max_time, min_steps=cfg.min_steps,
                          max_steps=cfg.max_steps)
 
-    def replace(self, **changes: Any) -> "DissertationProblem":
+    def replace(self, **changes: Any) -> DissertationProblem:
         """A copy with some fields changed; ``config__NAME=value`` changes a config field."""
         cfg = {k[8:]: changes.pop(k) for k in list(changes) if k.startswith("config__")}
         if cfg:
@@ -203,7 +203,7 @@ def solve_dissertation(method: str = "de", seed: int = 0, budget: int | None = N
     t0 = time.perf_counter()
     res = minimize(method, ev.cost, BOUNDS, budget, seed, **kw)
     wall = time.perf_counter() - t0
-    best = _evaluate(ev, dict(zip(VARIABLES, res.x)))  # the optimum replayed (not counted)
+    best = _evaluate(ev, dict(zip(VARIABLES, res.x, strict=True)))  # the optimum replayed (not counted)
     return DissertationResult(
         method=method, seed=int(seed), parameters=best["parameters"],
         final_position_m=best["final_position_m"], travel_time_s=best["travel_time_s"],

@@ -123,7 +123,7 @@ def de_minimize(cost: BatchCost, bounds: Sequence[tuple[float, float]], budget: 
     init = qmc.scale(qmc.LatinHypercube(d=dim, rng=rng).random(pop), lo, hi)
     counter = _Counter(cost, budget)
     t0 = time.perf_counter()
-    differential_evolution(lambda x: counter(x.T), list(zip(lo, hi)), strategy=strategy,
+    differential_evolution(lambda x: counter(x.T), list(zip(lo, hi, strict=True)), strategy=strategy,
                            maxiter=budget // pop - 1, init=init, mutation=mutation,
                            recombination=recombination, rng=rng, tol=0.0, atol=0.0,
                            polish=False, vectorized=True, updating="deferred", x0=x0)

@@ -3,7 +3,6 @@ against perturbation."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -97,7 +96,7 @@ def success_vs_perturbation(result: dict, path: str | Path) -> str:
     titles = {"action_noise": ("execution noise σ [action units]", "actions executed with noise"),
               "spread": ("friction and mass factors in [1 − r, 1 + r]: r [-]",
                          "model error (friction, mass)")}
-    for ax, axis in zip(axes, ("action_noise", "spread")):
+    for ax, axis in zip(axes, ("action_noise", "spread"), strict=True):
         for name, tables in result["perturbation"].items():
             rows = tables[axis]
             x = np.array([r[axis] for r in rows], float)

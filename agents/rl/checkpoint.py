@@ -23,7 +23,8 @@ import shutil
 import socket
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any
+from collections.abc import Callable, Iterator
 
 CHECKPOINTS = "checkpoints"
 GEN_PREFIX = "gen-"

@@ -77,7 +77,7 @@ def _node_value(node: Any, text: str) -> Any:
     if isinstance(node, ast.Dict):
         if any(k is None for k in node.keys):
             raise ValueError(f"{text!r}: ** in a dict literal is not allowed")
-        return {_node_value(k, text): _node_value(v, text) for k, v in zip(node.keys, node.values)}
+        return {_node_value(k, text): _node_value(v, text) for k, v in zip(node.keys, node.values, strict=True)}
     try:
         return ast.literal_eval(node)
     except ValueError:

@@ -20,7 +20,8 @@ import json
 import math
 import time
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
 
 from stable_baselines3 import PPO
 from stable_baselines3.common.base_class import BaseAlgorithm

@@ -129,7 +129,7 @@ def test_read_only_install_falls_back_to_a_private_temp_cache(tmp_path):
 
 def test_nothing_writable_runs_uncached(tmp_path):
     root, blocker, env = _unwritable_everywhere(tmp_path)
-    code = ("import tempfile; tempfile.tempdir = %r\n" % str(blocker / "tmp")) + PROBE + \
+    code = f"import tempfile; tempfile.tempdir = {str(blocker / 'tmp')!r}\n" + PROBE + \
         "print(type(k.surface_eval._cache).__name__)\n"
     r = _run(root, code, **env)
     assert r.stdout.strip().endswith("NullCache")

@@ -45,7 +45,7 @@ def _episode(TC, x0, target, path, end_x, end_t_frac, code, max_time):
     xs = [x for x, _ in path][:len(times) - 1] + [end_x]
     xs = [x0] * (len(times) - len(xs)) + xs
     total, x, t = 0.0, x0, 0.0
-    for i, (xn, tn) in enumerate(zip(xs, times)):
+    for i, (xn, tn) in enumerate(zip(xs, times, strict=True)):
         c = code if i == len(xs) - 1 else K.MOVING
         total += task.reward(c, x, xn, t, tn, target, TC)
         x, t = xn, tn
