@@ -1,0 +1,86 @@
+"""The layers import downward only (docs/architecture.md): each room may import the rooms listed
+for it and nothing above. Read from the source with ``ast``, so a new import that climbs fails
+here with the file and line, not in review."""
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+# room -> rooms it may import (besides itself); "mce" is microconveyor_env
+ALLOWED = {
+    "mce.physics": set(),
+    "mce.presets": {"mce.physics"},
+    "mce.plots": {"mce.physics"},
+    "mce.envs": {"mce.physics", "mce.presets"},
+    "mce.studies": {"mce.physics", "mce.presets", "mce.envs", "mce.plots"},
+    "mce.cli": {"mce.physics", "mce.presets", "mce.envs", "mce.plots", "mce.studies"},
+    "mce": {"mce.physics", "mce.presets", "mce.envs", "mce.plots", "mce.studies", "mce.cli"},
+    "agents.openloop": {"mce.physics", "mce.presets", "mce.envs"},
+    "agents.rl": {"mce.physics", "mce.presets", "mce.envs"},
+    "agents.plots": {"mce.physics", "mce.envs"},
+    "agents.experiments": {"agents.openloop", "agents.rl", "agents.plots", "mce.physics",
+                           "mce.presets", "mce.envs"},
+    "agents.cli": {"agents.openloop", "agents.rl", "agents.plots", "agents.experiments",
+                   "mce.cli", "mce.physics", "mce.presets", "mce.envs"},
+    "agents": set(),
+}
+
+
+def _room(module: str) -> str | None:
+    parts = module.split(".")
+    top = {"microconveyor_env": "mce", "agents": "agents"}.get(parts[0])
+    if top is None:
+        return None
+    sub = parts[1] if len(parts) > 1 else ""
+    name = f"{top}.{sub}" if sub else top
+    return name if name in ALLOWED else top
+
+
+def _imports(path: Path, root: Path = ROOT):
+    rel = path.relative_to(root).with_suffix("")
+    module = ".".join(rel.parts[:-1] if rel.name == "__init__" else rel.parts)
+    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                target = ".".join(base + ([node.module] if node.module else []))
+                names = [target] if node.module else [f"{target}.{a.name}" for a in node.names]
+            else:
+                names = [node.module or ""]
+        elif isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        else:
+            continue
+        for name in names:
+            yield module, name, node.lineno
+
+
+def violations(root: Path) -> list[str]:
+    """Every import under ``root`` that goes to a room its room may not import."""
+    bad = []
+    files = sorted(root.glob("microconveyor_env/**/*.py")) + sorted(root.glob("agents/**/*.py"))
+    for path in files:
+        for module, target, line in _imports(path, root):
+            src, dst = _room(module), _room(target)
+            if src is None or dst is None or src == dst:
+                continue
+            if dst not in ALLOWED[src]:
+                bad.append(f"{path.relative_to(root)}:{line}: {src} imports {target} ({dst})")
+    return bad
+
+
+def test_layers_import_downward_only():
+    assert len(list(ROOT.glob("microconveyor_env/**/*.py"))) > 40
+    bad = violations(ROOT)
+    assert not bad, "imports that climb a layer:\n" + "\n".join(bad)
+
+
+def test_the_checker_reports_climbing_imports(tmp_path):
+    """Not vacuous: relative and absolute imports that climb are both reported."""
+    phys = tmp_path / "microconveyor_env" / "physics"
+    phys.mkdir(parents=True)
+    (phys / "__init__.py").write_text("")
+    (phys / "bad.py").write_text("from ..envs import step\nimport agents.rl.train\n"
+                                 "from . import forces\nimport numpy\n")
+    bad = violations(tmp_path)
+    assert len(bad) == 2 and "mce.envs" in bad[0] and "agents" in bad[1]
