@@ -1,5 +1,6 @@
 """The studies' engine: serial = local Dask cluster = existing scheduler, row for row; tables."""
 import math
+from pathlib import Path
 
 import pytest
 
@@ -43,6 +44,20 @@ def test_tables_round_trip(tmp_path, suffix):
     assert df["distance_m"][0] == 1e-4 and math.isnan(df["distance_m"][1])
     with pytest.raises(ParameterError):
         write_table(rows, tmp_path / "t.txt")
+
+
+def test_interrupted_table_write_leaves_nothing(tmp_path, monkeypatch):
+    """A write cut short (here a Ctrl-C halfway) leaves neither the table nor a temporary file."""
+    import pandas as pd
+
+    def half_then_ctrl_c(self, path, **kw):
+        Path(path).write_text("freq_hz\n5")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(pd.DataFrame, "to_csv", half_then_ctrl_c)
+    with pytest.raises(KeyboardInterrupt):
+        write_table([{"freq_hz": 500.0}], tmp_path / "t.csv")
+    assert list(tmp_path.iterdir()) == []
 
 
 def _studies():

@@ -7,7 +7,8 @@ import json
 import os
 import sys
 import traceback
-from typing import Any, Callable, NoReturn, TypeVar
+from typing import Any, NoReturn, TypeVar
+from collections.abc import Callable
 
 from ..physics.materials import ParameterError
 
@@ -134,12 +135,27 @@ def fail(argv: list[str], command: str, exc: BaseException) -> int:
     if not expected:
         text += " (internal error: please report it; MICROCONVEYOR_DEBUG=1 shows the traceback)"
     msg = f"{type(exc).__name__}: {text}"
-    if any(a.startswith("--j") and "--json".startswith(a) for a in argv):  # argparse abbrevs
-        print(json.dumps({"error": msg, "error_type": type(exc).__name__}), flush=True)
-    print(f"microconveyor{' ' + command if command else ''}: {msg}", file=sys.stderr)
+    _report(argv, command, msg, type(exc).__name__)
     if not expected and os.environ.get("MICROCONVEYOR_DEBUG"):
         traceback.print_exception(exc)
     return 2
+
+
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, the shells' convention for Ctrl-C
+
+
+def interrupted(argv: list[str], command: str) -> int:
+    """Ctrl-C (``KeyboardInterrupt``): ``--json``: one ``{"error": "interrupted", "error_type":
+    "KeyboardInterrupt"}`` object on stdout; one line on stderr; exit status 130."""
+    _report(argv, command, "interrupted", "KeyboardInterrupt")
+    return EXIT_INTERRUPTED
+
+
+def _report(argv: list[str], command: str, msg: str, error_type: str) -> None:
+    """Under ``--json`` one ``{"error", "error_type"}`` object on stdout; one line on stderr."""
+    if any(a.startswith("--j") and "--json".startswith(a) for a in argv):  # argparse abbrevs
+        print(json.dumps({"error": msg, "error_type": error_type}), flush=True)
+    print(f"microconveyor{' ' + command if command else ''}: {msg}", file=sys.stderr, flush=True)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -151,7 +167,7 @@ def main(argv: list[str] | None = None) -> int:
         command = args.command
         args.func(args)
     except KeyboardInterrupt:
-        raise
+        return interrupted(argv, command)
     except Exception as exc:  # noqa: BLE001 - the error contract covers every failure
         return fail(argv, command, exc)
     return 0

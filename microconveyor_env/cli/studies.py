@@ -2,33 +2,99 @@
 
 Each takes ``--json`` (one JSON object on stdout), ``--plot FILE.png``, ``--out FILE.csv`` or
 ``.parquet`` (the tidy table, one row per simulation), ``--workers N`` (local Dask cluster) or
-``--scheduler ADDRESS`` (an existing one), and shows a progress bar on stderr.
+``--scheduler ADDRESS`` (an existing one, reached within ``--scheduler-timeout`` seconds), and
+shows a progress bar on stderr.
+
+``--out`` and ``--plot`` are checked before any work (a supported suffix, an existing writable
+folder). The files are written only once everything is computed, each to a temporary file beside
+it, renamed into place together at the end: an error or Ctrl-C leaves no partial output.
 """
 from __future__ import annotations
 
 import argparse
+import os
 import time
-from collections.abc import Mapping, Sequence
-from typing import Any, Callable
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+from collections.abc import Callable
 
-from .base import command, emit
+from .base import command, count, emit, plot_path
+
+
+def table_path(text: str) -> str:
+    """``--out`` value: a ``.csv`` or ``.parquet`` file name in an existing writable folder (the
+    ``.parquet`` format needs pyarrow)."""
+    from importlib.util import find_spec
+
+    from ..studies.engine import TABLE_SUFFIXES
+
+    path = _file_in_writable_folder(text)
+    if path.suffix not in TABLE_SUFFIXES:
+        raise argparse.ArgumentTypeError(f"{text!r}: use a .csv or .parquet file name")
+    if path.suffix == ".parquet" and find_spec("pyarrow") is None:
+        raise argparse.ArgumentTypeError(f"{text!r}: .parquet needs pyarrow (pip install pyarrow); "
+                                         "or use .csv")
+    return text
+
+
+def chart_path(text: str) -> str:
+    """``--plot`` value: :func:`.base.plot_path` (a format matplotlib writes, ``.png`` added to a
+    name without one) in an existing writable folder."""
+    path = plot_path(text)
+    _file_in_writable_folder(path)
+    return path
+
+
+def _file_in_writable_folder(text: str) -> Path:
+    """``text`` as a path: not a folder, and its folder exists and is writable."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("empty file name")
+    path = Path(text)
+    if text.endswith(("/", "\\")) or path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text!r} is a folder; give a file name")
+    folder = path.parent
+    if not folder.is_dir():
+        raise argparse.ArgumentTypeError(f"{text!r}: folder {str(folder)!r} does not exist")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise argparse.ArgumentTypeError(f"{text!r}: folder {str(folder)!r} is not writable")
+    return path
+
+
+def positive_seconds(text: str) -> float:
+    """A duration option [s]: a positive finite number."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not 0 < v < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a positive number of seconds, got {text}")
+    return v
 
 
 def _engine_args(p: argparse.ArgumentParser, out_default: str) -> None:
-    p.add_argument("--out", default=out_default,
+    from ..studies.engine import SCHEDULER_TIMEOUT_S
+
+    p.add_argument("--out", default=out_default, type=table_path,
                    help="result table, .csv or .parquet (one row per simulation)")
-    p.add_argument("--plot", metavar="FILE.png", help="write the chart")
-    p.add_argument("--workers", type=int, default=0,
+    p.add_argument("--plot", metavar="FILE.png", type=chart_path, help="write the chart")
+    p.add_argument("--workers", type=count(0), default=0,
                    help="run on a local Dask cluster of N worker processes (0: serial)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run on an existing Dask cluster, e.g. tcp://10.0.0.5:8786")
-    p.add_argument("--chunk-size", type=int, default=None, help="tasks per scattered chunk")
+    p.add_argument("--scheduler-timeout", type=positive_seconds, default=SCHEDULER_TIMEOUT_S,
+                   metavar="SECONDS", help="give up connecting to --scheduler after this long "
+                                           f"(default {SCHEDULER_TIMEOUT_S:g})")
+    p.add_argument("--chunk-size", type=count(1), default=None,
+                   help="tasks per Dask task (default: about four per worker)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
 
 
 def _engine_kw(args: argparse.Namespace) -> dict[str, Any]:
     return {"workers": args.workers or None, "scheduler": args.scheduler,
-            "chunk_size": args.chunk_size, "progress": not args.no_progress}
+            "scheduler_timeout": args.scheduler_timeout, "chunk_size": args.chunk_size,
+            "progress": not args.no_progress}
 
 
 def _with_engine(args: argparse.Namespace, body: Callable[[dict[str, Any], float], None]) -> None:
@@ -36,13 +102,62 @@ def _with_engine(args: argparse.Namespace, body: Callable[[dict[str, Any], float
     command's runs when ``--workers``/``--scheduler`` is given."""
     kw = _engine_kw(args)
     workers, scheduler = kw.pop("workers"), kw.pop("scheduler")
+    timeout = kw.pop("scheduler_timeout")
     if not (workers or scheduler):
         return body(kw, 0.0)
     from ..studies.engine import dask_client
 
     t0 = time.perf_counter()
-    with dask_client(workers, scheduler) as client:
+    with dask_client(workers, scheduler, timeout) as client:
         return body({**kw, "client": client}, time.perf_counter() - t0)
+
+
+class Outputs:
+    """A command's output files, staged: :meth:`stage` names a temporary file beside the final
+    one (same suffix, so writers pick the same format); :func:`outputs` renames them all into
+    place at the end, or removes them on an error or Ctrl-C."""
+
+    def __init__(self) -> None:
+        self.staged: list[tuple[Path, Path]] = []  # (temporary, final)
+
+    def stage(self, final: str | Path) -> str:
+        """A temporary path to write ``final``'s content to."""
+        from ..studies.engine import partial_path
+
+        tmp = partial_path(final)
+        self.staged.append((tmp, Path(final)))
+        return str(tmp)
+
+    def table(self, rows: list[dict[str, Any]], final: str) -> str:
+        """Stage the table of ``rows`` for ``final`` (``.csv``/``.parquet``); returns ``final``."""
+        from ..studies.engine import write_table
+
+        write_table(rows, self.stage(final))
+        return str(Path(final))
+
+    def commit(self) -> None:
+        """Rename every staged file onto its final path."""
+        for tmp, final in self.staged:
+            os.replace(tmp, final)
+        self.staged.clear()
+
+    def discard(self) -> None:
+        """Remove the staged files written so far."""
+        for tmp, _ in self.staged:
+            tmp.unlink(missing_ok=True)
+        self.staged.clear()
+
+
+@contextmanager
+def outputs() -> Iterator[Outputs]:
+    """Staged output files (:class:`Outputs`): committed on a clean exit, discarded otherwise."""
+    files = Outputs()
+    try:
+        yield files
+        files.commit()
+    except BaseException:
+        files.discard()
+        raise
 
 
 def _values(spec: str, name: str) -> tuple[Any, ...]:
@@ -79,7 +194,6 @@ def cmd_sensitivity(args: argparse.Namespace) -> None:
 def _sensitivity(args: argparse.Namespace, levels: Mapping[str, Sequence[float]], n_freq: int,
                  sobol_n: int, kw: dict[str, Any], startup: float) -> None:
     from ..studies import regression, sobol
-    from ..studies.engine import write_table
     from ..studies.sensitivity import sensitivity_rows, windows
 
     t0 = time.perf_counter()
@@ -90,21 +204,24 @@ def _sensitivity(args: argparse.Namespace, levels: Mapping[str, Sequence[float]]
            "runs": len(rows), "design_runs": sum(r["phase"] == "design" for r in rows),
            "empty_windows": sum(w["window_hz"] is None for w in windows(rows)),
            "wall_time_s": design_wall, "workers": args.workers, "scheduler": args.scheduler,
-           "cluster_startup_s": startup,
-           "table34": table, "table": str(write_table(rows, args.out))}
-    sob = None
+           "cluster_startup_s": startup, "table34": table}
+    sob = srows = None
     if sobol_n:
         t0 = time.perf_counter()
         srows = sobol.sobol_rows(sobol_n, preset=args.preset, **kw)
         sob = sobol.indices(srows)
         sob["wall_time_s"] = time.perf_counter() - t0
         out["sobol"] = sob
-        stem = args.out.rsplit(".", 1)
-        out["sobol_table"] = str(write_table(srows, f"{stem[0]}_sobol.{stem[1]}"))
-    if args.plot:
-        from ..studies.plots_studies import plot_sensitivity
+    with outputs() as files:
+        out["table"] = files.table(rows, args.out)
+        if srows is not None:
+            stem = args.out.rsplit(".", 1)
+            out["sobol_table"] = files.table(srows, f"{stem[0]}_sobol.{stem[1]}")
+        if args.plot:
+            from ..studies.plots_studies import plot_sensitivity
 
-        out["plot"] = plot_sensitivity(table, sob, args.plot)
+            plot_sensitivity(table, sob, files.stage(args.plot))
+            out["plot"] = str(Path(args.plot))
     text = regression.table34_text(table)
     if sob:
         text += "\nSobol' indices (S1 +- CI, ST +- CI):\n" + "\n".join(
@@ -138,7 +255,6 @@ def cmd_engage(args: argparse.Namespace) -> None:
 def _engage(args: argparse.Namespace, kw: dict[str, Any]) -> None:
     from ..studies.engage import (check_speed_statement, engage_map_rows, summarise_two,
                          two_actuator_rows)
-    from ..studies.engine import write_table
 
     t0 = time.perf_counter()
     mrows = engage_map_rows(_values(args.freqs, "freq"), args.stroke, _values(args.x0, "x0"),
@@ -154,13 +270,15 @@ def _engage(args: argparse.Namespace, kw: dict[str, Any]) -> None:
             check[m].pop("per_start", None)
     out: dict[str, Any] = {"preset": args.preset, "map_runs": len(mrows),
            "map_detached": sum(r["detached"] for r in mrows), "speed_statement": check,
-           "two_actuators": summarise_two(trows), "wall_time_s": wall,
-           "table": str(write_table(mrows, args.out)),
-           "two_table": str(write_table(trows, f"{stem[0]}_two.{stem[1]}"))}
-    if args.plot:
-        from ..studies.plots_studies import plot_engage
+           "two_actuators": summarise_two(trows), "wall_time_s": wall}
+    with outputs() as files:
+        out["table"] = files.table(mrows, args.out)
+        out["two_table"] = files.table(trows, f"{stem[0]}_two.{stem[1]}")
+        if args.plot:
+            from ..studies.plots_studies import plot_engage
 
-        out["plot"] = plot_engage(mrows, trows, args.plot)
+            plot_engage(mrows, trows, files.stage(args.plot))
+            out["plot"] = str(Path(args.plot))
     emit(args, out)
 
 
@@ -174,7 +292,6 @@ def _fidelity_args(p: argparse.ArgumentParser) -> None:
 
 def cmd_fidelity(args: argparse.Namespace) -> None:
     """Each model level's error [m] against the most faithful one, and its wall time [s]."""
-    from ..studies.engine import write_table
     from ..studies.fidelity import SCENES, assess, fidelity_rows
 
     scenes = tuple(s.strip() for s in args.scenes.split(",") if s.strip())
@@ -185,11 +302,13 @@ def cmd_fidelity(args: argparse.Namespace) -> None:
     rows = fidelity_rows(scenes, repeats=args.repeats, preset=args.preset, **_engine_kw(args))
     res = assess(rows)
     res["wall_time_s"] = time.perf_counter() - t0
-    res["table"] = str(write_table(res["rows"], args.out))
-    if args.plot:
-        from ..studies.plots_studies import plot_fidelity
+    with outputs() as files:
+        res["table"] = files.table(res["rows"], args.out)
+        if args.plot:
+            from ..studies.plots_studies import plot_fidelity
 
-        res["plot"] = plot_fidelity(res, args.plot)
+            plot_fidelity(res, files.stage(args.plot))
+            res["plot"] = str(Path(args.plot))
     res.pop("rows")
     emit(args, res)
 
@@ -211,7 +330,6 @@ def _stretch_args(p: argparse.ArgumentParser) -> None:
 def cmd_stretch(args: argparse.Namespace) -> None:
     """Travel [m] versus frequency [Hz] with constant and stretch-dependent roughness."""
     from ..presets import simulator
-    from ..studies.engine import write_table
     from ..studies.stretch_study import compare, stretch_rows
 
     t0 = time.perf_counter()
@@ -227,12 +345,14 @@ def cmd_stretch(args: argparse.Namespace) -> None:
            "profile": args.profile, "kinematics": args.kinematics,
            "peak_strain": sim.peak_strain(args.stroke), "stretch_setup_s": setup,
            "sigma_nodes": len(sim.stretch.tables), "max_strain": sim.stretch.max_strain,
-           **compare(rows), "wall_time_s": time.perf_counter() - t0,
-           "table": str(write_table(rows, args.out))}
-    if args.plot:
-        from ..studies.plots_studies import plot_stretch
+           **compare(rows), "wall_time_s": time.perf_counter() - t0}
+    with outputs() as files:
+        out["table"] = files.table(rows, args.out)
+        if args.plot:
+            from ..studies.plots_studies import plot_stretch
 
-        out["plot"] = plot_stretch({"rows": rows}, args.plot)
+            plot_stretch({"rows": rows}, files.stage(args.plot))
+            out["plot"] = str(Path(args.plot))
     emit(args, out)
 
 

@@ -8,21 +8,35 @@ A study is a list of *tasks* (plain dicts of parameters) and a module-level func
 * on a local Dask cluster of ``workers`` single-threaded worker processes, or
 * on an existing Dask cluster whose scheduler listens at ``scheduler`` (``tcp://host:8786``),
 
-cutting the task list into chunks, scattering the chunks to the workers and gathering the rows
+cutting the task list into chunks, submitting one Dask task per chunk and gathering the rows
 back **in task order**. Every simulation is deterministic, so the rows are identical to the serial
 run's whatever the number of workers (timing columns, listed in :data:`TIMING_COLUMNS`, are
 measurements and naturally differ). Workers must have this package installed (the same version);
 contact tables are cached on each worker's disk (``$MICROCONVEYOR_CACHE_DIR``).
+
+A study survives the loss of workers: each Dask task carries its chunk of task dicts (small
+parameters, held by the scheduler, nothing is scattered to one worker), and a worker builds its
+simulators itself (:func:`simulator`, cached per process; contact tables from the disk cache), so
+the scheduler re-runs a lost worker's tasks on another one and the rows stay the serial run's.
+Connecting to ``scheduler`` is bounded by a timeout (:data:`SCHEDULER_TIMEOUT_S`) and checks that
+a Dask scheduler answers (:func:`check_scheduler`).
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any
+from collections.abc import Callable
 
+import asyncio
 import functools
+import logging
+import os
+import secrets
+import signal
 import sys
+import threading
 import time
-from collections.abc import Iterable, Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Coroutine, Iterable, Iterator, Sequence
+from contextlib import ExitStack, contextmanager, suppress
 from pathlib import Path
 
 from ..physics.materials import ParameterError
@@ -36,6 +50,12 @@ Row = dict[str, Any]    # one table row: parameters and results, SI units in the
 Task = dict[str, Any]   # the parameters of one task
 
 TIMING_COLUMNS = ("wall_time_s",)  # measured, not computed: excluded when comparing runs
+TABLE_SUFFIXES = (".csv", ".parquet")  # the table formats of :func:`write_table`
+SCHEDULER_TIMEOUT_S = 10.0  # default bound on connecting to an existing scheduler [s]
+
+
+class SchedulerConnectionError(ConnectionError):
+    """No Dask scheduler answered at the given address in time, or what answered is not one."""
 
 
 # ----------------------------------------------------------------------------- simulators
@@ -78,63 +98,256 @@ def _run_chunk(func: Callable[[Task], list[Row]], chunk: Iterable[Task]) -> list
     return rows
 
 
+def check_scheduler(address: str, timeout: float = SCHEDULER_TIMEOUT_S) -> dict[str, Any]:
+    """The identity of the Dask scheduler at ``address`` (``tcp://host:port``), asked within
+    ``timeout`` [s]; raises :class:`SchedulerConnectionError` if nothing answers in time or what
+    answers is not a Dask scheduler (e.g. an HTTP server, whose reply distributed would read as an
+    exabyte-long message).
+
+    Runs on a private event loop in a helper thread, so it works whether or not the caller runs
+    one.
+    """
+    timeout = _positive_timeout(timeout)
+    _check_address(address)
+    try:
+        ident = _in_thread(_identity(address, timeout))
+    except (asyncio.TimeoutError, TimeoutError) as exc:
+        raise SchedulerConnectionError(_no_answer(address, timeout)) from exc
+    except OSError as exc:  # refused/unreachable until the timeout, or the peer hung up
+        if "Timed out" in str(exc):
+            raise SchedulerConnectionError(_no_answer(address, timeout, exc.__cause__)) from exc
+        raise SchedulerConnectionError(f"{address} is not a Dask scheduler: the connection "
+                                       f"failed ({_brief(exc)})") from exc
+    except Exception as exc:  # noqa: BLE001 - a reply read as Dask frames: any error
+        raise SchedulerConnectionError(  # e.g. MemoryError: "HTTP/1.0" read as a frame length
+            f"{address} is not a Dask scheduler: its reply is not a Dask message (an HTTP or "
+            "other server?)") from exc
+    if not isinstance(ident, dict) or ident.get("type") != "Scheduler":
+        kind = ident.get("type") if isinstance(ident, dict) else None
+        raise SchedulerConnectionError(f"{address} is not a Dask scheduler"
+                                       + (f" (it is a Dask {kind})" if kind else ""))
+    return ident
+
+
+def _check_address(address: str) -> None:
+    """Raise :class:`ParameterError` unless ``address`` is a Dask address (a known scheme; a port
+    for the network ones)."""
+    from distributed.comm.addressing import parse_address, parse_host_port
+    from distributed.comm.registry import get_backend
+
+    try:
+        scheme, loc = parse_address(address)
+        get_backend(scheme)
+        if scheme in ("tcp", "tls", "ws", "wss"):
+            parse_host_port(loc)
+    except (ValueError, TypeError) as exc:
+        raise ParameterError(f"scheduler address {address!r} is invalid ({exc}); expected e.g. "
+                             "tcp://10.0.0.5:8786") from exc
+
+
+def _in_thread(coro: Coroutine[Any, Any, Any]) -> Any:
+    """``asyncio.run(coro)`` in a daemon thread (a private event loop): its result, or its
+    exception raised here. A Ctrl-C interrupts the wait at once, and the thread never delays the
+    interpreter's exit."""
+    box: dict[str, Any] = {}
+
+    def target() -> None:
+        try:
+            box["result"] = asyncio.run(coro)
+        except BaseException as exc:  # noqa: BLE001 - handed to the caller
+            box["error"] = exc
+
+    thread = threading.Thread(target=target, name="check-scheduler", daemon=True)
+    thread.start()
+    thread.join()
+    if "error" in box:
+        raise box["error"]
+    return box["result"]
+
+
+async def _identity(address: str, timeout: float) -> Any:
+    """The reply to the ``identity`` request at ``address``, all within about ``timeout`` [s]
+    (distributed bounds the connection, not the handshake that follows)."""
+    from distributed.comm import connect
+
+    async def ask() -> Any:
+        comm = await connect(address, timeout=timeout)
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    return await asyncio.wait_for(ask(), 1.05 * timeout + 0.1)  # connect's own error first
+
+
+def _no_answer(address: str, timeout: float, cause: BaseException | None = None) -> str:
+    """The message for a scheduler that did not answer within ``timeout`` [s]."""
+    text = str(cause).rsplit(": ", 1)[-1].strip() if cause is not None else ""
+    last = f" (last error: {text})" if text and not isinstance(cause, TimeoutError) else ""
+    return (f"no Dask scheduler answered at {address} within {timeout:g} s{last}: is the address "
+            "right and a scheduler running there?")
+
+
+def _brief(exc: BaseException) -> str:
+    """``exc`` as one short line."""
+    return " ".join(f"{type(exc).__name__}: {exc}".split())[:200]
+
+
+def _positive_timeout(timeout: float) -> float:
+    """``timeout`` [s] checked: positive and finite."""
+    t = float(timeout)
+    if not t > 0 or t == float("inf"):
+        raise ParameterError(f"scheduler timeout = {timeout!r} s is invalid: must be > 0 and "
+                             "finite")
+    return t
+
+
 @contextmanager
-def dask_client(workers: int | None = None, scheduler: str | None = None) -> Iterator[Any]:
-    """A ``distributed.Client``: to the cluster at ``scheduler``, or to a new local cluster of
+def dask_client(workers: int | None = None, scheduler: str | None = None,
+                timeout: float = SCHEDULER_TIMEOUT_S) -> Iterator[Any]:
+    """A ``distributed.Client``: to the cluster at ``scheduler`` (checked with
+    :func:`check_scheduler`, connection bounded by ``timeout`` [s]), or to a new local cluster of
     ``workers`` processes (1 thread each), closed on exit."""
     from distributed import Client, LocalCluster
 
     if scheduler:
-        client = Client(scheduler)
+        check_scheduler(scheduler, timeout)
+        try:
+            client = Client(scheduler, timeout=timeout)
+        except (OSError, asyncio.TimeoutError) as exc:
+            raise SchedulerConnectionError(_no_answer(scheduler, timeout, exc)) from exc
         try:
             yield client
         finally:
             client.close()
         return
-    cluster = LocalCluster(n_workers=int(workers or 1), threads_per_worker=1, processes=True,
-                           dashboard_address=":0")
-    client = Client(cluster)
+    with ExitStack() as quiet, ExitStack() as stack:  # stack closes first, then quiet restores
+        with _sigint_deferred():
+            cluster = stack.enter_context(LocalCluster(
+                n_workers=int(workers or 1), threads_per_worker=1, processes=True,
+                dashboard_address=":0", preload=[__name__]))  # preload: see dask_setup
+            client = stack.enter_context(Client(cluster))
+        try:
+            yield client
+        except BaseException:  # an error or Ctrl-C: close without waiting and without log noise
+            quiet.enter_context(_logger_level("distributed", logging.CRITICAL))
+            _stop_workers_now(cluster)
+            raise
+
+
+@contextmanager
+def _logger_level(name: str, level: int) -> Iterator[None]:
+    """Logger ``name`` at ``level`` meanwhile."""
+    logger = logging.getLogger(name)
+    old = logger.level
+    logger.setLevel(level)
     try:
-        yield client
+        yield
     finally:
-        client.close()
-        cluster.close()
+        logger.setLevel(old)
+
+
+def _stop_workers_now(cluster: Any, grace: float = 0.5) -> None:
+    """Close the local cluster's nannies at once, each giving its worker process ``grace`` [s] to
+    stop before killing it: a running task is not waited for (a plain close gives each worker 4 s,
+    then kills it with a warning)."""
+    nannies = list(getattr(cluster, "workers", {}).values())
+
+    async def close_all() -> None:
+        await asyncio.gather(*(n.close(timeout=grace) for n in nannies), return_exceptions=True)
+
+    with suppress(Exception):
+        cluster.sync(close_all)
+
+
+@contextmanager
+def _sigint_deferred() -> Iterator[None]:
+    """A Ctrl-C meanwhile is deferred to the end of the block (raised there as
+    ``KeyboardInterrupt``), and the threads and processes started meanwhile (the local cluster's
+    event loop and, through it, the worker processes) keep SIGINT blocked: a Ctrl-C in a terminal,
+    sent to the whole process group, is for this process alone, which stops the study and closes
+    the cluster. POSIX, main thread only; elsewhere a no-op."""
+    if threading.current_thread() is not threading.main_thread() or not hasattr(
+            signal, "pthread_sigmask"):
+        yield
+        return
+    from multiprocessing import resource_tracker
+
+    resource_tracker.ensure_running()  # starting it later would unblock SIGINT in that thread
+    caught: list[int] = []
+    old_handler = signal.signal(signal.SIGINT, lambda signum, frame: caught.append(signum))
+    old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)  # a pending Ctrl-C lands in caught
+        signal.signal(signal.SIGINT, old_handler)
+    if caught:
+        raise KeyboardInterrupt
+
+
+def dask_setup(worker: object) -> None:
+    """Dask's preload hook, run in each worker process of the local cluster (:func:`dask_client`)
+    as it starts, restarted ones included: the worker ignores SIGINT (see :func:`_sigint_deferred`)
+    and logs only critical messages (``$MICROCONVEYOR_DEBUG`` set: all), so that the command line
+    keeps its one line on stderr for an error or a Ctrl-C (a task's exception reaches the client
+    anyway; the cluster's own warnings, such as a worker restart, still show)."""
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if not os.environ.get("MICROCONVEYOR_DEBUG"):
+        logging.getLogger("distributed").setLevel(logging.CRITICAL)
 
 
 def run_tasks(func: Callable[[Task], list[Row]], tasks: Iterable[Task], *,
               workers: int | None = None, scheduler: str | None = None,
               client: Any = None, chunk_size: int | None = None, progress: bool = True,
-              desc: str = "study") -> list[Row]:
+              desc: str = "study", scheduler_timeout: float = SCHEDULER_TIMEOUT_S) -> list[Row]:
     """Rows of ``func`` over ``tasks``, in task order (see the module docstring).
 
     ``workers`` [-]: number of local worker processes (None or 0: serial, unless ``scheduler`` or
-    ``client`` is given); ``scheduler``: address of an existing Dask scheduler; ``client``: an open
-    ``distributed.Client`` to use (tests); ``chunk_size``: tasks per chunk (default: about four
-    chunks per worker).
+    ``client`` is given); ``scheduler``: address of an existing Dask scheduler, reached within
+    ``scheduler_timeout`` [s]; ``client``: an open ``distributed.Client`` to use (tests);
+    ``chunk_size``: tasks per chunk (default: about four chunks per worker).
     """
     tasks = list(tasks)
     if workers is not None and int(workers) < 0:
         raise ParameterError(f"workers = {workers!r} is invalid: must be >= 0")
-    from tqdm import tqdm
-
-    bar = tqdm(total=len(tasks), desc=desc, file=sys.stderr, disable=not progress, leave=False)
-    try:
-        if client is None and not scheduler and not workers:
+    if client is None and not scheduler and not workers:
+        with _progress(len(tasks), desc, progress) as bar:
             rows: list[Row] = []
             for task in tasks:
                 rows.extend(func(task))
                 bar.update()
             return rows
-        if client is not None:
+    if client is not None:
+        with _progress(len(tasks), desc, progress) as bar:
             return _run_dask(client, func, tasks, chunk_size, bar)
-        with dask_client(workers, scheduler) as c:
-            return _run_dask(c, func, tasks, chunk_size, bar)
+    with dask_client(workers, scheduler, scheduler_timeout) as c, \
+            _progress(len(tasks), desc, progress) as bar:  # no bar before the cluster is up
+        return _run_dask(c, func, tasks, chunk_size, bar)
+
+
+@contextmanager
+def _progress(total: int, desc: str, show: bool) -> Iterator[Any]:
+    """A progress bar of ``total`` [-] tasks on stderr (``show`` False: a silent one), cleared on
+    exit."""
+    from tqdm import tqdm
+
+    bar = tqdm(total=total, desc=desc, file=sys.stderr, disable=not show, leave=False)
+    try:
+        yield bar
     finally:
         bar.close()
 
 
 def _run_dask(client: Any, func: Callable[[Task], list[Row]], tasks: list[Task],
               chunk_size: int | None, bar: Any) -> list[Row]:
+    """Rows of ``func`` over ``tasks`` on ``client``'s cluster, one Dask task per chunk.
+
+    Each Dask task carries its chunk as an argument (kept by the scheduler), never data scattered
+    to one worker, so a chunk whose worker dies is re-run on another worker. Results are fetched
+    as they finish and released on the cluster at once."""
     from distributed import as_completed
 
     n_workers = max(1, len(client.scheduler_info().get("workers", {})))
@@ -143,14 +356,20 @@ def _run_dask(client: Any, func: Callable[[Task], list[Row]], tasks: list[Task],
     chunks = chunked(tasks, chunk_size)
     if not chunks:
         return []
-    data = client.scatter(chunks)
-    futures = client.map(functools.partial(_run_chunk, func), data, pure=False)
+    run = functools.partial(_run_chunk, func)
+    futures = [client.submit(run, chunk, pure=False) for chunk in chunks]
     index = {f.key: i for i, f in enumerate(futures)}
-    results: list[Any] = [None] * len(chunks)
-    for fut in as_completed(futures):
-        i = index[fut.key]
-        results[i] = fut.result()
-        bar.update(len(chunks[i]))
+    results: list[list[Row]] = [[] for _ in chunks]
+    try:
+        for fut in as_completed(futures):
+            i = index[fut.key]
+            results[i] = fut.result()
+            fut.release()
+            bar.update(len(chunks[i]))
+    except BaseException:  # an error or Ctrl-C: stop the rest (the client may outlive us)
+        with suppress(Exception):
+            client.cancel(futures)
+        raise
     return [row for rows in results for row in rows]
 
 
@@ -163,19 +382,47 @@ def timed(func: Callable[..., Any], *args: Any, **kw: Any) -> tuple[Any, float]:
 
 # ----------------------------------------------------------------------------- tables
 def write_table(rows: list[Row], path: str | Path) -> Path:
-    """Write rows as a tidy table: ``.csv`` or ``.parquet`` (one row per simulation)."""
+    """Write rows as a tidy table: ``.csv`` or ``.parquet`` (one row per simulation).
+
+    The table goes to a temporary file in the same folder, renamed onto ``path`` when complete
+    (:func:`os.replace`), so ``path`` never holds a partial table (an interrupted write leaves
+    nothing)."""
     import pandas as pd
 
     path = Path(path)
+    if path.suffix not in TABLE_SUFFIXES:
+        raise ParameterError(f"table file {str(path)!r}: use a .csv or .parquet name")
     path.parent.mkdir(parents=True, exist_ok=True)
     df = pd.DataFrame(rows)
-    if path.suffix == ".parquet":
-        df.to_parquet(path, index=False)
-    elif path.suffix == ".csv":
-        df.to_csv(path, index=False)
-    else:
-        raise ParameterError(f"table file {str(path)!r}: use a .csv or .parquet name")
+    with atomic_path(path) as tmp:
+        if path.suffix == ".parquet":
+            df.to_parquet(tmp, index=False)
+        else:
+            df.to_csv(tmp, index=False)
     return path
+
+
+@contextmanager
+def atomic_path(path: str | Path) -> Iterator[Path]:
+    """A temporary file name beside ``path`` (same suffix, so writers infer the same format) to
+    write into; on a clean exit it is renamed onto ``path``, on any exception (Ctrl-C included)
+    it is removed."""
+    path = Path(path)
+    tmp = partial_path(path)
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def partial_path(path: str | Path) -> Path:
+    """A fresh temporary name beside ``path`` for its content while being written: hidden, with
+    the same suffix (so writers infer the same format), unique to this process and call."""
+    path = Path(path)
+    return path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}"
+                          f".partial{path.suffix}")
 
 
 def read_table(path: str | Path) -> pd.DataFrame:
@@ -190,7 +437,7 @@ def same_rows(a: Sequence[Row], b: Sequence[Row]) -> bool:
     """Whether two row lists are identical, row for row, ignoring :data:`TIMING_COLUMNS`."""
     if len(a) != len(b):
         return False
-    for ra, rb in zip(a, b):
+    for ra, rb in zip(a, b, strict=True):
         ka = {k: v for k, v in ra.items() if k not in TIMING_COLUMNS}
         kb = {k: v for k, v in rb.items() if k not in TIMING_COLUMNS}
         if ka.keys() != kb.keys():
