@@ -1,14 +1,20 @@
 """On-disk cache of contact tables: keyed by inputs, atomic, corrupt files rebuilt."""
+import ast
+import importlib
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from microconveyor_env.physics import contact_table as ct
+from microconveyor_env.physics import table_cache as tc
 from microconveyor_env.physics.materials import ContactParams
+
 
 
 def _fresh(monkeypatch, tmp_path):
     monkeypatch.setenv("MICROCONVEYOR_CACHE_DIR", str(tmp_path))
-    monkeypatch.setattr(ct, "_MEMO", {})
+    monkeypatch.setattr(tc, "_MEMO", {})
 
 
 def test_key_depends_on_shape_inputs_not_on_calibration():
@@ -25,8 +31,10 @@ def test_table_written_once_and_reused(monkeypatch, tmp_path):
     t1 = ct.ContactTable(p, spacing=0.02)
     files = list(tmp_path.glob("ke-table-*.npz"))
     assert len(files) == 1 and not list(tmp_path.glob("*.tmp"))
-    monkeypatch.setattr(ct, "_MEMO", {})
-    monkeypatch.setattr(ct, "build_base_table", lambda *a, **k: (_ for _ in ()).throw(AssertionError))
+    monkeypatch.setattr(tc, "_MEMO", {})
+    monkeypatch.setattr(tc, "build_base_table", lambda *a, **k: (_ for _ in ()).throw(AssertionError))
+    with pytest.raises(AssertionError):  # the patched builder is the one a cache miss calls
+        ct.ContactTable(p, spacing=0.03)
     t2 = ct.ContactTable(p, spacing=0.02)  # must come from disk, not a rebuild
     np.testing.assert_array_equal(t1.base.q, t2.base.q)
 
@@ -38,7 +46,7 @@ def test_corrupt_cache_is_rebuilt_not_trusted(monkeypatch, tmp_path):
     path = next(tmp_path.glob("ke-table-*.npz"))
     for garbage in (b"not a zip file", path.read_bytes()[:200]):
         path.write_bytes(garbage)
-        monkeypatch.setattr(ct, "_MEMO", {})
+        monkeypatch.setattr(tc, "_MEMO", {})
         assert ct.ContactTable(p, spacing=0.02).pull_off_force == good
     # a readable file with wrong content (NaN) is rejected too
     key = ct.table_key(p, 0.02, ct.DEFAULT_LOAD_RATIO)
@@ -47,7 +55,7 @@ def test_corrupt_cache_is_rebuilt_not_trusted(monkeypatch, tmp_path):
     arrays["q"] = np.full_like(arrays["q"], np.nan)
     np.savez(path, key=np.array(key), **arrays)
     assert ct._load_cached(path, key) is None
-    monkeypatch.setattr(ct, "_MEMO", {})
+    monkeypatch.setattr(tc, "_MEMO", {})
     assert np.all(np.isfinite(ct.ContactTable(p, spacing=0.02).base.q))
 
 
@@ -56,6 +64,51 @@ def test_unwritable_cache_still_works(monkeypatch, tmp_path):
     blocker.write_text("x")
     _fresh(monkeypatch, blocker / "sub")  # cannot create a directory under a file
     assert ct.ContactTable(ContactParams(), spacing=0.02).pull_off_force > 0
+
+
+def test_contact_table_reexports_the_cache():
+    """contact_table re-exports the cache's names; the memory cache and the builder are looked
+    up in table_cache, so that is where these tests replace them (patching ct changes nothing)."""
+    assert ct._MEMO is tc._MEMO and ct.build_base_table is tc.build_base_table
+    assert ct.base_table is tc.base_table and ct.table_key is tc.table_key
+
+
+def _table_modules():
+    """The physics modules the contact table's numbers (or its cache) come from: contact_table,
+    the builder and the cache, and every physics module they import, directly or not."""
+    physics = Path(ct.__file__).parent
+    todo, seen = ["contact_table", "table_build", "table_cache"], set()
+    while todo:
+        name = todo.pop()
+        if name in seen:
+            continue
+        seen.add(name)
+        for node in ast.walk(ast.parse((physics / f"{name}.py").read_text())):
+            if isinstance(node, ast.ImportFrom) and node.level == 1:
+                todo += [node.module] if node.module else [a.name for a in node.names]
+    return sorted(seen)
+
+
+@pytest.mark.parametrize("module", _table_modules())
+def test_key_depends_on_the_source_of_every_table_module(monkeypatch, module):
+    """An edit of any module the table comes from changes the key, so a stale table is never
+    loaded (without relying on someone bumping TABLE_FORMAT)."""
+    path = Path(importlib.import_module(f"microconveyor_env.physics.{module}").__file__).resolve()
+    p = ContactParams()
+    key = ct.table_key(p, 0.01, 1e4)
+    read_bytes = Path.read_bytes
+
+    def edited(self):
+        return read_bytes(self) + (b"# edit" if self.resolve() == path else b"")
+
+    monkeypatch.setattr(Path, "read_bytes", edited)
+    tc._code_hash.cache_clear()
+    try:
+        assert ct.table_key(p, 0.01, 1e4) != key
+    finally:
+        monkeypatch.undo()
+        tc._code_hash.cache_clear()
+    assert ct.table_key(p, 0.01, 1e4) == key
 
 
 def test_key_depends_on_quadrature_settings(monkeypatch):
@@ -98,7 +151,7 @@ def test_parseable_but_inconsistent_cache_is_rebuilt(monkeypatch, tmp_path, how)
     assert ct._load_cached(path, key) is not None
     np.savez(path, key=np.array(key), **_tampered(good.base.arrays(), how))
     assert ct._load_cached(path, key) is None
-    monkeypatch.setattr(ct, "_MEMO", {})
+    monkeypatch.setattr(tc, "_MEMO", {})
     rebuilt = ct.ContactTable(p, spacing=0.02)
     np.testing.assert_array_equal(rebuilt.base.q, good.base.q)
     assert ct._load_cached(path, key) is not None  # and the good table was written back

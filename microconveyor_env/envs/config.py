@@ -9,7 +9,7 @@ from importlib import resources
 
 from ..physics.kinematics import SHAPES
 from ..physics.materials import ParameterError, check_range
-from ..physics.simulator import MAX_STEPS, MIN_DT, MIN_WAVELENGTH, \
+from ..physics.validation import MAX_STEPS, MIN_DT, MIN_WAVELENGTH, \
     check_max_steps, check_step_budget, kinematics_level
 from .task import LENGTH_SCALE, OBS_BOUND
 

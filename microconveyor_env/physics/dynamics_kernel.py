@@ -104,7 +104,147 @@ def coast(x, v, duration, P, tu, tq, tqu):
     return x, v, t_used, v == 0.0, t_used if v == 0.0 else -1.0
 
 
-@njit(cache=True)
+# ---- one stroke: the step helpers below, put together by stroke() ----
+# They are inlined into stroke() by numba (inline="always") and stroke() is compiled without
+# numba's reference-counting runtime (_nrt=False; it allocates nothing, and numba refuses to
+# compile it if it ever does): as separate calls, or inlined with reference counting, every step
+# would pay an atomic incref/decref per array argument, 10-30 % of a step's time (issue 18).
+@njit(cache=True, inline="always")
+def _stop(out, t, x, v, outcome):
+    """Note where and when the stroke ended early (O_EVENT_T/O_EVENT_X); (x, v, outcome)."""
+    out[O_EVENT_T] = t
+    out[O_EVENT_X] = x
+    return x, v, outcome
+
+
+@njit(cache=True, inline="always")
+def _next_node(tl, k, n_steps, dt, T, t_unload1, t_unload2, t_lim):
+    """End of the step from ``tl``: the next grid node ``(k + 1) dt`` (T for the last), cut at an
+    extra node ``t_unload1/2`` or at ``t_lim`` if one lies before it. Returns (t_end, k) with k
+    advanced once a grid node is reached."""
+    t_end = T if k >= n_steps - 1 else (k + 1) * dt
+    if tl < t_unload1 < t_end:
+        t_end = t_unload1
+    elif tl < t_unload2 < t_end:
+        t_end = t_unload2
+    if tl < t_lim < t_end:
+        t_end = t_lim
+    if t_end >= (k + 1) * dt or t_end >= T:
+        k += 1
+    return t_end, k
+
+
+@njit(cache=True, inline="always")
+def _karnopp_step(x, v, tl, t_end, dt, s, stuck, t0, xa, f, h, P, tu, tq, tqu, rec, out):
+    """One Karnopp step from tl to t_end: stick/slip decided once, at its start, by the velocity
+    threshold ``v_th = Q dt / m``; detachment if the load is below pull-off there.
+
+    Returns (x, v, tl, s, stuck, outcome): MOVING at t_end, or DETACHED with the state at tl.
+    """
+    out[O_STEPS] += 1
+    N, Yx, c, _ = normal_load(x, v, tl, xa, f, h, P)
+    if shifted_load(N, x, tl, xa, f, h, P, tu) < P[I_NMIN]:
+        return x, v, tl, s, stuck, DETACHED
+    Q = friction_at(N, x, tl, xa, f, h, P, tu, tq, tqu)
+    if abs(v) < Q * dt / P[I_MASS]:
+        sv = 1.0 if v > 0.0 else -1.0
+        decreasing = v != 0.0 and v * accel(x, v, tl, sv, xa, f, h, P, tu, tq, tqu) < 0.0
+        if decreasing or Q >= abs(N * Yx):  # sticks through the step
+            if rec.shape[0] > 0:
+                _record(rec, out, t0 + t_end, x, 0.0, 0.0, xa, f, h, t_end, P, tu, tq, tqu)
+            return x, 0.0, t_end, s, True, MOVING
+        s = 1.0 if -N * Yx > 0.0 else -1.0  # breaks away from (near) rest
+    else:
+        s = 1.0 if v > 0.0 else -1.0
+    x, v = rk4(x, v, tl, t_end - tl, s, xa, f, h, P, tu, tq, tqu)
+    if rec.shape[0] > 0:
+        _record(rec, out, t0 + t_end, x, v, s, xa, f, h, t_end, P, tu, tq, tqu)
+    return x, v, t_end, s, False, MOVING
+
+
+@njit(cache=True, inline="always")
+def _stuck_substep(x, tl, t_end, s, xa, f, h, P, tu, tq, tqu):
+    """A part resting at x from tl: it stays put to t_end, or the first time the stick margin or
+    the load above pull-off reaches 0 is located (:func:`illinois_stick`).
+
+    Returns (tl, s, stuck, outcome, events): (t_end, s, True, MOVING, 0) if it stays put; else the
+    located time with a break-away (slip direction, False, MOVING, 1) or (.., DETACHED, 1).
+    """
+    m1, d1, _ = stick_state(x, t_end, xa, f, h, P, tu, tq, tqu)
+    if m1 > 0.0 and d1 > 0.0:
+        return t_end, s, True, MOVING, 0
+    tc = illinois_stick(x, tl, t_end, xa, f, h, P, tu, tq, tqu)
+    mc, dc, sc = stick_state(x, tc, xa, f, h, P, tu, tq, tqu)
+    if dc <= 0.0 and dc <= mc:
+        return tc, s, True, DETACHED, 1
+    return tc, sc, False, MOVING, 1
+
+
+@njit(cache=True, inline="always")
+def _slide_substep(x, v, tl, t_end, s, xa, f, h, P, tu, tq, tqu):
+    """A part sliding in direction s from tl: one RK4 step to t_end if the slip and the contact
+    last through it (no end of slip, no load below pull-off at its end or hidden inside it,
+    :func:`hidden_pull_off`); else the first such event is located (:func:`illinois_slip`) and the
+    part stops there, sticks or turns (direction of break-away), or detaches.
+
+    Returns (x, v, tl, s, stuck, outcome, events) with outcome MOVING or DETACHED, events 0 or 1.
+    """
+    n_min = P[I_NMIN]
+    hs = t_end - tl
+    xn, vn = rk4(x, v, tl, hs, s, xa, f, h, P, tu, tq, tqu)
+    Nn = shifted_load(normal_load(xn, vn, t_end, xa, f, h, P)[0], xn, t_end, xa, f, h, P, tu)
+    h_ev = hs
+    if s * vn > 0.0 and Nn >= n_min:
+        tm = hidden_pull_off(x, v, xn, vn, tl, hs, Nn, xa, f, h, P, tu)
+        if tm <= 0.0 or slip_event(x, v, tl, tm, s, 1.0, xa, f, h, P, tu, tq, tqu) > 0.0:
+            return xn, vn, t_end, s, False, MOVING, 0
+        h_ev = tm  # the load dips below pull-off inside the step: locate it
+    tau = illinois_slip(x, v, tl, h_ev, s, xa, f, h, P, tu, tq, tqu)
+    if tau > 0.0:
+        x, v = rk4(x, v, tl, tau, s, xa, f, h, P, tu, tq, tqu)
+        tl = tl + tau
+    Nc = normal_load(x, v, tl, xa, f, h, P)[0]
+    if shifted_load(Nc, x, tl, xa, f, h, P, tu) <= n_min:  # pull-off before v = 0
+        return x, v, tl, s, False, DETACHED, 1
+    mc, dc, sc = stick_state(x, tl, xa, f, h, P, tu, tq, tqu)
+    if mc >= 0.0:
+        return x, 0.0, tl, s, True, MOVING, 1
+    return x, 0.0, tl, sc, False, MOVING, 1
+
+
+@njit(cache=True, inline="always")
+def _event_step(x, v, tl, t_end, s, stuck, t0, xa, f, h, P, tu, tq, tqu, rec, out):
+    """One event-mode step from tl to t_end: sub-steps that each run to t_end or to the next
+    located stick/slip/detachment event, at most MAX_EVENTS_PER_STEP + 1 events.
+
+    Returns (x, v, tl, s, stuck, outcome): MOVING at t_end, or DETACHED / TOO_MANY_EVENTS with the
+    state at that moment.
+    """
+    recording = rec.shape[0] > 0
+    n_ev = 0
+    while tl < t_end:
+        if n_ev > MAX_EVENTS_PER_STEP:
+            return x, v, tl, s, stuck, TOO_MANY_EVENTS
+        out[O_STEPS] += 1
+        if stuck:
+            tl, s, stuck, outcome, ev = _stuck_substep(x, tl, t_end, s, xa, f, h, P, tu, tq, tqu)
+            s_row = 0.0  # the break-away instant is recorded as sticking
+        else:
+            x, v, tl, s, stuck, outcome, ev = _slide_substep(x, v, tl, t_end, s, xa, f, h, P, tu,
+                                                             tq, tqu)
+            s_row = 0.0 if stuck else s
+        n_ev += ev
+        out[O_EVENTS] += ev
+        if outcome != MOVING:
+            return x, v, tl, s, stuck, outcome
+        if ev > 0 and recording:
+            _record(rec, out, t0 + tl, x, v, s_row, xa, f, h, tl, P, tu, tq, tqu)
+    if recording:
+        _record(rec, out, t0 + t_end, x, v, 0.0 if stuck else s, xa, f, h, t_end, P, tu, tq, tqu)
+    return x, v, tl, s, stuck, MOVING
+
+
+@njit(cache=True, _nrt=False)  # type: ignore[call-overload]  # numba's typing omits _nrt
 def stroke(x, v, t0, xa, f, h, n_steps, t_lim, P, tu, tq, tqu, rec, out):
     """Integrate one stroke (duration 1/f, ``n_steps`` RK4 steps) from state (x, v) at time t0.
 
@@ -112,7 +252,7 @@ def stroke(x, v, t0, xa, f, h, n_steps, t_lim, P, tu, tq, tqu, rec, out):
     step grid also has nodes where the actuator's downward acceleration peaks (there the load on a
     resting part is smallest), and a sliding step whose load is tensile at an end is searched for
     a dip below pull-off inside it (:func:`hidden_pull_off`), so a detachment cannot hide inside
-    a step.
+    a step. Each step is a :func:`_karnopp_step` or an :func:`_event_step`.
 
     Returns (x, v, outcome) with outcome MOVING (stroke finished), DETACHED, MAX_TIME,
     TOO_MANY_EVENTS or BEYOND_TABLE (the load left the contact table); the event time/place go to
@@ -121,126 +261,30 @@ def stroke(x, v, t0, xa, f, h, n_steps, t_lim, P, tu, tq, tqu, rec, out):
     T = 1.0 / f
     dt = T / n_steps
     event = P[I_MODE] == EVENT
-    n_min = P[I_NMIN]
-    m = P[I_MASS]
     t_unload1 = TAU_UNLOAD * 0.5 * T if event else T  # extra grid nodes (event mode only)
     t_unload2 = T - t_unload1 if event else T
-    recording = rec.shape[0] > 0
     stuck = v == 0.0
     s = 1.0 if v >= 0.0 else -1.0
     tl = 0.0
     k = 0
-    if recording:
+    if rec.shape[0] > 0:
         _record(rec, out, t0, x, v, 0.0 if stuck else s, xa, f, h, tl, P, tu, tq, tqu)
     while True:
         if normal_load(x, v, tl, xa, f, h, P)[0] > P[I_NMAX]:  # Q(N) would extrapolate
-            out[O_EVENT_T] = t0 + tl
-            out[O_EVENT_X] = x
-            return x, v, BEYOND_TABLE
+            return _stop(out, t0 + tl, x, v, BEYOND_TABLE)
         if tl >= T:
             break
         if tl >= t_lim:
-            out[O_EVENT_T] = t0 + tl
-            out[O_EVENT_X] = x
-            return x, v, MAX_TIME
-        t_end = T if k >= n_steps - 1 else (k + 1) * dt
-        if tl < t_unload1 < t_end:
-            t_end = t_unload1
-        elif tl < t_unload2 < t_end:
-            t_end = t_unload2
-        if tl < t_lim < t_end:
-            t_end = t_lim
-        if t_end >= (k + 1) * dt or t_end >= T:
-            k += 1
-        if not event:  # ---------------------------------------------- Karnopp threshold
-            out[O_STEPS] += 1
-            N, Yx, c, _ = normal_load(x, v, tl, xa, f, h, P)
-            if shifted_load(N, x, tl, xa, f, h, P, tu) < n_min:
-                out[O_EVENT_T] = t0 + tl
-                out[O_EVENT_X] = x
-                return x, v, DETACHED
-            Q = friction_at(N, x, tl, xa, f, h, P, tu, tq, tqu)
-            if abs(v) < Q * dt / m:
-                sv = 1.0 if v > 0.0 else -1.0
-                decreasing = v != 0.0 and v * accel(x, v, tl, sv, xa, f, h, P, tu, tq, tqu) < 0.0
-                if decreasing or Q >= abs(N * Yx):
-                    v = 0.0
-                    stuck = True
-                    tl = t_end
-                    if recording:
-                        _record(rec, out, t0 + tl, x, v, 0.0, xa, f, h, tl, P, tu, tq, tqu)
-                    continue
-                s = 1.0 if -N * Yx > 0.0 else -1.0
-            else:
-                s = 1.0 if v > 0.0 else -1.0
-            stuck = False
-            x, v = rk4(x, v, tl, t_end - tl, s, xa, f, h, P, tu, tq, tqu)
-            tl = t_end
-            if recording:
-                _record(rec, out, t0 + tl, x, v, s, xa, f, h, tl, P, tu, tq, tqu)
-            continue
-        n_ev = 0  # ------------------------------------------------------ event location
-        while tl < t_end:
-            if n_ev > MAX_EVENTS_PER_STEP:
-                out[O_EVENT_T] = t0 + tl
-                out[O_EVENT_X] = x
-                return x, v, TOO_MANY_EVENTS
-            if stuck:
-                out[O_STEPS] += 1
-                m1, d1, _ = stick_state(x, t_end, xa, f, h, P, tu, tq, tqu)
-                if m1 > 0.0 and d1 > 0.0:
-                    tl = t_end
-                    break
-                tc = illinois_stick(x, tl, t_end, xa, f, h, P, tu, tq, tqu)
-                mc, dc, sc = stick_state(x, tc, xa, f, h, P, tu, tq, tqu)
-                n_ev += 1
-                out[O_EVENTS] += 1
-                tl = tc
-                if dc <= 0.0 and dc <= mc:
-                    out[O_EVENT_T] = t0 + tl
-                    out[O_EVENT_X] = x
-                    return x, v, DETACHED
-                stuck = False
-                s = sc
-                if recording:
-                    _record(rec, out, t0 + tl, x, v, 0.0, xa, f, h, tl, P, tu, tq, tqu)
-            else:
-                hs = t_end - tl
-                out[O_STEPS] += 1
-                xn, vn = rk4(x, v, tl, hs, s, xa, f, h, P, tu, tq, tqu)
-                Nn = shifted_load(normal_load(xn, vn, t_end, xa, f, h, P)[0], xn, t_end, xa, f,
-                                  h, P, tu)
-                h_ev = hs
-                if s * vn > 0.0 and Nn >= n_min:
-                    tm = hidden_pull_off(x, v, xn, vn, tl, hs, Nn, xa, f, h, P, tu)
-                    if tm <= 0.0 or slip_event(x, v, tl, tm, s, 1.0, xa, f, h, P, tu, tq,
-                                                tqu) > 0.0:
-                        x, v, tl = xn, vn, t_end
-                        break
-                    h_ev = tm  # the load dips below pull-off inside the step: locate it
-                tau = illinois_slip(x, v, tl, h_ev, s, xa, f, h, P, tu, tq, tqu)
-                n_ev += 1
-                out[O_EVENTS] += 1
-                if tau > 0.0:
-                    x, v = rk4(x, v, tl, tau, s, xa, f, h, P, tu, tq, tqu)
-                    tl = tl + tau
-                Nc = normal_load(x, v, tl, xa, f, h, P)[0]
-                if shifted_load(Nc, x, tl, xa, f, h, P, tu) <= n_min:  # pull-off before v = 0
-                    out[O_EVENT_T] = t0 + tl
-                    out[O_EVENT_X] = x
-                    return x, v, DETACHED
-                v = 0.0
-                mc, dc, sc = stick_state(x, tl, xa, f, h, P, tu, tq, tqu)
-                if mc >= 0.0:
-                    stuck = True
-                else:
-                    s = sc
-                if recording:
-                    _record(rec, out, t0 + tl, x, v, 0.0 if stuck else s, xa, f, h, tl, P, tu, tq,
-                            tqu)
-        if recording:
-            _record(rec, out, t0 + t_end, x, v, 0.0 if stuck else s, xa, f, h, t_end, P, tu, tq,
-                    tqu)
+            return _stop(out, t0 + tl, x, v, MAX_TIME)
+        t_end, k = _next_node(tl, k, n_steps, dt, T, t_unload1, t_unload2, t_lim)
+        if event:
+            x, v, tl, s, stuck, outcome = _event_step(x, v, tl, t_end, s, stuck, t0, xa, f, h, P,
+                                                      tu, tq, tqu, rec, out)
+        else:
+            x, v, tl, s, stuck, outcome = _karnopp_step(x, v, tl, t_end, dt, s, stuck, t0, xa, f,
+                                                        h, P, tu, tq, tqu, rec, out)
+        if outcome != MOVING:
+            return _stop(out, t0 + tl, x, v, outcome)
     if stuck:
         v = 0.0
     return x, v, MOVING
