@@ -22,7 +22,7 @@ REL = 1e-9            # closed-form tolerance (relative)
 
 
 # ----------------------------------------------------------------------------- helpers
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def sim(**kw) -> Simulator:
     """Cached Simulator (the contact table and the kernel arrays are built once per setting)."""
     return simulator(**kw)
@@ -47,7 +47,7 @@ def dt_for(freq, n):
 GRID = np.arange(100.0, 2000.0 + 1, 25.0)  # Hz, 25 Hz grid
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def sweep(shape="gaussian", h=H, kinematics="reduced", x0=X0):
     """Travel [m] and detachment flag over GRID (single actuator at 0)."""
     s = sim(shape=shape, kinematics=kinematics)

@@ -18,7 +18,7 @@ PHI = lambda z: math.exp(-0.5 * z * z) / math.sqrt(2 * math.pi)  # noqa: E731
 def _quad(f, a, b, points=()):
     edges = [a] + sorted(p for p in points if a < p < b) + [b]
     return sum(integrate.quad(f, lo, hi, epsabs=0, epsrel=1e-12, limit=400)[0]
-               for lo, hi in zip(edges[:-1], edges[1:]))
+               for lo, hi in zip(edges[:-1], edges[1:], strict=True))
 
 
 def _reference_integrals(norm, d):

@@ -113,14 +113,14 @@ def test_seed_part_sticks_at_any_tilt(slope):
 HEAVY_MASS = 2e-8  # kg: 10 x the seed part, so that a finite critical tilt exists
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def heavy_contact():
     from microconveyor_env.presets import load_preset
 
     return load_preset("dissertation").contact.replace(part__mass=HEAVY_MASS)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def critical_slope():
     """tan(theta_c): |N tan| = Q(N) with N = m g0 cos(theta), from the simulator's own table."""
     s = sim(contact=heavy_contact())
@@ -250,7 +250,7 @@ def test_friction_never_does_positive_work_on_still_flat_surface(mode):
     t, v = tr["t_s"], tr["v_m_s"]
     # still intervals: the delays and everything after the last stroke
     still, t_end = [], 0.0
-    for f, d in zip(freqs, delays):
+    for f, d in zip(freqs, delays, strict=True):
         still.append((t_end, t_end + d))
         t_end += d + 1 / f
     still.append((t_end, math.inf))

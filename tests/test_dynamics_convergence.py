@@ -32,7 +32,7 @@ def _order(ns, errs):
     return np.polyfit(np.log(1.0 / np.asarray(ns, float)), np.log(errs), 1)[0]
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def convergence_study():
     ref = _final("event", REF_STEPS)
     ev = np.array([abs(_final("event", n).final_position_m - ref.final_position_m) for n in LADDER])
@@ -106,7 +106,7 @@ def test_convergence_study_across_frequencies_and_shapes():
     for shape in ("gaussian", "sinusoidal", "clamped_beam"):
         for kin in ("reduced", "exact"):
             for f in (300.0, 500.0, 700.0, 950.0, 1250.0):
-                def fin(n):
+                def fin(n, shape=shape, kin=kin, f=f):
                     s = sim(shape=shape, kinematics=kin, dt=dt_for(f, n), min_steps=2)
                     r = quiet(s.simulate, Schedule.single(f, H), X0)
                     return r.final_position_m, r.outcome

@@ -61,7 +61,7 @@ def _rollout(env, seed, actions):
 
 def _equal(a, b):
     assert len(a) == len(b)
-    for x, y in zip(a, b):
+    for x, y in zip(a, b, strict=True):
         if isinstance(x, tuple):
             np.testing.assert_array_equal(x[0], y[0])
             assert x[1:] == y[1:]
@@ -115,7 +115,7 @@ def _assert_infos_equal(mine, ref):
     """Every key of SyncVectorEnv's info matches; extra keys of ours are fully masked out."""
     for key, val in ref.items():
         if key == "final_obs":
-            for a, b in zip(mine[key], val):
+            for a, b in zip(mine[key], val, strict=True):
                 assert (a is None and b is None) or np.array_equal(a, b)
         elif key == "final_info":
             _assert_infos_equal(mine[key], val)

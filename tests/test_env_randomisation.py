@@ -108,8 +108,9 @@ def test_factors_stay_in_their_ranges_and_are_spread_over_them():
     assert ff.min() < 0.81 and ff.max() > 1.24 and mf.min() < 0.52 and mf.max() > 1.98
     assert abs(np.corrcoef(ff, mf)[0, 1]) < 0.2  # independent draws
     # the part's row of constants carries them
-    np.testing.assert_array_equal(env._P[:, forces.I_MASS], env.sim.params[forces.I_MASS] * mf)
-    np.testing.assert_array_equal(env._P[:, forces.I_FSCALE], ff)
+    P = env.conveyor.consts.P
+    np.testing.assert_array_equal(P[:, forces.I_MASS], env.sim.params[forces.I_MASS] * mf)
+    np.testing.assert_array_equal(P[:, forces.I_FSCALE], ff)
     # a degenerate range gives exactly its value
     one = MicroConveyorEnv(friction_factor_range=(0.7, 0.7), mass_factor_range=(1.0, 1.0))
     _, info = one.reset(seed=1)
@@ -135,7 +136,7 @@ def test_action_noise_zero_is_exactly_off_and_info_shows_the_noisy_firing():
     assert quiet == given[:len(quiet)]  # sigma = 0: the given action, bit for bit
     env = MicroConveyorEnv(n_actuators=3, action_noise=0.05)
     noisy = _fired(env, 0, acts)
-    z = env._noise[0]
+    z = env.conveyor.consts.noise[0]
     for k, fired in enumerate(noisy):
         expected = actions.decode(*(acts[k].astype(float) + 0.05 * z[k]), actions.constants(cfg))
         assert fired == expected and fired != given[k]
@@ -173,7 +174,7 @@ def test_less_friction_or_more_mass_lets_a_sliding_part_travel_farther():
         env.reset(seed=0)
         m = env.sim.mass * mf
         a = ff * float(env.sim.table.friction(m * G0)) / m
-        dists[ff, mf] = d = _coast_distance(env._P[0], env.sim.tables)
+        dists[ff, mf] = d = _coast_distance(env.conveyor.consts.P[0], env.sim.tables)
         assert d == pytest.approx(0.02 ** 2 / (2 * a), rel=1e-9)
     assert dists[0.5, 1.0] > dists[1.0, 1.0] > dists[2.0, 1.0]
     assert dists[0.5, 1.0] == pytest.approx(2 * dists[1.0, 1.0], rel=1e-12)

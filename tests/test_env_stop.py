@@ -21,7 +21,7 @@ def _rest_after_throw() -> float:
     env.reset(seed=0, options={"target": 1e-3})
     env.step(THROW)
     assert env.v > 0.0  # still sliding when the stroke ends
-    x_rest, _, _, rest, _ = K.coast(env.x, env.v, 10.0, env._P[0], *env.sim.tables)
+    x_rest, _, _, rest, _ = K.coast(env.x, env.v, 10.0, env.conveyor.consts.P[0], *env.sim.tables)
     assert rest
     return x_rest
 

@@ -221,7 +221,7 @@ def test_stroke_peak_acceleration(f):
 def test_surface_eval_is_stroke_times_shape(kind):
     f, wl, x_act = 950.0, 0.6e-3, 1e-3
     rng = np.random.default_rng(1)
-    for x, t in zip(rng.uniform(0.0, 2e-3, 50), rng.uniform(-0.1 / f, 1.1 / f, 50)):
+    for x, t in zip(rng.uniform(0.0, 2e-3, 50), rng.uniform(-0.1 / f, 1.1 / f, 50), strict=True):
         p, p_t, p_tt = stroke_eval(t, f, H)
         g, g_u, g_uu = shape_eval(kind, x - x_act, wl)
         assert surface_eval(x, t, x_act, f, H, kind, wl) == (
@@ -239,7 +239,7 @@ def test_surface_derivatives_match_finite_differences(kind):
     X, Tt = (a.ravel() for a in np.meshgrid(x, t))
 
     def ev(xs, ts):
-        return np.array([surface_eval(a, b, x_act, f, H, kind, wl) for a, b in zip(xs, ts)]).T
+        return np.array([surface_eval(a, b, x_act, f, H, kind, wl) for a, b in zip(xs, ts, strict=True)]).T
 
     Y, Y_x, Y_t, Y_tt, Y_xt, Y_xx = ev(X, Tt)
     xp, xm = ev(X + dx, Tt), ev(X - dx, Tt)

@@ -77,7 +77,7 @@ def test_speed_statement_check_finds_the_pattern():
     travel = np.where(v < 0.15, v, np.where(v < 0.32, 0.15 - (v - 0.15), 0.15 - 0.17 + (v - 0.32)))
     rows = [{"freq_hz": 500.0, "stroke_m": 150e-6, "x0_m": -1e-4, "v0_m_s": float(vi),
              "travel_along_m": float(t), "gain_along_m": 0.0, "detached": False}
-            for vi, t in zip(v, travel)]
+            for vi, t in zip(v, travel, strict=True)]
     c = engage.check_speed_statement(rows)
     assert c["reproduced"]
     m = c["travel_along_m"]["matching"][0]

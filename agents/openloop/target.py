@@ -205,7 +205,7 @@ def plan_trajectory(plan: np.ndarray, target_m: float,
     env plays, from ``-start_offset``: without ``start_jitter``): ``t_s`` [s], ``x_m`` [m],
     ``v_m_s`` [m/s]. ``target_m`` [m] is unused by the physics and only checked, so a
     trajectory always belongs to a well-posed episode."""
-    from microconveyor_env.envs.conveyor import check_target, make_simulator
+    from microconveyor_env.envs.common import check_target, make_simulator
     from microconveyor_env.physics.schedule import ActuatorArray, Schedule
 
     cfg = config or EnvConfig.from_yaml()

@@ -99,7 +99,7 @@ def cmd_sweep(args: argparse.Namespace) -> None:
 
 def _sweep_text(res: dict[str, Any]) -> str:
     lines = [f"{res['param']:>12s}  travel [µm]  outcome"]
-    for v, d, o in zip(res[res["values_key"]], res["displacement_m"], res["outcome"]):
+    for v, d, o in zip(res[res["values_key"]], res["displacement_m"], res["outcome"], strict=True):
         lines.append(f"{v!s:>12s}  {d * 1e6:11.2f}  {o}")
     window = res.get("window" + res["values_key"][len(res["param"]):])
     if window is not None:

@@ -2,14 +2,14 @@
 
 Each component lives in [-1, 1] (clipped): frequency maps log-uniformly onto ``freq_range`` [Hz],
 stroke linearly onto ``stroke_range`` [m], delay linearly onto ``delay_range`` [s]. The mapping's
-constants travel as one float array ``AC`` (:func:`constants`) into the compiled :func:`decode`,
-with the execution noise ``action_noise`` [action units] (``AC[A_NOISE]``): when it is > 0 the env
-fires ``clip(action + action_noise * z)``, ``z`` standard normal per component and firing
-(docs/randomisation.md).
+constants travel as one :class:`ActionConstants` (:func:`constants`, a NamedTuple of floats read by
+field name in compiled code) into the compiled :func:`decode`, with the execution noise
+``action_noise`` [action units]: when it is > 0 the env fires ``clip(action + action_noise * z)``,
+``z`` standard normal per component and firing (docs/randomisation.md).
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 if TYPE_CHECKING:
     from .config import EnvConfig
@@ -23,28 +23,37 @@ from numba import njit
 from ..physics.jit_cache import refresh as refresh_jit_cache
 
 ACTION_DIM = 3
-A_F0, A_LOGSPAN, A_H0, A_HSPAN, A_D0, A_DSPAN, A_NOISE = range(7)
-N_A = 7
 
 
-def constants(cfg: EnvConfig) -> np.ndarray:
-    """The action mapping of ``cfg`` (an EnvConfig) as one array."""
-    AC = np.zeros(N_A)
-    AC[A_F0], AC[A_LOGSPAN] = cfg.freq_range[0], cfg.log_freq_span
-    AC[A_H0], AC[A_HSPAN] = cfg.stroke_range[0], cfg.stroke_range[1] - cfg.stroke_range[0]
-    AC[A_D0], AC[A_DSPAN] = cfg.delay_range[0], cfg.delay_range[1] - cfg.delay_range[0]
-    AC[A_NOISE] = cfg.action_noise
-    return AC
+class ActionConstants(NamedTuple):
+    """The action mapping (all float64; compiled code reads the fields by name)."""
+
+    f0: float        # Hz, lowest frequency (freq_range[0])
+    log_span: float  # -, ln(freq_range[1] / freq_range[0])
+    h0: float        # m, lowest stroke
+    h_span: float    # m, stroke_range[1] - stroke_range[0]
+    d0: float        # s, shortest delay
+    d_span: float    # s, delay_range[1] - delay_range[0]
+    noise: float     # action units, execution noise sigma (0: off)
+
+
+def constants(cfg: EnvConfig) -> ActionConstants:
+    """The action mapping of ``cfg`` (an EnvConfig)."""
+    return ActionConstants(
+        f0=float(cfg.freq_range[0]), log_span=float(cfg.log_freq_span),
+        h0=float(cfg.stroke_range[0]), h_span=float(cfg.stroke_range[1] - cfg.stroke_range[0]),
+        d0=float(cfg.delay_range[0]), d_span=float(cfg.delay_range[1] - cfg.delay_range[0]),
+        noise=float(cfg.action_noise))
 
 
 @njit(cache=True)
-def decode(a0: float, a1: float, a2: float, AC: np.ndarray) -> tuple[float, float, float]:
+def decode(a0: float, a1: float, a2: float, AC: ActionConstants) -> tuple[float, float, float]:
     """Action components in [-1, 1] (clipped) -> (f [Hz], h [m], delay [s])."""
     u0 = (min(max(a0, -1.0), 1.0) + 1.0) * 0.5
     u1 = (min(max(a1, -1.0), 1.0) + 1.0) * 0.5
     u2 = (min(max(a2, -1.0), 1.0) + 1.0) * 0.5
-    return (AC[A_F0] * math.exp(u0 * AC[A_LOGSPAN]), AC[A_H0] + u1 * AC[A_HSPAN],
-            AC[A_D0] + u2 * AC[A_DSPAN])
+    return (AC.f0 * math.exp(u0 * AC.log_span), AC.h0 + u1 * AC.h_span,
+            AC.d0 + u2 * AC.d_span)
 
 
 def encode_actions(f: npt.ArrayLike, h: npt.ArrayLike, delay: npt.ArrayLike,
@@ -60,8 +69,10 @@ def encode_actions(f: npt.ArrayLike, h: npt.ArrayLike, delay: npt.ArrayLike,
                     -1).astype(np.float32)
 
 
-def check_actions(actions: npt.ArrayLike, n: int | None) -> np.ndarray:
-    """float64 ``(n, 3)`` copy of the actions, checked.
+def check_actions(actions: npt.ArrayLike, n: int | None,
+                  out: np.ndarray | None = None) -> np.ndarray:
+    """float64 ``(n, 3)`` copy of the actions, checked (written into ``out``, a float64
+    ``(n, 3)`` array, when given, and returned).
 
     ``n = None`` is the single env: exactly shape ``(3,)``; otherwise exactly ``(n, 3)``. A wrong
     shape, a non-numeric dtype (bool, complex, str, object) or NaN/inf raise ``ValueError``.
@@ -78,11 +89,14 @@ def check_actions(actions: npt.ArrayLike, n: int | None) -> np.ndarray:
         raise ValueError(f"expected {what}, shape {expected}; got shape {raw.shape}")
     if raw.dtype.kind not in "iuf":
         raise ValueError(f"expected {what} as real numbers; got dtype {raw.dtype}")
-    a = raw.astype(np.float64).reshape(-1, 3)
+    if out is None:
+        a = raw.astype(np.float64).reshape(-1, 3)
+    else:
+        a = out
+        a[...] = raw.reshape(-1, 3)  # the cast astype would do
     if not np.isfinite(a).all():
         raise ValueError(f"action contains NaN or inf: {a.tolist()}")
     return a
-
 
 
 refresh_jit_cache(globals())

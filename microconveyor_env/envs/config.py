@@ -71,6 +71,13 @@ class EnvConfig:
     mass_factor_range: tuple = (1.0, 1.0)  # [-] factor on the part mass, uniform per episode
 
     def __post_init__(self):
+        self._check_ranges()
+        self._check_integers()
+        self._check_pairs()
+        self._check_horizon()
+        self._check_budget_and_choices()
+
+    def _check_ranges(self) -> None:
         for name, (lo, hi, lo_open, unit) in _RANGES.items():
             object.__setattr__(self, name, check_range("EnvConfig", name, getattr(self, name),
                                                        lo, hi, lo_open, unit=unit))
@@ -82,6 +89,8 @@ class EnvConfig:
             raise ParameterError(f"EnvConfig.start_jitter = {self.start_jitter!r} is invalid: must "
                                  f"be <= start_offset ({self.start_offset!r} m) so the part starts "
                                  "upstream of actuator 1")
+
+    def _check_integers(self) -> None:
         n = self.n_actuators
         if (isinstance(n, bool) or not isinstance(n, numbers.Real) or not math.isfinite(n)
                 or n != int(n) or not 1 <= n <= 1000):
@@ -104,6 +113,8 @@ class EnvConfig:
                 raise ParameterError(f"EnvConfig.num_threads = {nt!r} is invalid: must be null "
                                      "(automatic) or an integer in [1, 1024]")
             object.__setattr__(self, "num_threads", int(nt))
+
+    def _check_pairs(self) -> None:
         for name, (lo, hi, unit) in _PAIRS.items():
             pair = getattr(self, name)
             if not isinstance(pair, (list, tuple)) or len(pair) != 2:
@@ -116,6 +127,8 @@ class EnvConfig:
         if self.freq_range[0] <= 0:
             raise ParameterError(f"EnvConfig.freq_range = {self.freq_range!r} is invalid: "
                                  "frequencies must be > 0 Hz")
+
+    def _check_horizon(self) -> None:
         far = self.target_range[1] + self.start_offset + self.start_jitter
         if self.progress_horizon is None:
             object.__setattr__(self, "progress_horizon", 2.0 * far)
@@ -126,6 +139,8 @@ class EnvConfig:
                                  f"invalid: must be >= the farthest start-to-target distance "
                                  f"target_range[1] + start_offset + start_jitter = {far!r} m, so "
                                  "all progress from the start is paid")
+
+    def _check_budget_and_choices(self) -> None:
         object.__setattr__(self, "max_steps", check_max_steps("EnvConfig", self.max_steps))
         # the slowest strokes of a whole episode must fit the step budget
         check_step_budget("EnvConfig (dt, freq_range, n_actuators)",
@@ -141,7 +156,7 @@ class EnvConfig:
                                      f"must be one of {allowed}")
 
     @classmethod
-    def from_yaml(cls, path: str | None = None, **overrides) -> "EnvConfig":
+    def from_yaml(cls, path: str | None = None, **overrides) -> EnvConfig:
         """Defaults from ``configs/envs/MicroConveyor-v0.yaml`` (or ``path``), then ``overrides``."""
         from ..presets import parse_yaml
 

@@ -1,68 +1,18 @@
 """MicroConveyor-v0: carry a micropart to a target with a linear array of micro-actuators."""
 from __future__ import annotations
 
-import math
-import numbers
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
 from ..physics import dynamics_kernel as kernel
-from ..physics.contact_table import TableRangeError
-from ..physics.materials import ParameterError
 from ..physics.simulator import Simulator
-from ..presets import simulator
-from . import actions, randomisation, step as kstep, task
+from . import actions, task
+from .common import check_render_mode, check_target
 from .config import EnvConfig
-
-
-def make_simulator(cfg: EnvConfig) -> Simulator:
-    """The env's simulator; refuses action ranges whose strongest stroke would load the part
-    beyond the contact table (checked once here, so steps never need to)."""
-    sim = simulator(cfg.preset, shape=cfg.shape, wavelength=cfg.wavelength,
-                    kinematics=cfg.kinematics, mode=cfg.mode, dt=cfg.dt, max_time=cfg.max_time,
-                    min_steps=cfg.min_steps, max_steps=cfg.max_steps)
-    f, h = np.array([cfg.freq_range[1]]), np.array([cfg.stroke_range[1]])
-    try:
-        sim.check_firings(f, h)
-    except TableRangeError as exc:
-        raise ParameterError(f"EnvConfig.freq_range / stroke_range: {exc}") from None
-    heaviest = cfg.mass_factor_range[1]
-    if heaviest > 1.0:
-        try:
-            sim.check_firings(f, h, mass_factor=heaviest)
-        except TableRangeError as exc:
-            raise ParameterError(f"EnvConfig.mass_factor_range = {cfg.mass_factor_range!r} is "
-                                 f"invalid with these freq_range / stroke_range: a part "
-                                 f"{heaviest:g} times heavier: {exc}; lower the upper factor"
-                                 ) from None
-    return sim
-
-
-def check_target(target) -> float:
-    """A target from ``reset(options=...)`` [m]: finite and where the observation can show it."""
-    limit = task.OBS_BOUND * task.LENGTH_SCALE
-    numeric = isinstance(target, (numbers.Real, np.floating, np.integer)) and not isinstance(
-        target, (bool, np.bool_))
-    t = float(target) if numeric else math.nan
-    if not (np.isfinite(t) and abs(t) <= limit):
-        raise ValueError(f"options['target'] = {target!r} is invalid: must be a finite distance "
-                         f"beyond actuator 1 within +-{limit:g} m")
-    return t
-
-
-def check_render_mode(render_mode, supported) -> None:
-    if render_mode is not None and render_mode not in supported:
-        raise ValueError(f"render_mode {render_mode!r} not supported; use None or one of "
-                         f"{list(supported)} (for a window, wrap an rgb_array env in "
-                         "gymnasium.wrappers.HumanRendering)")
-
-
-def raise_if_beyond_table(outcome: str, sim: Simulator) -> None:
-    if outcome == "load_beyond_table":
-        raise TableRangeError(f"the normal load left the contact table ({sim.table.max_load:.3g} "
-                              "N) during a stroke; rebuild the table with a larger load_ratio")
+from .state import Conveyor
 
 
 class MicroConveyorEnv(gym.Env):
@@ -139,7 +89,8 @@ class MicroConveyorEnv(gym.Env):
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
 
-    def __init__(self, render_mode: str | None = None, config: EnvConfig | None = None, **kwargs):
+    def __init__(self, render_mode: str | None = None, config: EnvConfig | None = None,
+                 **kwargs: Any) -> None:
         if config is not None and kwargs:
             raise ValueError("give either config= or keyword overrides, not both")
         if config is not None and not isinstance(config, EnvConfig):
@@ -147,85 +98,64 @@ class MicroConveyorEnv(gym.Env):
         self.config = config or EnvConfig.from_yaml(**kwargs)
         check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
-        self.sim = make_simulator(self.config)
-        self.positions = np.asarray(self.config.actuator_positions, dtype=np.float64)
+        # the part's state, randomisation and compiled step (state.py), N = 1, always serial
+        self.conveyor = Conveyor(self.config, 1, num_threads=1)
+        self.conveyor.parts.target[0] = np.nan  # no target before the first reset
         self.action_space = spaces.Box(-1.0, 1.0, (actions.ACTION_DIM,), np.float32)
         self.observation_space = spaces.Box(-task.OBS_BOUND, task.OBS_BOUND, (task.OBS_DIM,),
                                             np.float32)
-        self._AC, self._TC = actions.constants(self.config), task.constants(self.config)
-        self._kout = np.zeros((1, kernel.N_OUT))
-        self._res = np.zeros((1, kstep.N_S))
-        self._obs_buf = np.zeros((1, task.OBS_DIM), dtype=np.float32)
-        self._active = np.ones(1, dtype=np.bool_)
-        self._x, self._v, self._t = np.zeros(1), np.zeros(1), np.zeros(1)
-        self._fired = np.zeros(1, dtype=np.int64)
-        self._target = np.full(1, np.nan)
         self._done = True
-        self._last_firing = None
-        # per-episode randomisation (randomisation.py): the part's constants row, its noise, the
-        # factors drawn, and the streams derived from np_random (re-derived when it is replaced)
-        self._P = self.sim.params.reshape(1, -1).copy()
-        self._noise = (np.zeros((1, self.config.n_actuators, 3)) if self.config.action_noise > 0
-                       else kstep.NO_NOISE)
-        self._factors = (1.0, 1.0)
-        self._rand_streams: tuple | None = None
-        self._rand_src = None
-        self._randomised = self.config.randomised
+        self._last_firing: tuple[float, float, float, float] | None = None
 
     # state accessors (SI units)
-    x = property(lambda self: float(self._x[0]), doc="part position [m]")
-    v = property(lambda self: float(self._v[0]), doc="part velocity [m/s]")
-    t = property(lambda self: float(self._t[0]), doc="simulated time [s]")
-    fired = property(lambda self: int(self._fired[0]), doc="actuators fired so far")
-    target = property(lambda self: float(self._target[0]), doc="target position [m]")
-    friction_factor = property(lambda self: self._factors[0],
+    x = property(lambda self: float(self.conveyor.parts.x[0]), doc="part position [m]")
+    v = property(lambda self: float(self.conveyor.parts.v[0]), doc="part velocity [m/s]")
+    t = property(lambda self: float(self.conveyor.parts.t[0]), doc="simulated time [s]")
+    fired = property(lambda self: int(self.conveyor.parts.fired[0]), doc="actuators fired so far")
+    target = property(lambda self: float(self.conveyor.parts.target[0]), doc="target position [m]")
+    friction_factor = property(lambda self: float(self.conveyor.friction_factor[0]),
                                doc="this episode's factor on the friction [-]")
-    mass_factor = property(lambda self: self._factors[1], doc="this episode's factor on the mass [-]")
+    mass_factor = property(lambda self: float(self.conveyor.mass_factor[0]),
+                           doc="this episode's factor on the mass [-]")
+
+    @property
+    def sim(self) -> Simulator:
+        """The simulator (its constants, contact table and integrator settings)."""
+        return self.conveyor.sim
+
+    @property
+    def positions(self) -> np.ndarray:
+        """Actuator positions [m] (float64)."""
+        return self.conveyor.positions
 
     # ------------------------------------------------------------------ API
-    def reset(self, *, seed=None, options=None):
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
         given = check_target(options["target"]) if options and "target" in options else None
-        x0, target = task.initial_state(self.config, self.np_random, given)
-        if self._randomised:
-            if self._rand_src is not self.np_random:  # seeded anew (or replaced): new streams
-                self._rand_streams = randomisation.streams(self.np_random)
-                self._rand_src = self.np_random
-            assert self._rand_streams is not None
-            self._factors = randomisation.draw(self.config, self._rand_streams, self.sim.params,
-                                               self._P[0], self._noise[0] if self._noise.size
-                                               else None)
-        self._x[0], self._v[0], self._t[0] = x0, 0.0, 0.0
-        self._fired[0] = 0
-        self._target[0] = target
+        self.conveyor.reset_part(0, self.np_random, given)
         self._done = False
         self._last_firing = None
-        kstep.observe_all(self._x, self._v, self._t, self._fired, self._target, self._TC,
-                          self.positions, self._obs_buf)
-        return self._obs_buf[0].copy(), self._info("moving", False)
+        return self.conveyor.observe()[0].copy(), self._info("moving", False)
 
-    def step(self, action):
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         if self._done:
             raise RuntimeError("step() called on a finished episode: call reset() first")
-        a = actions.check_actions(action, None)
-        xa = float(self.positions[self.fired])
-        kstep.step_serial(a, self._noise, self._x, self._v, self._t, self._fired, self._target,
-                          self._active, self._AC, self._TC, self.sim.dt, self.sim.min_steps,
-                          self.positions, self._P, *self.sim.tables, kstep.NO_RECORD,
-                          self._kout, self._res, self._obs_buf)
-        res = self._res[0]
-        outcome = kernel.OUTCOMES[int(res[kstep.S_OUTCOME])]
-        raise_if_beyond_table(outcome, self.sim)
+        c = self.conveyor
+        a = actions.check_actions(action, None, out=c.action_input)
+        xa = float(c.positions[c.parts.fired[0]])
+        out = c.step(a)
+        outcome = kernel.OUTCOMES[int(out.outcome[0])]
         terminated = outcome in ("rest", "detached")
         truncated = outcome in ("max_time", "too_many_events")
         self._done = terminated or truncated
-        f, h, d = float(res[kstep.S_F]), float(res[kstep.S_H]), float(res[kstep.S_D])
+        f, h, d = float(out.frequency[0]), float(out.stroke[0]), float(out.delay[0])
         self._last_firing = (xa, f, h, d)
-        info = self._info(outcome, bool(res[kstep.S_SUCCESS]))
+        info = self._info(outcome, bool(out.success[0]))
         info["frequency_hz"], info["stroke_m"], info["delay_s"] = f, h, d
-        return (self._obs_buf[0].copy(), float(res[kstep.S_REWARD]), terminated, truncated, info)
+        return (out.obs[0].copy(), float(out.reward[0]), terminated, truncated, info)
 
-    def render(self):
+    def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array":
             return None
         from .render import render_frame
@@ -234,9 +164,13 @@ class MicroConveyorEnv(gym.Env):
                             self.t)
 
     # ------------------------------------------------------------------ helpers
-    def _info(self, outcome: str, success: bool) -> dict:
-        info = {"is_success": success, "position_error_m": float(self.x - self.target),
-                "outcome": outcome, "sim_time_s": float(self.t)}
-        if self._randomised:
-            info["friction_factor"], info["mass_factor"] = self._factors
+    def _info(self, outcome: str, success: bool) -> dict[str, Any]:
+        c = self.conveyor
+        p = c.parts
+        info: dict[str, Any] = {"is_success": success,
+                                "position_error_m": float(p.x[0]) - float(p.target[0]),
+                                "outcome": outcome, "sim_time_s": float(p.t[0])}
+        if c.randomised:
+            info["friction_factor"] = float(c.friction_factor[0])
+            info["mass_factor"] = float(c.mass_factor[0])
         return info

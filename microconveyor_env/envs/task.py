@@ -3,7 +3,8 @@
 What the part should do, apart from how it moves (:mod:`..physics`) and how an action fires an
 actuator (:mod:`.actions`); :mod:`.step` composes the three into the compiled per-part step, so
 a task variant is a configuration (:class:`.config.EnvConfig`) of these few functions. The task's
-constants travel as one float array ``TC`` (:func:`constants`).
+constants travel as one :class:`TaskConstants` ``TC`` (:func:`constants`; a NamedTuple read by
+field name in compiled code).
 
 Success (at rest within ``tolerance`` of the target) is decided here and only here: the compiled
 step reports it, and the envs read it from there.
@@ -26,6 +27,8 @@ validation accepts:
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
@@ -37,20 +40,30 @@ OBS_BOUND = 10.0          # observations are clipped to [-OBS_BOUND, OBS_BOUND]
 LENGTH_SCALE = 10e-3      # m: position error and target are divided by this
 VELOCITY_SCALE = 0.5      # m/s
 
-T_NACT, T_SPACING, T_TMAX, T_PSCALE, T_TCOST, T_BONUS, T_PENALTY, T_TOL, T_HORIZON, T_STOP = \
-    range(10)
-N_T = 10
+
+class TaskConstants(NamedTuple):
+    """The task's constants (compiled code reads the fields by name)."""
+
+    n_actuators: int
+    spacing: float           # m
+    max_time: float          # s
+    progress_scale: float    # m
+    time_cost: float         # 1/s
+    success_bonus: float     # -
+    detach_penalty: float    # -
+    tolerance: float         # m
+    progress_horizon: float  # m
+    stop_at_target: bool
 
 
-def constants(cfg) -> np.ndarray:
-    """The task constants of ``cfg`` (an EnvConfig) as one array."""
-    TC = np.zeros(N_T)
-    TC[T_NACT], TC[T_SPACING], TC[T_TMAX] = cfg.n_actuators, cfg.spacing, cfg.max_time
-    TC[T_PSCALE], TC[T_TCOST] = cfg.progress_scale, cfg.time_cost
-    TC[T_BONUS], TC[T_PENALTY], TC[T_TOL] = cfg.success_bonus, cfg.detach_penalty, cfg.tolerance
-    TC[T_HORIZON] = cfg.progress_horizon
-    TC[T_STOP] = 1.0 if cfg.stop_at_target else 0.0
-    return TC
+def constants(cfg) -> TaskConstants:
+    """The task constants of ``cfg`` (an EnvConfig)."""
+    return TaskConstants(
+        n_actuators=int(cfg.n_actuators), spacing=float(cfg.spacing),
+        max_time=float(cfg.max_time), progress_scale=float(cfg.progress_scale),
+        time_cost=float(cfg.time_cost), success_bonus=float(cfg.success_bonus),
+        detach_penalty=float(cfg.detach_penalty), tolerance=float(cfg.tolerance),
+        progress_horizon=float(cfg.progress_horizon), stop_at_target=bool(cfg.stop_at_target))
 
 
 def initial_state(cfg, rng: np.random.Generator, target: float | None = None) -> tuple:
@@ -65,13 +78,13 @@ def initial_state(cfg, rng: np.random.Generator, target: float | None = None) ->
 @njit(cache=True)
 def potential(x, target, TC):
     """Phi = -min(|x - target|, progress_horizon) / progress_scale."""
-    return -min(abs(x - target), TC[T_HORIZON]) / TC[T_PSCALE]
+    return -min(abs(x - target), TC.progress_horizon) / TC.progress_scale
 
 
 @njit(cache=True)
 def is_success(code, x, target, TC):
     """At rest within the tolerance of the target."""
-    return code == kernel.REST and abs(x - target) <= TC[T_TOL]
+    return code == kernel.REST and abs(x - target) <= TC.tolerance
 
 
 @njit(cache=True)
@@ -83,9 +96,9 @@ def stop_if_delivered(x, v, t, target, TC, P, tu, tq, tqu):
 
     Stopping is what a resting part gets from any later firing that leaves it in place (e.g.
     200 Hz, 100 um), so the option changes when the episode ends, not where a part can rest."""
-    if TC[T_STOP] > 0.0:
-        xr, _, used, rest, _ = kernel.coast(x, v, max(TC[T_TMAX] - t, 0.0), P, tu, tq, tqu)
-        if rest and abs(xr - target) <= TC[T_TOL]:
+    if TC.stop_at_target:
+        xr, _, used, rest, _ = kernel.coast(x, v, max(TC.max_time - t, 0.0), P, tu, tq, tqu)
+        if rest and abs(xr - target) <= TC.tolerance:
             return xr, 0.0, t + used, kernel.REST
     return x, v, t, kernel.MOVING
 
@@ -96,22 +109,22 @@ def reward(code, x_old, x_new, t_old, t_new, target, TC):
     part takes the horizon's potential, pays the time cost up to ``max_time`` and the detachment
     penalty (see the module docstring for why)."""
     if code == kernel.DETACHED:
-        return -TC[T_HORIZON] / TC[T_PSCALE] - potential(x_old, target, TC) \
-            - TC[T_TCOST] * (max(TC[T_TMAX], t_new) - t_old) - TC[T_PENALTY]
+        return -TC.progress_horizon / TC.progress_scale - potential(x_old, target, TC) \
+            - TC.time_cost * (max(TC.max_time, t_new) - t_old) - TC.detach_penalty
     r = potential(x_new, target, TC) - potential(x_old, target, TC) \
-        - TC[T_TCOST] * (t_new - t_old)
+        - TC.time_cost * (t_new - t_old)
     if is_success(code, x_new, target, TC):
-        r += TC[T_BONUS]
+        r += TC.success_bonus
     return r
 
 
 @njit(cache=True)
 def observe_part(x, v, t, fired, target, TC, positions, row):
     """The observation row of one part (see the env's docstring table)."""
-    n = int(TC[T_NACT])
+    n = TC.n_actuators
     nxt = positions[fired] - x if fired < n else 0.0
-    vals = ((x - target) / LENGTH_SCALE, v / VELOCITY_SCALE, nxt / TC[T_SPACING],
-            t / TC[T_TMAX], fired / n, target / LENGTH_SCALE)
+    vals = ((x - target) / LENGTH_SCALE, v / VELOCITY_SCALE, nxt / TC.spacing,
+            t / TC.max_time, fired / n, target / LENGTH_SCALE)
     for j in range(OBS_DIM):
         row[j] = min(max(vals[j], -OBS_BOUND), OBS_BOUND)
 

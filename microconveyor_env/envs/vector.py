@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import numbers
-import time
 from typing import Any
 
 import numpy as np
@@ -13,10 +12,11 @@ from gymnasium.vector.utils import batch_space
 
 from ..physics import dynamics_kernel as kernel
 from ..physics.simulator import Simulator
-from . import actions as act, randomisation, step as kstep, task
+from . import actions as act, task
+from .common import check_render_mode, check_target
 from .config import EnvConfig
-from .conveyor import check_render_mode, check_target, make_simulator, raise_if_beyond_table
-from .threads import ThreadChooser, threads
+from .state import Conveyor
+from .threads import ThreadChooser
 
 MAX_ENVS = 1_000_000  # parts in one batch (each costs ~1 kB of state)
 
@@ -60,38 +60,66 @@ class MicroConveyorVectorEnv(VectorEnv):
         self.config: EnvConfig = config or EnvConfig.from_yaml(**kwargs)
         self.num_envs = n = int(num_envs)
         self.render_mode = render_mode
-        self.sim: Simulator = make_simulator(self.config)
-        self.positions: np.ndarray = np.asarray(self.config.actuator_positions, dtype=np.float64)
+        # the parts' state, randomisation and compiled step (state.py), shared with the single env
+        self.conveyor: Conveyor = Conveyor(self.config, n, self.config.num_threads)
         self.single_action_space = spaces.Box(-1.0, 1.0, (act.ACTION_DIM,), np.float32)
         self.single_observation_space = spaces.Box(-task.OBS_BOUND, task.OBS_BOUND,
                                                    (task.OBS_DIM,), np.float32)
         self.action_space = batch_space(self.single_action_space, n)
         self.observation_space = batch_space(self.single_observation_space, n)
-        self.x: np.ndarray = np.zeros(n)       # position [m]
-        self.v: np.ndarray = np.zeros(n)       # velocity [m/s]
-        self.t: np.ndarray = np.zeros(n)       # simulated time [s]
-        self.target: np.ndarray = np.zeros(n)  # target [m]
-        self.fired: np.ndarray = np.zeros(n, dtype=np.int64)
         self.done: np.ndarray = np.zeros(n, dtype=bool)
         self.rngs: list[np.random.Generator] = [seeding.np_random(None)[0] for _ in range(n)]
-        self._AC: np.ndarray = act.constants(self.config)
-        self._TC: np.ndarray = task.constants(self.config)
-        self._kout: np.ndarray = np.zeros((n, kernel.N_OUT))
-        self._res: np.ndarray = np.zeros((n, kstep.N_S))
-        self._obs_buf: np.ndarray = np.zeros((n, task.OBS_DIM), dtype=np.float32)
-        self.threads: ThreadChooser = ThreadChooser(self.config.num_threads, n)
         self._started: bool = False
-        # per-episode randomisation (randomisation.py): one row of constants per part (mass and
-        # friction factor applied), the episode's noise, the factors drawn, and each part's
-        # streams derived from its generator (re-derived when the generator is replaced)
-        self._P: np.ndarray = np.tile(self.sim.params, (n, 1))
-        self._noise: np.ndarray = (np.zeros((n, self.config.n_actuators, 3))
-                                   if self.config.action_noise > 0 else kstep.NO_NOISE)
-        self.friction_factor: np.ndarray = np.ones(n)  # this episode's factor on the friction [-]
-        self.mass_factor: np.ndarray = np.ones(n)      # this episode's factor on the mass [-]
-        self._rand_streams: list[tuple | None] = [None] * n
-        self._randomised: bool = self.config.randomised
-        self._rand_src: list[np.random.Generator | None] = [None] * n
+
+    # the parts' state (arrays, one element per sub-env; written in place) and configuration
+    @property
+    def x(self) -> np.ndarray:
+        """Positions [m]."""
+        return self.conveyor.parts.x
+
+    @property
+    def v(self) -> np.ndarray:
+        """Velocities [m/s]."""
+        return self.conveyor.parts.v
+
+    @property
+    def t(self) -> np.ndarray:
+        """Simulated times [s]."""
+        return self.conveyor.parts.t
+
+    @property
+    def target(self) -> np.ndarray:
+        """Targets [m]."""
+        return self.conveyor.parts.target
+
+    @property
+    def fired(self) -> np.ndarray:
+        """Actuators fired so far (int64)."""
+        return self.conveyor.parts.fired
+
+    @property
+    def friction_factor(self) -> np.ndarray:
+        """This episode's factor on the friction [-], per sub-env."""
+        return self.conveyor.friction_factor
+
+    @property
+    def mass_factor(self) -> np.ndarray:
+        """This episode's factor on the mass [-], per sub-env."""
+        return self.conveyor.mass_factor
+
+    @property
+    def threads(self) -> ThreadChooser:
+        """Serial or parallel, per step (:mod:`.threads`)."""
+        return self.conveyor.threads
+
+    @property
+    def sim(self) -> Simulator:
+        return self.conveyor.sim
+
+    @property
+    def positions(self) -> np.ndarray:
+        """Actuator positions [m] (float64)."""
+        return self.conveyor.positions
 
     # ------------------------------------------------------------------ resets
     def _reset_one(self, i: int, options: dict | None) -> None:
@@ -99,19 +127,7 @@ class MicroConveyorVectorEnv(VectorEnv):
         if options and "target" in options:
             tv = np.broadcast_to(np.asarray(options["target"], dtype=float), (self.num_envs,))
             given = check_target(tv[i])
-        x0, target = task.initial_state(self.config, self.rngs[i], given)
-        if self._randomised:
-            if self._rand_src[i] is not self.rngs[i]:  # seeded anew: new derived streams
-                self._rand_streams[i] = randomisation.streams(self.rngs[i])
-                self._rand_src[i] = self.rngs[i]
-            rs = self._rand_streams[i]
-            assert rs is not None
-            self.friction_factor[i], self.mass_factor[i] = randomisation.draw(
-                self.config, rs, self.sim.params, self._P[i],
-                self._noise[i] if self._noise.size else None)
-        self.x[i], self.v[i], self.t[i] = x0, 0.0, 0.0
-        self.fired[i] = 0
-        self.target[i] = target
+        self.conveyor.reset_part(i, self.rngs[i], given)
         self.done[i] = False
 
     def reset(self, *, seed: int | list | None = None,
@@ -131,40 +147,23 @@ class MicroConveyorVectorEnv(VectorEnv):
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
         if not self._started:
             raise RuntimeError("call reset() before step()")
-        a = act.check_actions(actions, self.num_envs)
-        n = self.num_envs
+        a = act.check_actions(actions, self.num_envs, out=self.conveyor.action_input)
         resetting = self.done.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP else \
-            np.zeros(n, dtype=bool)
+            np.zeros(self.num_envs, dtype=bool)
         for i in np.flatnonzero(resetting):
             self._reset_one(int(i), None)
         active = ~resetting
-        self._res[resetting] = 0.0
-        self._res[resetting, kstep.S_OUTCOME] = kernel.MOVING
-        args = (a, self._noise, self.x, self.v, self.t, self.fired, self.target, active,
-                self._AC, self._TC, self.sim.dt, self.sim.min_steps, self.positions, self._P,
-                *self.sim.tables, kstep.NO_RECORD, self._kout, self._res, self._obs_buf)
-        k = self.threads.choose()
-        t0 = time.perf_counter()
-        if k == 1:
-            kstep.step_serial(*args)
-        else:
-            with threads(k):
-                kstep.step_parallel(*args)
-        self.threads.record(k, time.perf_counter() - t0, int(active.sum()))
-        res = self._res
-        codes = res[:, kstep.S_OUTCOME].astype(np.int64)
-        if (codes == kernel.BEYOND_TABLE).any():
-            raise_if_beyond_table("load_beyond_table", self.sim)
+        out = self.conveyor.step(a, active)  # inactive parts report reward 0, MOVING, no firing
+        codes = out.outcome.copy()
         terminated = active & ((codes == kernel.REST) | (codes == kernel.DETACHED))
         truncated = active & ((codes == kernel.MAX_TIME) | (codes == kernel.TOO_MANY_EVENTS))
-        rew = np.where(active, res[:, kstep.S_REWARD], 0.0)
+        rew = np.where(active, out.reward, 0.0)
         self.done = terminated | truncated
-        obs = self._obs_buf.copy()
-        infos = self._infos(np.array(kernel.OUTCOMES, dtype=object)[codes],
-                            active & (res[:, kstep.S_SUCCESS] > 0.5))
-        for key, col in (("frequency_hz", kstep.S_F), ("stroke_m", kstep.S_H),
-                         ("delay_s", kstep.S_D)):
-            infos[key], infos["_" + key] = res[:, col].copy(), active.copy()
+        obs = out.obs.copy()
+        infos = self._infos(np.array(kernel.OUTCOMES, dtype=object)[codes], active & out.success)
+        for key, col in (("frequency_hz", out.frequency), ("stroke_m", out.stroke),
+                         ("delay_s", out.delay)):
+            infos[key], infos["_" + key] = col.copy(), active.copy()
         if self.autoreset_mode == AutoresetMode.SAME_STEP and self.done.any():
             infos = self._same_step_reset(obs, infos)
             obs = self._obs()
@@ -203,9 +202,7 @@ class MicroConveyorVectorEnv(VectorEnv):
 
     # ------------------------------------------------------------------ helpers
     def _obs(self) -> np.ndarray:
-        kstep.observe_all(self.x, self.v, self.t, self.fired, self.target, self._TC,
-                          self.positions, self._obs_buf)
-        return self._obs_buf.copy()
+        return self.conveyor.observe().copy()
 
     def _reset_infos(self) -> dict:
         return self._infos(np.full(self.num_envs, "moving", dtype=object),
@@ -215,7 +212,7 @@ class MicroConveyorVectorEnv(VectorEnv):
         ok = np.ones(self.num_envs, dtype=bool)
         infos = {"is_success": success.copy(), "position_error_m": self.x - self.target,
                  "outcome": outcome, "sim_time_s": self.t.copy()}
-        if self._randomised:
+        if self.conveyor.randomised:
             infos["friction_factor"] = self.friction_factor.copy()
             infos["mass_factor"] = self.mass_factor.copy()
         for key in list(infos):

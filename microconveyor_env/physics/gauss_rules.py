@@ -43,7 +43,7 @@ def _jacobi_and_derivative(n: int, beta: Decimal, x: Decimal) -> tuple[Decimal, 
     return p, dp
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def gauss_jacobi(n: int, beta: float) -> tuple[np.ndarray, np.ndarray]:
     """Nodes [-] and weights [-] of the n-point rule for ``int_-1^1 (1 + x)^beta f(x) dx``
     (``beta = 0``: Gauss–Legendre), ascending, identical bits on every machine."""

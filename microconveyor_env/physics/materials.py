@@ -216,7 +216,7 @@ class ContactParams:
         """``eta A_n``: number of asperities on the nominal area [-]."""
         return self.eta * self.part.area
 
-    def replace(self, **changes: Any) -> "ContactParams":
+    def replace(self, **changes: Any) -> ContactParams:
         """Copy with top-level fields or ``surface__sigma=...``-style nested fields changed (each in
         its field's SI unit)."""
         nested: dict[str, dict[str, Any]] = {}

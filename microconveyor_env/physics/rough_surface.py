@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 import numpy.typing as npt
@@ -58,7 +58,7 @@ class Normalised:
     K: float
 
     @classmethod
-    def from_params(cls, params: ContactParams) -> "Normalised":
+    def from_params(cls, params: ContactParams) -> Normalised:
         """The normalised inputs of ``params``."""
         oc = params.critical_interference
         eps = params.surface.eps
@@ -87,7 +87,7 @@ def _jacobi_unit(alpha: float) -> tuple[np.ndarray, np.ndarray]:
 
 def _pieces(breaks: list[float]) -> list[tuple[float, float]]:
     b = sorted(set(float(v) for v in breaks))
-    return list(zip(b[:-1], b[1:]))
+    return list(zip(b[:-1], b[1:], strict=True))
 
 
 class SurfaceIntegrals:

@@ -27,12 +27,12 @@ class ActuatorArray:
                     for i, p in enumerate(self.positions))
         if not pos:
             raise ParameterError("ActuatorArray.positions is empty: need at least one actuator")
-        if any(b <= a for a, b in zip(pos[:-1], pos[1:])):
+        if any(b <= a for a, b in zip(pos[:-1], pos[1:], strict=True)):
             raise ParameterError(f"ActuatorArray.positions = {pos} must be strictly increasing")
         object.__setattr__(self, "positions", pos)
 
     @classmethod
-    def uniform(cls, count: int, spacing: float, first: float = 0.0) -> "ActuatorArray":
+    def uniform(cls, count: int, spacing: float, first: float = 0.0) -> ActuatorArray:
         """``count`` [-] actuators, ``spacing`` [m] apart, the first at ``first`` [m]."""
         n = int(check_range("ActuatorArray", "count", count, 1, 10_000))
         sp = check_range("ActuatorArray", "spacing", spacing, 0, 1.0, True, unit="m")
@@ -83,14 +83,14 @@ class Schedule:
 
     @classmethod
     def single(cls, frequency: float, stroke: float, delay: float = 0.0,
-               position: float = 0.0) -> "Schedule":
+               position: float = 0.0) -> Schedule:
         """One actuator at ``position`` [m] fired once at ``frequency`` [Hz] with ``stroke`` [m]
         after ``delay`` [s]."""
         return cls(ActuatorArray((position,)), (Firing(0, frequency, stroke, delay),))
 
     @classmethod
     def sequence(cls, array: ActuatorArray, frequency: npt.ArrayLike, stroke: npt.ArrayLike,
-                 delay: npt.ArrayLike = 0.0) -> "Schedule":
+                 delay: npt.ArrayLike = 0.0) -> Schedule:
         """Fire every actuator of ``array`` once, in order, at ``frequency`` [Hz] with ``stroke`` [m]
         after ``delay`` [s]; scalars or per-firing sequences."""
         n = len(array)

@@ -70,7 +70,7 @@ def run_episodes(actions: np.ndarray, targets: np.ndarray | None = None, repeats
         for j in range(k):
             v_start[:, j] = np.where(done, 0.0, venv.v)
             _, _, term, trunc, info = venv.step(actions[:, j])
-            steps += venv._kout[~done, kernel.O_STEPS].sum()
+            steps += venv.conveyor.out.kernel[~done, kernel.O_STEPS].sum()
             new = (term | trunc) & ~done
             x_end[new] = venv.x[new]
             outcome[new] = info["outcome"][new]

@@ -19,7 +19,8 @@ import math
 import statistics
 import time
 from collections.abc import Iterable, Sequence
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
 
 from ..physics.contact_table import TableRangeError
 from ..physics.schedule import ActuatorArray, Schedule
@@ -156,8 +157,11 @@ def assess(rows: list[dict[str, Any]], tolerance_m: float = TOLERANCE_M) -> dict
         mine = [r for r in out_rows if r["scene"] == sc and not r["reference"]]
         ok_all = _stays_within(mine, lambda r: r["outcome_matches_faithful"]
                                and r["error_vs_faithful_m"] <= tolerance_m)
-        ok_num = _stays_within(mine, lambda r: r["numerical_error_m"] <= tolerance_m and r[
-            "outcome"] == refs[(sc, r["kinematics"], r["roughness"])]["outcome"])
+        def converged(r: dict[str, Any], sc: str = sc) -> bool:
+            return bool(r["numerical_error_m"] <= tolerance_m
+                        and r["outcome"] == refs[(sc, r["kinematics"], r["roughness"])]["outcome"])
+
+        ok_num = _stays_within(mine, converged)
         rules[sc] = {"cheapest_within_tolerance_of_faithful": _cheapest(ok_all),
                      "cheapest_numerically_converged": _cheapest(ok_num),
                      "faithful": refs[(sc, fk, fr)]}

@@ -157,10 +157,10 @@ def plot_fidelity(assessed: dict[str, Any], path: str | Path) -> str:
                     ax.loglog(w, e, mk + ls, color=col, ms=4, lw=1,
                               label=f"{kin} kin., {rough}, {mode}")
                     if row == 0:
-                        bad = [(wi, ei) for wi, ei, r in zip(w, e, sel)
+                        bad = [(wi, ei) for wi, ei, r in zip(w, e, sel, strict=True)
                                if not r["outcome_matches_faithful"]]
                         if bad:
-                            ax.plot(*zip(*bad), "kx", ms=9)
+                            ax.plot(*zip(*bad, strict=True), "kx", ms=9)
             ax.axhline(assessed["tolerance_m"] * 1e6, color="r", ls=":", lw=0.8, label="1 µm")
             ax.set_xlabel("wall time per run [µs]")
             ax.set_ylabel("|position - most faithful| [µm] (x: other outcome)" if row == 0
@@ -197,7 +197,7 @@ def plot_stretch(study: dict[str, Any], path: str | Path) -> str:
              and r["outcome"] == c[r["freq_hz"]]["outcome"] == "rest"
              and abs(c[r["freq_hz"]]["displacement_m"]) >= 10e-6]
     if pairs:
-        f, s_, c_ = (np.array(v) for v in zip(*pairs))
+        f, s_, c_ = (np.array(v) for v in zip(*pairs, strict=True))
         ax2.plot(f, (s_ / c_ - 1.0) * 100, "s-", ms=3)
     ax2.axhline(0, color="k", lw=0.6)
     ax2.set_xlabel("frequency [Hz]")

@@ -243,8 +243,8 @@ def converged_dt(contact: ContactParams, target_m: float = 1e-6, reference_m: fl
         chosen = min(tried, key=lambda e: abs(e[2]))
     assert chosen is not None
     keys = ("dt_s", "displacement_m", "error_m", "wall_time_s")
-    return {"converged": converged, **dict(zip(keys, chosen)), "reference_m": reference_m,
-            "target_m": target_m, "tried": [dict(zip(keys, row)) for row in tried],
+    return {"converged": converged, **dict(zip(keys, chosen, strict=True)), "reference_m": reference_m,
+            "target_m": target_m, "tried": [dict(zip(keys, row, strict=True)) for row in tried],
             "search_wall_s": time.perf_counter() - t_start, "stopped_by": stopped_by}
 
 

@@ -133,7 +133,7 @@ def design(levels: Mapping[str, Sequence[float]] | None = None) -> list[dict[str
     missing = [k for k in keys if k not in levels]
     if missing:
         raise KeyError(f"design levels missing {missing}")
-    return [dict(zip(keys, combo)) for combo in itertools.product(*(levels[k] for k in keys))]
+    return [dict(zip(keys, combo, strict=True)) for combo in itertools.product(*(levels[k] for k in keys))]
 
 
 def run_combination(task: dict[str, Any]) -> list[dict[str, Any]]:

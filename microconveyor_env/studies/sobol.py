@@ -68,7 +68,7 @@ def sobol_rows(n_base: int = 128, seed: int = 0, preset: str = "dissertation",
     """One row per sample of :func:`samples` (``n_base`` [-]), windows scanned over ``scan_hz``
     [Hz]; ``engine_kw`` go to :func:`.engine.run_tasks`."""
     X = samples(n_base, seed)
-    tasks = [{"sample": i, **dict(zip(PROBLEM["names"], map(float, x))), "preset": preset,
+    tasks = [{"sample": i, **dict(zip(PROBLEM["names"], map(float, x), strict=True)), "preset": preset,
               "scan_hz": tuple(scan_hz)} for i, x in enumerate(X)]
     engine_kw.setdefault("desc", "sobol")
     return run_tasks(run_sample, tasks, **engine_kw)

@@ -90,13 +90,13 @@ def compare(rows: list[dict[str, Any]]) -> dict[str, Any]:
                    "max_travel_at_hz": best["freq_hz"] if best else None,
                    "median_wall_time_s": statistics.median(
                        [r["wall_time_s"] for r in rs if not math.isnan(r["wall_time_s"])])}
-    pairs = [(a, b) for a, b in zip(by["constant"], by["stretch"])
+    pairs = [(a, b) for a, b in zip(by["constant"], by["stretch"], strict=True)
              if a["outcome"] == b["outcome"] == "rest" and abs(a["displacement_m"]) >= 10e-6]
     rel = [abs(b["displacement_m"]) / abs(a["displacement_m"]) - 1.0 for a, b in pairs]
     out["both_rest_runs"] = len(pairs)
     out["travel_change_rel"] = ({"median": statistics.median(rel), "min": min(rel),
                                  "max": max(rel)} if rel else None)
-    out["outcome_differs_hz"] = [a["freq_hz"] for a, b in zip(by["constant"], by["stretch"])
+    out["outcome_differs_hz"] = [a["freq_hz"] for a, b in zip(by["constant"], by["stretch"], strict=True)
                                  if a["outcome"] != b["outcome"]]
     out["cost_ratio"] = out["stretch"]["median_wall_time_s"] / out["constant"]["median_wall_time_s"]
     return out

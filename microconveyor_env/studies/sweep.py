@@ -7,7 +7,7 @@ the part starting at ``x0`` beside it, one stroke, then coasting to rest. Any of
 from __future__ import annotations
 
 import sys
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -106,7 +106,7 @@ def feasible_window(values: Iterable[Any], travel: Iterable[float],
     """[lo, hi]: lowest value with >= 10 um travel (``travel`` [m]), highest value below the first
     detachment; in the values' own unit."""
     lo = hi = None
-    for v, d, o in zip(values, travel, outcomes):
+    for v, d, o in zip(values, travel, outcomes, strict=True):
         if o == "detached":
             break
         if lo is None and abs(d) >= MIN_TRAVEL_M:

@@ -1,0 +1,64 @@
+"""Checks and constructors shared by the single and the batched MicroConveyor-v0 env."""
+from __future__ import annotations
+
+import math
+import numbers
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..physics.contact_table import TableRangeError
+from ..physics.materials import ParameterError
+from ..physics.simulator import Simulator
+from ..presets import simulator
+from . import task
+from .config import EnvConfig
+
+
+def make_simulator(cfg: EnvConfig) -> Simulator:
+    """The env's simulator; refuses action ranges whose strongest stroke would load the part
+    beyond the contact table (checked once here, so steps never need to)."""
+    sim = simulator(cfg.preset, shape=cfg.shape, wavelength=cfg.wavelength,
+                    kinematics=cfg.kinematics, mode=cfg.mode, dt=cfg.dt, max_time=cfg.max_time,
+                    min_steps=cfg.min_steps, max_steps=cfg.max_steps)
+    f, h = np.array([cfg.freq_range[1]]), np.array([cfg.stroke_range[1]])
+    try:
+        sim.check_firings(f, h)
+    except TableRangeError as exc:
+        raise ParameterError(f"EnvConfig.freq_range / stroke_range: {exc}") from None
+    heaviest = cfg.mass_factor_range[1]
+    if heaviest > 1.0:
+        try:
+            sim.check_firings(f, h, mass_factor=heaviest)
+        except TableRangeError as exc:
+            raise ParameterError(f"EnvConfig.mass_factor_range = {cfg.mass_factor_range!r} is "
+                                 f"invalid with these freq_range / stroke_range: a part "
+                                 f"{heaviest:g} times heavier: {exc}; lower the upper factor"
+                                 ) from None
+    return sim
+
+
+def check_target(target: object) -> float:
+    """A target from ``reset(options=...)`` [m]: finite and where the observation can show it."""
+    limit = task.OBS_BOUND * task.LENGTH_SCALE
+    t = math.nan
+    if isinstance(target, (numbers.Real, np.floating, np.integer)) and not isinstance(
+            target, (bool, np.bool_)):
+        t = float(target)
+    if not (np.isfinite(t) and abs(t) <= limit):
+        raise ValueError(f"options['target'] = {target!r} is invalid: must be a finite distance "
+                         f"beyond actuator 1 within +-{limit:g} m")
+    return t
+
+
+def check_render_mode(render_mode: str | None, supported: Sequence[str]) -> None:
+    if render_mode is not None and render_mode not in supported:
+        raise ValueError(f"render_mode {render_mode!r} not supported; use None or one of "
+                         f"{list(supported)} (for a window, wrap an rgb_array env in "
+                         "gymnasium.wrappers.HumanRendering)")
+
+
+def raise_if_beyond_table(outcome: str, sim: Simulator) -> None:
+    if outcome == "load_beyond_table":
+        raise TableRangeError(f"the normal load left the contact table ({sim.table.max_load:.3g} "
+                              "N) during a stroke; rebuild the table with a larger load_ratio")
