@@ -20,7 +20,7 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit
 
-from ..physics.jit_cache import refresh as refresh_jit_cache
+from ..jit_cache import refresh as refresh_jit_cache
 
 ACTION_DIM = 3
 

@@ -39,7 +39,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..physics import dynamics_kernel as kernel
-from ..physics.jit_cache import refresh as refresh_jit_cache
+from ..jit_cache import refresh as refresh_jit_cache
 from .actions import decode
 from .task import is_success, observe_part, reward, stop_if_delivered
 

@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit
 
 from ..physics import dynamics_kernel as kernel
-from ..physics.jit_cache import refresh as refresh_jit_cache
+from ..jit_cache import refresh as refresh_jit_cache
 
 OBS_DIM = 6
 OBS_BOUND = 10.0          # observations are clipped to [-OBS_BOUND, OBS_BOUND]

@@ -19,7 +19,7 @@ from numba import njit, prange
 
 from . import dynamics_kernel as kernel
 from .contact_table import TableRangeError
-from .jit_cache import refresh as refresh_jit_cache
+from ..jit_cache import refresh as refresh_jit_cache
 from .materials import ParameterError
 from .simulator import Simulator, stroke_steps
 

@@ -31,7 +31,7 @@ from numba import njit
 from .events import hidden_pull_off, illinois_slip, illinois_stick, slip_event
 from .forces import EVENT, I_MASS, I_MODE, I_NMAX, I_NMIN, accel, friction_at, n_min_at, \
     normal_load, rk4, shifted_load, stick_state
-from .jit_cache import refresh as refresh_jit_cache
+from ..jit_cache import refresh as refresh_jit_cache
 
 # ---- outcome codes ----
 REST, DETACHED, MAX_TIME, MOVING, TOO_MANY_EVENTS, BEYOND_TABLE = 0, 1, 2, 3, 4, 5

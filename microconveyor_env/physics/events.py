@@ -10,7 +10,7 @@ from __future__ import annotations
 from numba import njit
 
 from .forces import I_NMIN, accel, normal_load, rk4, shifted_load, stick_state
-from .jit_cache import refresh as refresh_jit_cache
+from ..jit_cache import refresh as refresh_jit_cache
 
 GOLDEN_ITERATIONS = 20  # golden-section steps for a load minimum inside a step
 SCREEN_MARGIN = 0.25    # search only if the parabolic estimate is within this * F_pull of pull-off

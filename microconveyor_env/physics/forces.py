@@ -12,7 +12,7 @@ import math
 from numba import njit
 from numba.extending import overload
 
-from .jit_cache import refresh as refresh_jit_cache
+from ..jit_cache import refresh as refresh_jit_cache
 from .kinematics import stroke_eval, surface_eval
 
 # ---- model constants array P ----

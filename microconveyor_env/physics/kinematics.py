@@ -48,7 +48,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .jit_cache import refresh as refresh_jit_cache
+from ..jit_cache import refresh as refresh_jit_cache
 
 GAUSSIAN = 0
 SINUSOIDAL = 1

@@ -24,6 +24,7 @@ directory (:func:`fallback_dir`), and if that cannot be had either, the package 
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -36,16 +37,25 @@ from typing import Any
 
 from numba.core import caching as _nc
 
-_ROOT = Path(__file__).resolve().parents[1]
-COMPILED_SOURCES = ("physics/kinematics.py", "physics/forces.py", "physics/events.py",
-                    "physics/dynamics_kernel.py", "physics/batch.py",
-                    "envs/actions.py", "envs/task.py", "envs/step.py")
+_ROOT = Path(__file__).resolve().parent
+MARKER = "refresh_jit_cache(globals())"   # the call every compiled module makes at import
 CHECKSUM_SUFFIX = ".sha256"
 
 
+@functools.cache
+def compiled_sources() -> tuple[str, ...]:
+    """The package's compiled modules (paths relative to the package), found by the call to
+    :func:`refresh` each makes: no list to keep in step with the code, and this infrastructure
+    names no module of any layer."""
+    return tuple(sorted(str(p.relative_to(_ROOT)) for p in _ROOT.rglob("*.py")
+                        if p.name != "jit_cache.py" and MARKER in p.read_text(encoding="utf-8")))
+
+
+@functools.cache
 def sources_digest() -> str:
+    """SHA-256 over every compiled module's path and source (once per process)."""
     h = hashlib.sha256()
-    for rel in COMPILED_SOURCES:
+    for rel in compiled_sources():
         h.update(rel.encode())
         h.update((_ROOT / rel).read_bytes())
     return h.hexdigest()
