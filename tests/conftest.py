@@ -16,17 +16,17 @@ def _isolated_cache(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
-def seed():
+def dissertation_preset():
     from microconveyor_env.presets import load_preset
 
     return load_preset("dissertation")
 
 
 @pytest.fixture(scope="session")
-def seed_table(seed):
+def dissertation_table(dissertation_preset):
     from microconveyor_env.physics.contact_table import ContactTable
 
-    return ContactTable(seed.contact)
+    return ContactTable(dissertation_preset.contact)
 
 
 @pytest.fixture(scope="session")

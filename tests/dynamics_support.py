@@ -16,7 +16,7 @@ from microconveyor_env.physics.simulator import Simulator, StepSizeWarning
 WL = 0.6e-3           # m, seed wavelength
 X0 = 0.125e-3         # m, seed start (from the actuator at 0)
 H = 200e-6            # m, seed stroke
-F_SEED = 950.0        # Hz, seed firing
+F_REF = 950.0        # Hz, reference firing
 OUTCOMES = {"rest", "detached", "max_time", "moving", "too_many_events"}
 REL = 1e-9            # closed-form tolerance (relative)
 
@@ -28,7 +28,7 @@ def sim(**kw) -> Simulator:
     return simulator(**kw)
 
 
-def run(freq=F_SEED, h=H, x0=X0, **kw):
+def run(freq=F_REF, h=H, x0=X0, **kw):
     return sim(**kw).simulate(Schedule.single(freq, h), x0)
 
 

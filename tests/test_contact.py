@@ -38,16 +38,16 @@ def _reference_integrals(norm, d):
 
 
 @pytest.mark.parametrize("d_star", [0.5, 2.0, 3.86, 4.35, 6.0])
-def test_quadrature_matches_adaptive_reference(seed, d_star):
-    norm = Normalised.from_params(seed.contact)
+def test_quadrature_matches_adaptive_reference(dissertation_preset, d_star):
+    norm = Normalised.from_params(dissertation_preset.contact)
     got = SurfaceIntegrals(norm).evaluate([d_star])
     ref = _reference_integrals(norm, d_star)
     for key in "PCQG":
         assert got[key][0] == pytest.approx(ref[key], rel=1e-8), key
 
 
-def test_derivatives_match_finite_differences(seed):
-    ints = SurfaceIntegrals(Normalised.from_params(seed.contact))
+def test_derivatives_match_finite_differences(dissertation_preset):
+    ints = SurfaceIntegrals(Normalised.from_params(dissertation_preset.contact))
     d, h = np.array([1.0, 3.0, 4.3]), 1e-4
     r = ints.evaluate(d, derivatives=2)
     rp, rm = ints.evaluate(d + h), ints.evaluate(d - h)
@@ -68,33 +68,33 @@ def test_greenwood_williamson_limit(d_star, F32):
     assert f["P_N"][0] == pytest.approx(gw, rel=2e-6)  # F_3/2 quoted to 6 digits
 
 
-def test_table_error_against_quadrature_below_1e4(seed_table):
-    err = tabulation_error(seed_table, samples=3000)
+def test_table_error_against_quadrature_below_1e4(dissertation_table):
+    err = tabulation_error(dissertation_table, samples=3000)
     assert err["max_rel_error_Q"] <= 1e-4
     assert err["max_abs_error_d_over_sigma"] <= 1e-6
 
 
-def test_inversion_round_trip(seed_table):
-    loads = np.concatenate([-seed_table.pull_off_force * np.array([1.0, 0.999999, 0.5, 0.0]),
-                            np.geomspace(1e-9, 0.5 * seed_table.max_load, 50)])
-    d = seed_table.separation(loads)
-    back = surface_forces(seed_table.params, d)["N_N"]
-    scale = np.maximum(np.abs(loads), seed_table.pull_off_force)
+def test_inversion_round_trip(dissertation_table):
+    loads = np.concatenate([-dissertation_table.pull_off_force * np.array([1.0, 0.999999, 0.5, 0.0]),
+                            np.geomspace(1e-9, 0.5 * dissertation_table.max_load, 50)])
+    d = dissertation_table.separation(loads)
+    back = surface_forces(dissertation_table.params, d)["N_N"]
+    scale = np.maximum(np.abs(loads), dissertation_table.pull_off_force)
     assert np.max(np.abs(back - loads) / scale) < 1e-7
     assert np.all(np.diff(d[4:]) < 0)  # more load, smaller separation
 
 
-def test_stable_branch_is_monotone(seed_table):
-    b = seed_table.base
+def test_stable_branch_is_monotone(dissertation_table):
+    b = dissertation_table.base
     assert np.all(np.diff(b.n) > 0) and np.all(np.diff(b.u) > 0) and np.all(np.diff(b.d) < 0)
     assert b.d[0] == pytest.approx(b.d_pull) and b.n[0] == pytest.approx(b.n_min)
     # the minimum is a minimum: N rises beyond d_A as well
-    f = surface_forces(seed_table.params, np.array([b.d_pull + 0.05]) * seed_table.params.surface.sigma)
-    assert f["N_N"][0] > -seed_table.pull_off_force
+    f = surface_forces(dissertation_table.params, np.array([b.d_pull + 0.05]) * dissertation_table.params.surface.sigma)
+    assert f["N_N"][0] > -dissertation_table.pull_off_force
 
 
-def test_seed_preset_reference_figures(seed_table):
-    r = seed_table.report()
+def test_dissertation_preset_reference_figures(dissertation_table):
+    r = dissertation_table.report()
     assert 70e-9 <= r["balance_separation_m"] <= 80e-9
     assert 80e-9 <= r["pull_off_separation_m"] <= 90e-9
     assert r["pull_off_force_N"] == pytest.approx(6.2e-6, rel=0.05)
@@ -110,23 +110,23 @@ def test_ke_preset_is_uncalibrated():
     assert ke.contact.surface.beta == 0.04
 
 
-def test_detachment_is_a_distinct_result_never_nan(seed_table):
-    F = seed_table.pull_off_force
+def test_detachment_is_a_distinct_result_never_nan(dissertation_table):
+    F = dissertation_table.pull_off_force
     with pytest.raises(DetachmentError) as info:
-        seed_table.friction(-1.0001 * F)
+        dissertation_table.friction(-1.0001 * F)
     assert info.value.pull_off == pytest.approx(F)
     with pytest.raises(DetachmentError):
-        seed_table.separation(np.array([0.0, -2 * F]))
-    assert seed_table.is_detached(-1.01 * F) and not seed_table.is_detached(-0.99 * F)
-    q = seed_table.friction(np.linspace(-F, 1e-3, 10001))
+        dissertation_table.separation(np.array([0.0, -2 * F]))
+    assert dissertation_table.is_detached(-1.01 * F) and not dissertation_table.is_detached(-0.99 * F)
+    q = dissertation_table.friction(np.linspace(-F, 1e-3, 10001))
     assert np.all(np.isfinite(q)) and np.all(q > 0)
     with pytest.raises(TableRangeError):
-        seed_table.friction(2 * seed_table.max_load)
+        dissertation_table.friction(2 * dissertation_table.max_load)
     with pytest.raises(ValueError):
-        seed_table.friction(float("nan"))
+        dissertation_table.friction(float("nan"))
 
 
-def test_calibration_fits_any_targets(seed):
+def test_calibration_fits_any_targets(dissertation_preset):
     base = ContactParams()
     target = Calibration(pull_off_force=3e-6, friction_force=2e-7, friction_load=1e-7)
     fitted, report = calibrate(base, target)
@@ -134,7 +134,7 @@ def test_calibration_fits_any_targets(seed):
     assert t.pull_off_force == pytest.approx(3e-6, rel=1e-10)
     assert float(t.friction(1e-7)) == pytest.approx(2e-7, rel=1e-10)
     assert report["fitted"] == ["beta", "friction_scale"]
-    assert seed.calibration["fitted"] == ["beta", "friction_scale"]
+    assert dissertation_preset.calibration["fitted"] == ["beta", "friction_scale"]
     # calibration leaves the separations alone
     assert t.pull_off_separation == pytest.approx(ContactTable(base).pull_off_separation, rel=1e-12)
 

@@ -14,7 +14,7 @@ from scipy.optimize import brentq
 
 from microconveyor_env.physics.schedule import ActuatorArray, Schedule
 
-from dynamics_support import F_SEED, G0, H, REL, X0, dt_for, normal_load_ref, sim, surface
+from dynamics_support import F_REF, G0, H, REL, X0, dt_for, normal_load_ref, sim, surface
 
 # ============================================================================ 1. closed forms
 @pytest.mark.parametrize("v0", [0.05, -0.05, 0.3])
@@ -93,7 +93,7 @@ def test_rest_on_still_surface_never_moves(mode, kinematics, shape):
 @pytest.mark.parametrize("shape", ["sinusoidal", "clamped_beam"])
 def test_rest_outside_compact_bump_never_moves(shape):
     """A full stroke beyond the support |u| > WL/2 leaves the part's surface still: no motion."""
-    r = sim(shape=shape).simulate(Schedule.single(F_SEED, H, position=1e-3), 0.0)
+    r = sim(shape=shape).simulate(Schedule.single(F_REF, H, position=1e-3), 0.0)
     assert r.outcome == "rest" and r.final_position_m == 0.0 and r.final_velocity_m_s == 0.0
 
 
@@ -179,14 +179,14 @@ def test_max_time_is_honoured_inside_a_delay():
 def test_recorded_normal_load_matches_physics(kinematics):
     """Recorded N equals m cos(theta)(g0 + Y_tt [+ 2 Y_xt v + Y_xx v^2]) from an independent
     implementation of the quintic stroke and the Gaussian bump; recorded Y too."""
-    s = sim(kinematics=kinematics, dt=dt_for(F_SEED, 400), min_steps=2)
-    r = s.simulate(Schedule.single(F_SEED, H), X0, record=True)
+    s = sim(kinematics=kinematics, dt=dt_for(F_REF, 400), min_steps=2)
+    r = s.simulate(Schedule.single(F_REF, H), X0, record=True)
     tr = r.trajectory
-    N_ref, _ = normal_load_ref(s.mass, tr["x_m"], tr["v_m_s"], tr["t_s"], F_SEED, H,
+    N_ref, _ = normal_load_ref(s.mass, tr["x_m"], tr["v_m_s"], tr["t_s"], F_REF, H,
                                kinematics == "exact")
-    scale = s.mass * (G0 + 10 / math.sqrt(3) * H * (2 * F_SEED) ** 2)
+    scale = s.mass * (G0 + 10 / math.sqrt(3) * H * (2 * F_REF) ** 2)
     np.testing.assert_allclose(tr["N_N"], N_ref, rtol=0, atol=1e-10 * scale)
-    Y_ref = surface(tr["x_m"], tr["t_s"], F_SEED, H)[0]
+    Y_ref = surface(tr["x_m"], tr["t_s"], F_REF, H)[0]
     np.testing.assert_allclose(tr["y_m"], Y_ref, rtol=0, atol=1e-12 * H)
 
 
@@ -197,14 +197,14 @@ def test_equation_of_motion_along_trajectory():
     The trapezoid rule itself errs by ~dt^3 a''/12 ~ 1e-6 of a_max dt here; a 1 % error in Q (or a
     missing cos(theta)) would show up 100-1000 times above the 1e-5 tolerance."""
     n = 4000
-    s = sim(dt=dt_for(F_SEED, n), min_steps=2)
-    r = s.simulate(Schedule.single(F_SEED, H), X0, record=True)
+    s = sim(dt=dt_for(F_REF, n), min_steps=2)
+    r = s.simulate(Schedule.single(F_REF, H), X0, record=True)
     tr = r.trajectory
     t, x, v, N, F = tr["t_s"], tr["x_m"], tr["v_m_s"], tr["N_N"], tr["F_N"]
-    _, Yx, *_ = surface(x, t, F_SEED, H)
+    _, Yx, *_ = surface(x, t, F_REF, H)
     c = 1 / np.sqrt(1 + Yx ** 2)
     acc = (F * c - N * Yx * c) / s.mass
-    T = 1 / F_SEED
+    T = 1 / F_REF
     pair = (~tr["stick"][:-1] & ~tr["stick"][1:] & (v[:-1] * v[1:] > 0)
             & (t[1:] <= T) & (np.diff(t) > 0))
     assert pair.sum() > 0.5 * n, "too few slip intervals to check"
@@ -221,7 +221,7 @@ def test_equation_of_motion_along_trajectory():
     assert np.all(F[slip] * v[slip] < 0)
 
 
-@pytest.mark.parametrize("freq", [300.0, F_SEED, 1250.0])
+@pytest.mark.parametrize("freq", [300.0, F_REF, 1250.0])
 def test_stick_condition_holds_while_stuck(freq):
     """Event mode: every recorded sticking state inside the stroke has |N tan(theta)| <= Q(N)."""
     s = sim(dt=dt_for(freq, 400), min_steps=2)
@@ -275,9 +275,9 @@ def test_recorded_coast_lies_on_the_parabola():
     parabola x = x_T + v_T tau - a tau^2 / 2 (a = Q(m g0) / m), up to the rest point; the chart
     of a firing shows the coast as it is, not as a straight line between two points."""
     s = sim()
-    r = s.simulate(Schedule.single(F_SEED, H), X0, record=True)
+    r = s.simulate(Schedule.single(F_REF, H), X0, record=True)
     tr = r.trajectory
-    T = 1.0 / F_SEED
+    T = 1.0 / F_REF
     end = np.flatnonzero(np.isclose(tr["t_s"], T, rtol=0, atol=1e-15))[-1]
     x_T, v_T = tr["x_m"][end], tr["v_m_s"][end]
     after = tr["t_s"] > T

@@ -12,7 +12,7 @@ import pytest
 
 from microconveyor_env.physics.schedule import Schedule
 
-from dynamics_support import F_SEED, H, WL, X0, dt_for, quiet, sim
+from dynamics_support import F_REF, H, WL, X0, dt_for, quiet, sim
 
 # ============================================================================ 3. convergence
 LADDER = [16, 32, 64, 128, 256, 512, 1024]  # steps per stroke
@@ -20,9 +20,9 @@ REF_STEPS = 2 ** 16
 
 
 def _final(mode, n, kinematics="reduced"):
-    s = sim(mode=mode, kinematics=kinematics, dt=dt_for(F_SEED, n), min_steps=2)
-    assert s.steps_per_stroke(F_SEED) == n
-    r = quiet(s.simulate, Schedule.single(F_SEED, H), X0)
+    s = sim(mode=mode, kinematics=kinematics, dt=dt_for(F_REF, n), min_steps=2)
+    assert s.steps_per_stroke(F_REF) == n
+    r = quiet(s.simulate, Schedule.single(F_REF, H), X0)
     assert r.steps >= n or r.outcome != "rest"  # event mode adds nodes and travel-limited splits
     return r
 
@@ -43,7 +43,7 @@ def convergence_study():
 
 
 def test_convergence_event_mode_order():
-    """Event mode keeps (nearly) RK4's order on the seed firing: fitted order >= 3."""
+    """Event mode keeps (nearly) RK4's order on the reference firing: fitted order >= 3."""
     ref, ev, _, _ = convergence_study()
     assert ref.outcome == "rest"
     order = _order(LADDER, ev)
@@ -68,7 +68,7 @@ def test_convergence_karnopp_worse_than_event():
 
 
 @pytest.mark.parametrize("kinematics,freq,min_order", [("reduced", 1300.0, 3.0), ("reduced", 1500.0, 3.0),
-                                                       ("exact", F_SEED, 1.2)])
+                                                       ("exact", F_REF, 1.2)])
 def test_convergence_of_detachment_instant(kinematics, freq, min_order):
     """Event mode locates the detachment instant and place to ~1e-12 relative at 2048 steps.
 
@@ -97,7 +97,7 @@ def test_convergence_of_detachment_instant(kinematics, freq, min_order):
 def test_convergence_study_across_frequencies_and_shapes():
     """Event-mode order of the final position / detachment place, 300-1250 Hz, three shapes, both
     kinematics (printed table). Asserted: order >= 3 for the smooth Gaussian and the sinusoid in
-    seed kinematics when the part comes to rest. The sinusoid and the clamped beam have a
+    reduced kinematics when the part comes to rest. The sinusoid and the clamped beam have a
     curvature jump at |u| = WL/2 (and the beam a third-derivative jump at u = 0) that the
     integrator does not locate, so their order is only printed in the other cases (measured
     ~2-3.5; the exact kinematics of the beam, whose N then jumps, ~2.7 with 1e-11 m errors)."""

@@ -134,7 +134,7 @@ def _accuracy_episode(args: argparse.Namespace) -> None:
     from ..studies.episodes import episode_study
 
     if args.preset not in ("dissertation", "seed"):
-        raise ValueError("--episode runs MicroConveyor-v0's own preset (seed); drop --preset")
+        raise ValueError("--episode runs MicroConveyor-v0's own preset (dissertation); drop --preset")
     study = episode_study(n_per_category=args.per_category, seed=args.seed,
                           repeats=min(args.repeats, 5), progress=True)
     if args.plot:
@@ -168,13 +168,13 @@ def _accuracy_args(p: argparse.ArgumentParser) -> None:
                    help="timed repeats per setting")
     p.add_argument("--episode", action="store_true",
                    help="whole MicroConveyor-v0 episodes (final position and outcome) instead of "
-                        "the single seed firing")
+                        "the single reference firing")
     p.add_argument("--per-category", type=count(1, 10_000), default=60,
                    help="--episode: episodes per category (4 categories)")
     p.add_argument("--seed", type=int, default=0, help="--episode: seed of the episode set")
 
 
-@command("bench", "kernel speed on the seed firing, against the dissertation-style loop")
+@command("bench", "kernel speed on the reference firing, against the dissertation-style loop")
 def cmd_bench(args: argparse.Namespace) -> None:
     """Kernel wall times [s] per mode, against the plain-Python reference loop."""
     from ..studies.bench import bench_modes

@@ -80,7 +80,7 @@ class Simulator:
     contact : ContactParams (a preset by name: :func:`microconveyor_env.presets.simulator`).
     shape : deformation shape, one of ``gaussian``, ``sinusoidal``, ``clamped_beam``.
     wavelength : deformation wavelength WL [m] (> 0).
-    kinematics : ``seed`` (drops the velocity terms of the normal load, the dissertation's model)
+    kinematics : ``reduced`` (drops the velocity terms of the normal load, the dissertation's model)
         or ``exact``.
     mode : ``event`` (stick/slip and detachment located inside the step) or ``karnopp``.
     dt : largest RK4 step [s]; each stroke of duration T = 1/f uses the smallest even number of

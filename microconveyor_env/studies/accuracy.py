@@ -1,6 +1,6 @@
 """Speed versus accuracy of the integrator settings (mode x kinematics x dt).
 
-For the seed firing (950 Hz, 200 um, start 0.125 mm, coast to rest) each setting's final position is
+For the reference firing (950 Hz, 200 um, start 0.125 mm, coast to rest) each setting's final position is
 compared with a converged reference of the same kinematics level (event mode, a very small step),
 and its wall time per firing is measured (median of repeats, compiled kernel). The default setting
 is the cheapest one within ``tolerance_m`` of the reference *that also stays within it at every

@@ -1,4 +1,4 @@
-"""Kernel benchmark: median wall time of the seed firing per mode (the whole ``simulate`` call and
+"""Kernel benchmark: median wall time of the reference firing per mode (the whole ``simulate`` call and
 the compiled call alone), and kernel steps per second.
 
 The dissertation-style plain-Python baseline is :mod:`.reference_loop`.

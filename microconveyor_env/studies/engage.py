@@ -8,7 +8,7 @@ Without a firing it would coast ``sign(v0) v0^2 / (2 a)`` on the still flat surf
 along v0) or held it back. ``travel_along_m`` is the travel measured along the initial motion.
 
 *Two actuators.* Actuators at 0 and ``spacing`` [m], the part starting ``start_offset`` upstream
-of the first (the seed firing mirrored: 950 Hz, 200 um, 0.125 mm, transport towards +x); the
+of the first (the reference firing mirrored: 950 Hz, 200 um, 0.125 mm, transport towards +x); the
 first fires, and after ``delay`` [s] the second. ``extra_m`` = final position - final position with the first firing only: > 0 where
 the second actuator carries the part on (accelerates it), < 0 where it brakes it.
 """

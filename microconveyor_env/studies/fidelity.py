@@ -1,6 +1,6 @@
 """Which model level a scene needs: each model choice against the most faithful level, and its cost.
 
-Three scenes (:data:`SCENES`): the seed firing, a 5-firing episode ending near its start and one
+Three scenes (:data:`SCENES`): the reference firing, a 5-firing episode ending near its start and one
 ending far. Model choices: kinematics ``seed`` / ``exact``, roughness ``constant`` (and
 ``stretch`` where the simulator offers it), integrator ``event`` / ``karnopp``, and a ladder of
 steps ``dt``. Every physics level (kinematics x roughness) also runs at a converged setting (event
@@ -27,7 +27,7 @@ from ..physics.schedule import ActuatorArray, Schedule
 from .engine import run_tasks, simulator
 
 SCENES: dict[str, dict[str, Any]] = {
-    "single": {"what": "the seed firing: 950 Hz, h = 200 um, start 0.125 mm beside the actuator",
+    "single": {"what": "the reference firing: 950 Hz, h = 200 um, start 0.125 mm beside the actuator",
                "count": 1, "spacing_m": 0.5e-3, "freq_hz": 950.0, "stroke_m": 200e-6,
                "delay_s": 0.0, "x0_m": 0.125e-3},
     "episode_near": {"what": "5 firings, spacing 0.5 mm, 500 Hz, h = 150 um, 1 ms delays, start "

@@ -1,7 +1,7 @@
 """The firing integrated "the dissertation's way": a plain-Python baseline for speed comparisons.
 
 One actuator (at x = 0) fires once; the part starts at rest at ``x0``. Same physics as the package
-kernel in ``karnopp`` mode with ``seed`` kinematics (docs/physics.md §1-§3):
+kernel in ``karnopp`` mode with ``reduced`` kinematics (docs/physics.md §1-§3):
 
 * surface ``Y = p(t) g(x - x_act)``, Gaussian ``g`` with ``s = WL/6``, quintic stroke ``p`` of
   height ``h`` and duration ``T = 1/f``;
@@ -27,7 +27,7 @@ API
 ``converged_dt(contact, target_m=1e-6, reference_m=None, **kw) -> dict``
 
 ``microconveyor bench`` runs it beside the kernel; ``python -m
-microconveyor_env.studies.reference_loop`` prints ``converged_dt`` for the seed preset.
+microconveyor_env.studies.reference_loop`` prints ``converged_dt`` for the dissertation preset.
 """
 from __future__ import annotations
 
@@ -109,7 +109,7 @@ def reference_firing(contact: ContactParams, freq: float = 950.0, stroke: float 
                 + (-2 * t3 + 3 * t2) * tq[lo + 1] + (t3 - t2) * hh * tqu[lo + 1])
 
     def load(x: float, t: float) -> tuple[float, float, float]:
-        """(N, Y_x, cos(theta)) at position x, time t since the stroke start (seed kinematics)."""
+        """(N, Y_x, cos(theta)) at position x, time t since the stroke start (reduced kinematics)."""
         if 0.0 <= t <= T:
             if t <= half:
                 tau = t / half

@@ -5,7 +5,7 @@ mass, wavelength and start position (a fraction of the wavelength, beside the ac
 For every combination the feasible frequency window is located (a log scan over :data:`SCAN_HZ`,
 both edges refined by bisection in log f), then the part is fired on a log grid of frequencies over
 that window. Each (surface energy, roughness) pair has its own contact table (built once, cached on
-disk); the seed preset's fitted beta and friction scale are kept.
+disk); the dissertation preset's fitted beta and friction scale are kept.
 
 The rows (one per simulation, scan and edge runs included, ``phase`` says which) go to
 :mod:`.regression` (Box--Cox + OLS, the dissertation's eq. 3-48 and Table 3.4).

@@ -1,5 +1,5 @@
 """Stability where methods fail, input validation, the dissertation's figures (docs/physics.md §5)
-and exact versus seed kinematics.
+and exact versus reduced kinematics.
 
 Helpers and constants: ``dynamics_support.py``. Measured numbers are printed (``pytest -s``).
 """
@@ -17,15 +17,15 @@ from microconveyor_env.physics.schedule import ActuatorArray, Schedule
 from microconveyor_env.presets import simulator
 from microconveyor_env.physics.simulator import StepSizeWarning
 
-from dynamics_support import (F_SEED, GRID, H, WL, X0, assert_finite_result, normal_load_ref,
+from dynamics_support import (F_REF, GRID, H, WL, X0, assert_finite_result, normal_load_ref,
                               onset, run, sim, sweep, usable_window)
 
 # ============================================================================ 4. stability
 def test_coarse_step_warns_and_stays_finite():
     s = sim(dt=1e-4, min_steps=2)  # 950 Hz: T/dt = 10.5 -> 12 steps < 20
-    assert s.steps_per_stroke(F_SEED) < 20
+    assert s.steps_per_stroke(F_REF) < 20
     with pytest.warns(StepSizeWarning, match="dt"):
-        r = s.simulate(Schedule.single(F_SEED, H), X0)
+        r = s.simulate(Schedule.single(F_REF, H), X0)
     assert_finite_result(r, "coarse")
     with pytest.warns(StepSizeWarning):
         r = sim(dt=5e-4, min_steps=2).simulate(Schedule.single(1500.0, H), X0)  # 2 steps
@@ -67,10 +67,10 @@ def test_detachment_in_exact_kinematics_is_genuine():
     """Exact kinematics at 950 Hz detaches (see test_exact_vs_seed_kinematics): at the reported
     point the full normal load, velocity terms included, is exactly -F_pull."""
     s = sim(kinematics="exact")
-    r = s.simulate(Schedule.single(F_SEED, H), X0)
+    r = s.simulate(Schedule.single(F_REF, H), X0)
     assert r.outcome == "detached"
     N, _ = normal_load_ref(s.mass, r.detach_position_m, r.final_velocity_m_s, r.detach_time_s,
-                           F_SEED, H, True)
+                           F_REF, H, True)
     assert N == pytest.approx(-s.table.pull_off_force, rel=1e-7)
 
 
@@ -82,16 +82,16 @@ NAN = float("nan")
     (lambda: Schedule.single(-950.0, H), r"frequency = -950\.0 is invalid"),
     (lambda: Schedule.single(NAN, H), r"frequency = nan is invalid.*finite"),
     (lambda: Schedule.single(math.inf, H), r"frequency = inf is invalid"),
-    (lambda: Schedule.single(F_SEED, -1e-6), r"stroke = -1e-06 is invalid"),
-    (lambda: Schedule.single(F_SEED, NAN), r"stroke = nan is invalid"),
-    (lambda: Schedule.single(F_SEED, H, delay=-1e-3), r"delay = -0\.001 is invalid"),
-    (lambda: Schedule.single(F_SEED, H, delay=NAN), r"delay = nan is invalid"),
-    (lambda: Schedule.sequence(ActuatorArray.uniform(2, 1e-3), F_SEED, H, [0.0, -1.0]),
+    (lambda: Schedule.single(F_REF, -1e-6), r"stroke = -1e-06 is invalid"),
+    (lambda: Schedule.single(F_REF, NAN), r"stroke = nan is invalid"),
+    (lambda: Schedule.single(F_REF, H, delay=-1e-3), r"delay = -0\.001 is invalid"),
+    (lambda: Schedule.single(F_REF, H, delay=NAN), r"delay = nan is invalid"),
+    (lambda: Schedule.sequence(ActuatorArray.uniform(2, 1e-3), F_REF, H, [0.0, -1.0]),
      r"delay = -1\.0 is invalid"),
     (lambda: ActuatorArray.uniform(2, -1e-3), r"spacing = -0\.001 is invalid"),
-    (lambda: sim().simulate(Schedule.single(F_SEED, H), NAN), r"x0 = nan is invalid"),
-    (lambda: sim().simulate(Schedule.single(F_SEED, H), math.inf), r"x0 = inf is invalid"),
-    (lambda: sim().simulate(Schedule.single(F_SEED, H), X0, v0=NAN), r"v0 = nan is invalid"),
+    (lambda: sim().simulate(Schedule.single(F_REF, H), NAN), r"x0 = nan is invalid"),
+    (lambda: sim().simulate(Schedule.single(F_REF, H), math.inf), r"x0 = inf is invalid"),
+    (lambda: sim().simulate(Schedule.single(F_REF, H), X0, v0=NAN), r"v0 = nan is invalid"),
     (lambda: sim().simulate("950 Hz", X0), r"schedule must be a Schedule"),
     (lambda: simulator(dt=0.0), r"dt = 0\.0 is invalid"),
     (lambda: simulator(dt=-2e-5), r"dt = -2e-05 is invalid"),
@@ -175,10 +175,10 @@ def test_larger_stroke_travels_further(freq):
 def test_sinusoidal_vs_gaussian():
     """§5: sinusoidal shapes travel further, at lower frequencies, over a narrower window.
 
-    Measured on the seed preset (200 um, WL 0.6 mm, x0 0.125 mm; usable = travel >= 10 um and no
+    Measured on the dissertation preset (200 um, WL 0.6 mm, x0 0.125 mm; usable = travel >= 10 um and no
     detachment): Gaussian 225-1275 Hz (onset 1300), sinusoidal 200-1025 Hz (onset 1050); the
     sinusoid travels further at every usable frequency, and its best travel is larger.
-    All three reported trends hold in this model (seed kinematics).
+    All three reported trends hold in this model (reduced kinematics).
     """
     tg, dg = sweep("gaussian")
     ts, ds = sweep("sinusoidal")
@@ -211,9 +211,9 @@ def test_best_start_position():
     assert WL / 12 < best < WL / 4
 
 
-# ======================================================================== exact vs seed kinematics
+# ======================================================================== exact vs reduced kinematics
 def test_exact_vs_seed_kinematics():
-    """Both kinematics levels run at the seed firing. Measured: the seed level (velocity terms
+    """Both kinematics levels run at the reference firing. Measured: the seed level (velocity terms
     dropped) travels ~1164 um and comes to rest; the exact level detaches after ~36 um, ~0.68 ms
     into the stroke -- on the downstroke, 2 Y_xt xdot and Y_xx xdot^2 (each ~1e3 m/s^2 at xdot
     ~ 0.3 m/s) pull the load below -F_pull. Exact kinematics moves the detachment onset from
@@ -238,7 +238,7 @@ def test_exact_vs_seed_kinematics():
 def test_recorded_friction_opposes_the_motion_that_follows():
     """Every slipping record has F = -s Q with s the direction of the next motion (also right
     after a reversal, where v = 0 at the record)."""
-    for freq, x0 in ((350.0, -0.1e-3), (600.0, 0.05e-3), (F_SEED, X0)):
+    for freq, x0 in ((350.0, -0.1e-3), (600.0, 0.05e-3), (F_REF, X0)):
         tr = sim().simulate(Schedule.single(freq, H), x0=x0, record=True).trajectory
         v, F, stick = tr["v_m_s"], tr["F_N"], tr["stick"]
         for k in range(len(v) - 1):
@@ -256,4 +256,4 @@ def test_load_beyond_table_raises_never_extrapolates():
     s.params = s.params.copy()
     s.params[forces.I_NMAX] = 2 * s.mass * 9.81  # ordinary strokes load the part far beyond
     with pytest.raises(TableRangeError, match="exceeded the contact table"):
-        s.simulate(Schedule.single(F_SEED, H), x0=X0)
+        s.simulate(Schedule.single(F_REF, H), x0=X0)
