@@ -21,6 +21,21 @@ def cmd_demo(args: argparse.Namespace) -> None:
     from microconveyor_env.cli.base import json_default
     from microconveyor_env.cli.demo import demo_summary
 
+    import importlib.util
+
+    if importlib.util.find_spec("stable_baselines3") is None:  # core install: the env-only demo
+        if args.policy:
+            raise ValueError("--policy needs stable-baselines3: pip install "
+                             "'microconveyor-env[train]'")
+        summary = demo_summary(args)
+        summary["policy_demo"] = None
+        Path(summary["summary_json"]).write_text(json.dumps(summary, indent=2,
+                                                            default=json_default))
+        emit(args, summary, "shipped policy skipped: it needs the train extra (pip install "
+                            "'microconveyor-env[train]')\n" + "\n".join(
+                                f"wrote {c}" for c in summary["charts"] + [summary["summary_json"]]))
+        return
+
     from ..experiments.demo import load_demo_policy, policy_demo, table
 
     policy = load_demo_policy(args.policy)   # a bad --policy fails before any other work

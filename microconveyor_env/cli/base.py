@@ -127,11 +127,30 @@ USER_ERRORS = (ParameterError, ValueError, RuntimeError, OSError, OverflowError,
                RecursionError)
 
 
+# optional dependencies -> the extra that installs them (pyproject.toml)
+EXTRAS = {"pandas": "studies", "pyarrow": "studies", "statsmodels": "studies", "SALib": "studies",
+          "dask": "studies", "distributed": "studies", "stable_baselines3": "train",
+          "torch": "train", "tensorboard": "train", "rich": "train", "cma": "agents",
+          "rl_zoo3": "agents"}
+
+
+def missing_extra(exc: BaseException) -> str | None:
+    """For an import of an optional dependency that is not installed: what to install."""
+    if not isinstance(exc, ModuleNotFoundError) or not exc.name:
+        return None
+    extra = EXTRAS.get(exc.name.split(".")[0])
+    if extra is None:
+        return None
+    return (f"this needs the optional package {exc.name.split('.')[0]!r}, which is not installed: "
+            f"pip install 'microconveyor-env[{extra}]'")
+
+
 def fail(argv: list[str], command: str, exc: BaseException) -> int:
     """The error contract: ``--json``: one ``{"error": ...}`` object on stdout; always one line on
     stderr; exit status 2."""
-    expected = isinstance(exc, USER_ERRORS)
-    text = " ".join(str(exc).split()) or type(exc).__name__  # one line
+    extra = missing_extra(exc)
+    expected = isinstance(exc, USER_ERRORS) or extra is not None
+    text = extra or " ".join(str(exc).split()) or type(exc).__name__  # one line
     if not expected:
         text += " (internal error: please report it; MICROCONVEYOR_DEBUG=1 shows the traceback)"
     msg = f"{type(exc).__name__}: {text}"

@@ -4,7 +4,7 @@ import pytest
 from microconveyor_env.envs import MicroConveyorVectorEnv
 from microconveyor_env.envs.threads import PROBE_EVERY, ThreadChooser
 
-from test_env import _assert_lockstep_with_sync
+from support.lockstep import assert_lockstep_with_sync
 
 
 @pytest.mark.parametrize("num_threads", [1, 2, None])
@@ -12,7 +12,7 @@ def test_threads_change_no_result_bit(num_threads):
     """Batched (serial, parallel, automatic) = SyncVectorEnv of single envs, every obs, reward,
     flag and info key, through autoresets."""
     batched = MicroConveyorVectorEnv(16, num_threads=num_threads, n_actuators=3)
-    _assert_lockstep_with_sync(batched, {"n_actuators": 3}, 3, 12, 7, 1.0)
+    assert_lockstep_with_sync(batched, {"n_actuators": 3}, 3, 12, 7, 1.0)
     if num_threads is None:
         assert set(batched.threads.cost) == {1, batched.threads.parallel}
 

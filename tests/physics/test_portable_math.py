@@ -13,7 +13,7 @@ from scipy.special import roots_jacobi
 from microconveyor_env.physics import portable_math as pm
 from microconveyor_env.physics.gauss_rules import gauss_jacobi, gauss_legendre
 
-CHILD = Path(__file__).with_name("fingerprint_child.py")
+CHILD = Path(__file__).resolve().parents[1] / "support" / "fingerprint_child.py"
 # sha256 of the dissertation preset's base table (TABLE_FORMAT 4). Recorded on an AVX2 machine
 # (Xeon, numpy X86_V3) and identical under every setting below; a deliberate change of the
 # quadrature or the fits changes it (update it together with TABLE_FORMAT).

@@ -1,7 +1,7 @@
 """Stability where methods fail, input validation, the dissertation's figures (docs/physics.md §5)
 and exact versus reduced kinematics.
 
-Helpers and constants: ``dynamics_support.py``. Measured numbers are printed (``pytest -s``).
+Helpers and constants: ``tests/support/dynamics.py``. Measured numbers are printed (``pytest -s``).
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from microconveyor_env.physics.schedule import ActuatorArray, Schedule
 from microconveyor_env.presets import simulator
 from microconveyor_env.physics.simulator import StepSizeWarning
 
-from dynamics_support import (F_REF, GRID, H, WL, X0, assert_finite_result, normal_load_ref,
+from support.dynamics import (F_REF, GRID, H, WL, X0, assert_finite_result, normal_load_ref,
                               onset, run, sim, sweep, usable_window)
 
 # ============================================================================ 4. stability

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-DATA = Path(__file__).parent / "data"
+from support import DATA
 _spec = importlib.util.spec_from_file_location("make_rollouts_v0", DATA / "make_rollouts_v0.py")
 rec = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(rec)
@@ -34,7 +34,7 @@ from microconveyor_env.envs import EnvConfig, MicroConveyorEnv, MicroConveyorVec
 from microconveyor_env.envs import actions, randomisation  # noqa: E402
 from microconveyor_env.physics import dynamics_kernel as kernel, forces  # noqa: E402
 from microconveyor_env.physics.materials import G0  # noqa: E402
-from test_env import _assert_lockstep_with_sync  # noqa: E402
+from support.lockstep import assert_lockstep_with_sync  # noqa: E402
 
 RAND = {"action_noise": 0.1, "friction_factor_range": (0.6, 1.4),
         "mass_factor_range": (0.5, 2.0)}
@@ -93,7 +93,7 @@ def test_randomisation_leaves_the_start_and_target_draws_alone():
 def test_single_env_equals_batched_env_part_for_part_with_randomisation(mode, threads):
     kw = {"start_jitter": 30e-6, "n_actuators": 3, **RAND}
     batched = MicroConveyorVectorEnv(4, autoreset_mode=mode, num_threads=threads, **kw)
-    assert _assert_lockstep_with_sync(batched, kw, 11, 14, 5, 1.2, mode) >= 4
+    assert assert_lockstep_with_sync(batched, kw, 11, 14, 5, 1.2, mode) >= 4
     _, info = batched.reset(seed=11)
     assert "friction_factor" in info and "mass_factor" in info
 
@@ -223,7 +223,7 @@ def test_bad_randomisation_values_name_the_field_and_the_range(kw, field):
 
 def test_the_repositorys_yaml_documents_the_options_with_the_dataclass_defaults():
     """By path: an editable install may map the package's configs to another checkout."""
-    path = Path(__file__).parents[1] / "configs" / "envs" / "MicroConveyor-v0.yaml"
+    path = Path(__file__).parents[2] / "configs" / "envs" / "MicroConveyor-v0.yaml"
     assert EnvConfig.from_yaml(str(path)) == EnvConfig()
     text = path.read_text()
     for key in ("action_noise:", "friction_factor_range:", "mass_factor_range:"):

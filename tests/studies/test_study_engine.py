@@ -36,6 +36,9 @@ def test_same_rows_ignores_timing_only():
 
 @pytest.mark.parametrize("suffix", ["csv", "parquet"])
 def test_tables_round_trip(tmp_path, suffix):
+    pytest.importorskip("pandas")
+    if suffix == "parquet":
+        pytest.importorskip("pyarrow")
     rows = [{"freq_hz": 500.0, "outcome": "rest", "distance_m": 1e-4},
             {"freq_hz": 700.0, "outcome": "detached", "distance_m": math.nan}]
     path = write_table(rows, tmp_path / f"t.{suffix}")
@@ -48,7 +51,7 @@ def test_tables_round_trip(tmp_path, suffix):
 
 def test_interrupted_table_write_leaves_nothing(tmp_path, monkeypatch):
     """A write cut short (here a Ctrl-C halfway) leaves neither the table nor a temporary file."""
-    import pandas as pd
+    pd = pytest.importorskip("pandas")
 
     def half_then_ctrl_c(self, path, **kw):
         Path(path).write_text("freq_hz\n5")

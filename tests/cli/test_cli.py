@@ -88,3 +88,12 @@ def test_demo_writes_charts_and_summary(tmp_path):
     assert abs(firing["displacement_m"] + 1164e-6) < 2e-6       # 1164 µm towards the actuator
     assert firing["wall_time_s"] < 0.05                         # steady state, not the compile
     assert summary["window_hz"] == [225.0, 1250.0]
+
+
+def test_a_missing_optional_package_names_the_extra_to_install():
+    from microconveyor_env.cli.base import fail, missing_extra
+
+    exc = ModuleNotFoundError("No module named 'pandas'", name="pandas")
+    assert "pip install 'microconveyor-env[studies]'" in missing_extra(exc)
+    assert missing_extra(ModuleNotFoundError("x", name="numpy_not_an_extra")) is None
+    assert fail(["--json"], "stretch", exc) == 2

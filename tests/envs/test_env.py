@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import microconveyor_env
+from support.lockstep import assert_lockstep_with_sync
 from microconveyor_env.envs import EnvConfig, MicroConveyorEnv, MicroConveyorVectorEnv
 from microconveyor_env.envs import actions, task
 
@@ -34,15 +35,23 @@ def test_registered_and_idempotent():
     assert isinstance(venv, MicroConveyorVectorEnv) and venv.num_envs == 3
 
 
+@pytest.mark.parametrize("checker", ["gymnasium", "stable_baselines3"])
 @pytest.mark.parametrize("env_id", [k for k in gym.registry if "MicroConveyor" in k])
-def test_checkers_pass_without_warnings(env_id):
-    from gymnasium.utils.env_checker import check_env
-    from stable_baselines3.common.env_checker import check_env as sb3_check_env
+def test_checkers_pass_without_warnings(env_id, checker):
+    if checker == "gymnasium":
+        from gymnasium.utils.env_checker import check_env
+
+        def run_check(env):
+            check_env(env)
+    else:
+        sb3 = pytest.importorskip("stable_baselines3.common.env_checker")
+
+        def run_check(env):
+            sb3.check_env(env, warn=True)
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        check_env(gym.make(env_id).unwrapped)
-        sb3_check_env(gym.make(env_id).unwrapped, warn=True)
+        run_check(gym.make(env_id).unwrapped)
     unexpected = [w for w in caught if not any(s in str(w.message) for s in WARNING_WHITELIST)]
     assert not unexpected, [str(w.message) for w in unexpected]
 
@@ -111,52 +120,13 @@ def test_module_prefixed_id_in_spawned_process():
                                   gym.make("MicroConveyor-v0").reset(seed=0)[0])
 
 
-def _assert_infos_equal(mine, ref):
-    """Every key of SyncVectorEnv's info matches; extra keys of ours are fully masked out."""
-    for key, val in ref.items():
-        if key == "final_obs":
-            for a, b in zip(mine[key], val, strict=True):
-                assert (a is None and b is None) or np.array_equal(a, b)
-        elif key == "final_info":
-            _assert_infos_equal(mine[key], val)
-        else:
-            np.testing.assert_array_equal(mine[key], val, err_msg=key)
-    for key in set(mine) - set(ref):
-        if key.startswith("_"):
-            assert not mine[key].any(), key
-
-
-def _assert_lockstep_with_sync(batched, kw, seed, steps, action_seed, bound, mode=None) -> int:
-    """Step ``batched`` and a SyncVectorEnv of single envs made with ``kw`` side by side on the
-    same uniform actions in [-bound, bound]: every obs, reward, flag and info key equal, from the
-    reset on. Returns how many episodes ended."""
-    n = batched.num_envs
-    extra = {} if mode is None else {"autoreset_mode": mode}
-    sync = gym.vector.SyncVectorEnv([lambda: gym.make("MicroConveyor-v0", **kw) for _ in range(n)],
-                                    **extra)
-    o1, i1 = batched.reset(seed=seed)
-    o2, i2 = sync.reset(seed=seed)
-    np.testing.assert_array_equal(o1, o2)
-    _assert_infos_equal(i1, i2)
-    rng = np.random.default_rng(action_seed)
-    ended = 0
-    for _ in range(steps):
-        a = rng.uniform(-bound, bound, (n, 3)).astype(np.float32)
-        r1, r2 = batched.step(a), sync.step(a)
-        for k in range(4):
-            np.testing.assert_array_equal(r1[k], r2[k])
-        _assert_infos_equal(r1[4], r2[4])
-        ended += int(r1[2].sum() + r1[3].sum())
-    return ended
-
-
 @pytest.mark.parametrize("mode", [gym.vector.AutoresetMode.NEXT_STEP,
                                   gym.vector.AutoresetMode.SAME_STEP])
 def test_batched_env_equals_sync_vector_env_step_for_step(mode):
     kw = {"start_jitter": 30e-6, "n_actuators": 3}
     batched = MicroConveyorVectorEnv(4, autoreset_mode=mode, **kw)
     # several episodes per sub-env, through autoresets
-    assert _assert_lockstep_with_sync(batched, kw, 11, 14, 5, 1.2, mode) >= 4
+    assert assert_lockstep_with_sync(batched, kw, 11, 14, 5, 1.2, mode) >= 4
 
 
 def test_bad_actions_and_clipping():
@@ -247,6 +217,7 @@ def test_render_rgb_array():
 
 
 def test_sb3_adapter_semantics():
+    pytest.importorskip("stable_baselines3")
     from stable_baselines3.common.vec_env import VecEnv
 
     from microconveyor_env.envs.sb3 import MicroConveyorSB3VecEnv
@@ -280,6 +251,7 @@ def test_reset_target_option_validated():
 
 
 def test_sb3_adapter_truncation_seeding_and_reset_infos():
+    pytest.importorskip("stable_baselines3")
     from microconveyor_env.envs.sb3 import MicroConveyorSB3VecEnv
 
     def first_obs(seed):

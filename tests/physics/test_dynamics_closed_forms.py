@@ -1,7 +1,7 @@
 """Closed forms on a still surface and an independent re-derivation of the normal load, the
 equation of motion and the stick condition along recorded trajectories (docs/physics.md §3.2-3.4).
 
-Helpers and constants: ``dynamics_support.py``. Measured numbers are printed (``pytest -s``).
+Helpers and constants: ``tests/support/dynamics.py``. Measured numbers are printed (``pytest -s``).
 """
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from scipy.optimize import brentq
 
 from microconveyor_env.physics.schedule import ActuatorArray, Schedule
 
-from dynamics_support import F_REF, G0, H, REL, X0, dt_for, normal_load_ref, sim, surface
+from support.dynamics import F_REF, G0, H, REL, X0, dt_for, normal_load_ref, sim, surface
 
 # ============================================================================ 1. closed forms
 @pytest.mark.parametrize("v0", [0.05, -0.05, 0.3])

@@ -1,7 +1,6 @@
 """Episode-level accuracy of the env's default integrator (studies/episodes.py) and the kernel
 changes it rests on: detachments hidden inside a step, strokes cut at max_time."""
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,9 +9,10 @@ from microconveyor_env.envs import EnvConfig, actions
 from microconveyor_env.physics.schedule import Schedule
 from microconveyor_env.studies.episodes import compare, episode_study, run_episodes
 
-from dynamics_support import sim
+from support import DATA as DATA_DIR
+from support.dynamics import sim
 
-DATA = json.loads((Path(__file__).parent / "data" / "episodes.json").read_text())
+DATA = json.loads((DATA_DIR / "episodes.json").read_text())
 REFERENCE = {"mode": "event", "dt": 1e-7}
 BAR = EnvConfig.from_yaml().tolerance / 10  # 5 um
 

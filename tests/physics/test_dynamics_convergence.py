@@ -1,7 +1,7 @@
 """Convergence in dt: event mode keeps RK4's order, the Karnopp threshold does not
 (docs/physics.md §3.6-3.7).
 
-Helpers and constants: ``dynamics_support.py``. Measured numbers are printed (``pytest -s``).
+Helpers and constants: ``tests/support/dynamics.py``. Measured numbers are printed (``pytest -s``).
 """
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import pytest
 
 from microconveyor_env.physics.schedule import Schedule
 
-from dynamics_support import F_REF, H, WL, X0, dt_for, quiet, sim
+from support.dynamics import F_REF, H, WL, X0, dt_for, quiet, sim
 
 # ============================================================================ 3. convergence
 LADDER = [16, 32, 64, 128, 256, 512, 1024]  # steps per stroke

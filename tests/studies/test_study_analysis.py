@@ -46,6 +46,7 @@ def _synthetic(lam=0.3, n_rep=6, noise=0.05, seed=0):
 
 
 def test_regression_recovers_known_coefficients():
+    pytest.importorskip("statsmodels")
     rows, coef = _synthetic()
     t = regression.table34(rows)
     assert t["boxcox_lambda"] == pytest.approx(0.3, abs=0.02)
@@ -119,6 +120,7 @@ def _cli(*args):
 
 
 def test_cli_studies_json_table_plot(tmp_path):
+    pytest.importorskip("pyarrow")  # --out FILE.parquet
     r = _cli("fidelity", "--json", "--scenes", "single", "--repeats", "1",
              "--out", str(tmp_path / "fid.parquet"), "--plot", str(tmp_path / "fid.png"))
     assert r.returncode == 0, r.stderr

@@ -1,0 +1,7 @@
+"""Helpers the tests share (on ``sys.path`` through pytest's ``pythonpath = ["tests"]``):
+``support.dynamics`` (simulators and constants of the dynamics tests), ``support.lockstep``
+(batched env against SyncVectorEnv), ``support.fingerprint_child`` (table and rollout hashes in a
+child process). ``DATA`` is the folder of stored test data."""
+from pathlib import Path
+
+DATA = Path(__file__).resolve().parents[1] / "data"
