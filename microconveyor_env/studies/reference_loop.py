@@ -57,6 +57,10 @@ def _table_lists(contact: ContactParams) -> TableLists:
     return [float(a) for a in tu], [float(a) for a in tq], [float(a) for a in tqu], float(n_min)
 
 
+# One long function on purpose (120 lines, complexity 14): it is the independent check of the
+# compiled kernel, written as the dissertation's single fixed-step loop so that it shares no
+# helper, and no mistake, with physics/dynamics_kernel.py; splitting it would re-create the
+# kernel's structure it exists to check.
 def reference_firing(contact: ContactParams, freq: float = 950.0, stroke: float = 200e-6,
                      x0: float = 0.125e-3, dt: float = 1e-6, wavelength: float = 0.6e-3, *,
                      x_act: float = 0.0, max_time: float = MAX_TIME,
