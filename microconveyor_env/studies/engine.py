@@ -23,39 +23,30 @@ a Dask scheduler answers (:func:`check_scheduler`).
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
-from collections.abc import Callable
-
 import asyncio
 import functools
 import logging
 import os
-import secrets
 import signal
 import sys
 import threading
 import time
-from collections.abc import Coroutine, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import ExitStack, contextmanager, suppress
-from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from ..physics.materials import ParameterError
+from . import dask_connect
+from .dask_connect import SchedulerConnectionError, check_scheduler  # noqa: F401 - re-exported
+from .tables import (TABLE_SUFFIXES, TIMING_COLUMNS, Row, atomic_path,  # noqa: F401
+                     partial_path, read_table, same_rows, write_table)
 
 if TYPE_CHECKING:
-    import pandas as pd
-
     from ..physics.simulator import Simulator
 
-Row = dict[str, Any]    # one table row: parameters and results, SI units in the key names
 Task = dict[str, Any]   # the parameters of one task
 
-TIMING_COLUMNS = ("wall_time_s",)  # measured, not computed: excluded when comparing runs
-TABLE_SUFFIXES = (".csv", ".parquet")  # the table formats of :func:`write_table`
-SCHEDULER_TIMEOUT_S = 10.0  # default bound on connecting to an existing scheduler [s]
-
-
-class SchedulerConnectionError(ConnectionError):
-    """No Dask scheduler answered at the given address in time, or what answered is not one."""
+SCHEDULER_TIMEOUT_S = dask_connect.SCHEDULER_TIMEOUT_S  # default bound on connecting [s]
 
 
 # ----------------------------------------------------------------------------- simulators
@@ -98,111 +89,6 @@ def _run_chunk(func: Callable[[Task], list[Row]], chunk: Iterable[Task]) -> list
     return rows
 
 
-def check_scheduler(address: str, timeout: float = SCHEDULER_TIMEOUT_S) -> dict[str, Any]:
-    """The identity of the Dask scheduler at ``address`` (``tcp://host:port``), asked within
-    ``timeout`` [s]; raises :class:`SchedulerConnectionError` if nothing answers in time or what
-    answers is not a Dask scheduler (e.g. an HTTP server, whose reply distributed would read as an
-    exabyte-long message).
-
-    Runs on a private event loop in a helper thread, so it works whether or not the caller runs
-    one.
-    """
-    timeout = _positive_timeout(timeout)
-    _check_address(address)
-    try:
-        ident = _in_thread(_identity(address, timeout))
-    except (asyncio.TimeoutError, TimeoutError) as exc:
-        raise SchedulerConnectionError(_no_answer(address, timeout)) from exc
-    except OSError as exc:  # refused/unreachable until the timeout, or the peer hung up
-        if "Timed out" in str(exc):
-            raise SchedulerConnectionError(_no_answer(address, timeout, exc.__cause__)) from exc
-        raise SchedulerConnectionError(f"{address} is not a Dask scheduler: the connection "
-                                       f"failed ({_brief(exc)})") from exc
-    except Exception as exc:  # noqa: BLE001 - a reply read as Dask frames: any error
-        raise SchedulerConnectionError(  # e.g. MemoryError: "HTTP/1.0" read as a frame length
-            f"{address} is not a Dask scheduler: its reply is not a Dask message (an HTTP or "
-            "other server?)") from exc
-    if not isinstance(ident, dict) or ident.get("type") != "Scheduler":
-        kind = ident.get("type") if isinstance(ident, dict) else None
-        raise SchedulerConnectionError(f"{address} is not a Dask scheduler"
-                                       + (f" (it is a Dask {kind})" if kind else ""))
-    return ident
-
-
-def _check_address(address: str) -> None:
-    """Raise :class:`ParameterError` unless ``address`` is a Dask address (a known scheme; a port
-    for the network ones)."""
-    from distributed.comm.addressing import parse_address, parse_host_port
-    from distributed.comm.registry import get_backend
-
-    try:
-        scheme, loc = parse_address(address)
-        get_backend(scheme)
-        if scheme in ("tcp", "tls", "ws", "wss"):
-            parse_host_port(loc)
-    except (ValueError, TypeError) as exc:
-        raise ParameterError(f"scheduler address {address!r} is invalid ({exc}); expected e.g. "
-                             "tcp://10.0.0.5:8786") from exc
-
-
-def _in_thread(coro: Coroutine[Any, Any, Any]) -> Any:
-    """``asyncio.run(coro)`` in a daemon thread (a private event loop): its result, or its
-    exception raised here. A Ctrl-C interrupts the wait at once, and the thread never delays the
-    interpreter's exit."""
-    box: dict[str, Any] = {}
-
-    def target() -> None:
-        try:
-            box["result"] = asyncio.run(coro)
-        except BaseException as exc:  # noqa: BLE001 - handed to the caller
-            box["error"] = exc
-
-    thread = threading.Thread(target=target, name="check-scheduler", daemon=True)
-    thread.start()
-    thread.join()
-    if "error" in box:
-        raise box["error"]
-    return box["result"]
-
-
-async def _identity(address: str, timeout: float) -> Any:
-    """The reply to the ``identity`` request at ``address``, all within about ``timeout`` [s]
-    (distributed bounds the connection, not the handshake that follows)."""
-    from distributed.comm import connect
-
-    async def ask() -> Any:
-        comm = await connect(address, timeout=timeout)
-        try:
-            await comm.write({"op": "identity", "reply": True})
-            return await comm.read()
-        finally:
-            comm.abort()
-
-    return await asyncio.wait_for(ask(), 1.05 * timeout + 0.1)  # connect's own error first
-
-
-def _no_answer(address: str, timeout: float, cause: BaseException | None = None) -> str:
-    """The message for a scheduler that did not answer within ``timeout`` [s]."""
-    text = str(cause).rsplit(": ", 1)[-1].strip() if cause is not None else ""
-    last = f" (last error: {text})" if text and not isinstance(cause, TimeoutError) else ""
-    return (f"no Dask scheduler answered at {address} within {timeout:g} s{last}: is the address "
-            "right and a scheduler running there?")
-
-
-def _brief(exc: BaseException) -> str:
-    """``exc`` as one short line."""
-    return " ".join(f"{type(exc).__name__}: {exc}".split())[:200]
-
-
-def _positive_timeout(timeout: float) -> float:
-    """``timeout`` [s] checked: positive and finite."""
-    t = float(timeout)
-    if not t > 0 or t == float("inf"):
-        raise ParameterError(f"scheduler timeout = {timeout!r} s is invalid: must be > 0 and "
-                             "finite")
-    return t
-
-
 @contextmanager
 def dask_client(workers: int | None = None, scheduler: str | None = None,
                 timeout: float = SCHEDULER_TIMEOUT_S) -> Iterator[Any]:
@@ -216,7 +102,7 @@ def dask_client(workers: int | None = None, scheduler: str | None = None,
         try:
             client = Client(scheduler, timeout=timeout)
         except (OSError, asyncio.TimeoutError) as exc:
-            raise SchedulerConnectionError(_no_answer(scheduler, timeout, exc)) from exc
+            raise SchedulerConnectionError(dask_connect.no_answer(scheduler, timeout, exc)) from exc
         try:
             yield client
         finally:
@@ -380,74 +266,3 @@ def timed(func: Callable[..., Any], *args: Any, **kw: Any) -> tuple[Any, float]:
     return out, time.perf_counter() - t0
 
 
-# ----------------------------------------------------------------------------- tables
-def write_table(rows: list[Row], path: str | Path) -> Path:
-    """Write rows as a tidy table: ``.csv`` or ``.parquet`` (one row per simulation).
-
-    The table goes to a temporary file in the same folder, renamed onto ``path`` when complete
-    (:func:`os.replace`), so ``path`` never holds a partial table (an interrupted write leaves
-    nothing)."""
-    import pandas as pd
-
-    path = Path(path)
-    if path.suffix not in TABLE_SUFFIXES:
-        raise ParameterError(f"table file {str(path)!r}: use a .csv or .parquet name")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    df = pd.DataFrame(rows)
-    with atomic_path(path) as tmp:
-        if path.suffix == ".parquet":
-            df.to_parquet(tmp, index=False)
-        else:
-            df.to_csv(tmp, index=False)
-    return path
-
-
-@contextmanager
-def atomic_path(path: str | Path) -> Iterator[Path]:
-    """A temporary file name beside ``path`` (same suffix, so writers infer the same format) to
-    write into; on a clean exit it is renamed onto ``path``, on any exception (Ctrl-C included)
-    it is removed."""
-    path = Path(path)
-    tmp = partial_path(path)
-    try:
-        yield tmp
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-
-
-def partial_path(path: str | Path) -> Path:
-    """A fresh temporary name beside ``path`` for its content while being written: hidden, with
-    the same suffix (so writers infer the same format), unique to this process and call."""
-    path = Path(path)
-    return path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}"
-                          f".partial{path.suffix}")
-
-
-def read_table(path: str | Path) -> pd.DataFrame:
-    """A table written by :func:`write_table` (``.parquet``, else CSV)."""
-    import pandas as pd
-
-    path = Path(path)
-    return pd.read_parquet(path) if path.suffix == ".parquet" else pd.read_csv(path)
-
-
-def same_rows(a: Sequence[Row], b: Sequence[Row]) -> bool:
-    """Whether two row lists are identical, row for row, ignoring :data:`TIMING_COLUMNS`."""
-    if len(a) != len(b):
-        return False
-    for ra, rb in zip(a, b, strict=True):
-        ka = {k: v for k, v in ra.items() if k not in TIMING_COLUMNS}
-        kb = {k: v for k, v in rb.items() if k not in TIMING_COLUMNS}
-        if ka.keys() != kb.keys():
-            return False
-        for k in ka:
-            x, y = ka[k], kb[k]
-            if x != y and not (_isnan(x) and _isnan(y)):
-                return False
-    return True
-
-
-def _isnan(v: object) -> bool:
-    return isinstance(v, float) and v != v
