@@ -48,6 +48,7 @@ class BudgetPPO(PPO):
     fully decayed learning rate, as the shipped policy's recipe expects."""
 
     budget_clock: Callable[[], float] | None = None  # set by train(); not saved with the model
+    _current_progress_remaining: float  # SB3's, declared for type checking without SB3 installed
     # torch threads for the gradient updates (rollouts keep one). 2 gain 15 % on an idle 2-core
     # machine but fall to ~450 steps/s when the cores are busy (benchmarks/train_speed.py)
     update_threads = 1
