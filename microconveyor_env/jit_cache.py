@@ -125,6 +125,33 @@ def _install_fallback_locator() -> None:
 _install_fallback_locator()  # before the compiled modules' decorators run (they import us first)
 
 
+def _install_index_guard() -> None:
+    """Make numba treat an unreadable cache *index* as an empty one (so it recompiles and writes
+    a good index) instead of raising. :class:`GuardedCache` covers the package's own dispatchers;
+    this also covers the ones numba makes itself, e.g. for ``@overload(..., jit_options={"cache":
+    True})`` implementations, whose truncated index used to end a run with ``UnpicklingError``."""
+    cls = getattr(_nc, "IndexDataCacheFile", None)
+    if cls is None or not hasattr(cls, "_load_index"):
+        return  # a numba without this internal: test_jit_cache says so loudly
+    if getattr(cls._load_index, "_microconveyor_guard", False):
+        return
+    original = cls._load_index
+
+    def _load_index(self: Any) -> dict:
+        try:
+            return original(self)
+        except Exception as exc:  # noqa: BLE001 - any unreadable index is rebuilt
+            print(f"microconveyor-env: damaged numba cache index {self._index_path} "
+                  f"({type(exc).__name__}); ignored, recompiling", file=sys.stderr)
+            return {}
+
+    _load_index._microconveyor_guard = True  # type: ignore[attr-defined]
+    setattr(cls, "_load_index", _load_index)  # noqa: B010 - a patch of numba's method
+
+
+_install_index_guard()
+
+
 # ----------------------------------------------------------------------------- damage
 def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()

@@ -56,6 +56,7 @@ def test_numba_private_caching_api_is_what_jit_cache_expects():
     from microconveyor_env.jit_cache import FallbackLocator, GuardedCache
 
     assert hasattr(nc, "_SourceFileBackedLocatorMixin") and hasattr(nc, "_CacheLocator")
+    assert getattr(nc.IndexDataCacheFile._load_index, "_microconveyor_guard", False)
     assert isinstance(nc.CacheImpl._locator_classes, list)
     assert FallbackLocator in nc.CacheImpl._locator_classes, numba.__version__
     for name in ("load_overload", "save_overload", "flush", "enable", "cache_path"):
