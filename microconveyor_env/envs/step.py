@@ -125,6 +125,21 @@ def _observe(i, parts, positions, TC, obs):
                  positions, obs[i])
 
 
+@njit(cache=True, inline="always")
+def _advance(i, actions, active, parts, c, AC, TC, out):
+    """Part ``i``'s share of a step: fire (active) or clear its outputs (inactive), then observe.
+    Returns 1 if the part left the contact table, else 0."""
+    beyond = 0
+    if active[i]:
+        _step_part(i, actions, parts, c, AC, TC, out)
+        if out.outcome[i] == kernel.BEYOND_TABLE:
+            beyond = 1
+    else:
+        _skip_part(i, out)
+    _observe(i, parts, c.positions, TC, out.obs)
+    return beyond
+
+
 @njit(cache=True)
 def step_serial(actions, active, parts, c, AC, TC, out):
     """Fire the next actuator of every active part (``actions`` (N, 3) float64, ``active`` (N,)
@@ -132,13 +147,7 @@ def step_serial(actions, active, parts, c, AC, TC, out):
     (outcome BEYOND_TABLE)."""
     beyond = 0
     for i in range(parts.x.shape[0]):
-        if active[i]:
-            _step_part(i, actions, parts, c, AC, TC, out)
-            if out.outcome[i] == kernel.BEYOND_TABLE:
-                beyond += 1
-        else:
-            _skip_part(i, out)
-        _observe(i, parts, c.positions, TC, out.obs)
+        beyond += _advance(i, actions, active, parts, c, AC, TC, out)
     return beyond
 
 
@@ -147,13 +156,7 @@ def step_parallel(actions, active, parts, c, AC, TC, out):
     """:func:`step_serial` in numba's parallel loop (the same per-part code)."""
     beyond = 0
     for i in prange(parts.x.shape[0]):
-        if active[i]:
-            _step_part(i, actions, parts, c, AC, TC, out)
-            if out.outcome[i] == kernel.BEYOND_TABLE:
-                beyond += 1
-        else:
-            _skip_part(i, out)
-        _observe(i, parts, c.positions, TC, out.obs)
+        beyond += _advance(i, actions, active, parts, c, AC, TC, out)
     return beyond
 
 
