@@ -4,6 +4,7 @@ from __future__ import annotations
 import math
 import numbers
 from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -13,6 +14,9 @@ from ..physics.simulator import Simulator
 from ..presets import simulator
 from . import task
 from .config import EnvConfig
+
+if TYPE_CHECKING:
+    from .state import Conveyor
 
 
 def make_simulator(cfg: EnvConfig) -> Simulator:
@@ -62,3 +66,32 @@ def raise_if_beyond_table(outcome: str, sim: Simulator) -> None:
     if outcome == "load_beyond_table":
         raise TableRangeError(f"the normal load left the contact table ({sim.table.max_load:.3g} "
                               "N) during a stroke; rebuild the table with a larger load_ratio")
+
+
+class OwnsConveyor:
+    """What both envs expose of the :class:`~.state.Conveyor` they own (``self.conveyor``)."""
+
+    conveyor: Conveyor
+
+    @property
+    def sim(self) -> Simulator:
+        """The simulator (its constants, contact table and integrator settings)."""
+        return self.conveyor.sim
+
+    @property
+    def positions(self) -> np.ndarray:
+        """Actuator positions [m] (float64)."""
+        return self.conveyor.positions
+
+
+def conveyor_field(path: str, doc: str) -> Any:
+    """A read-only property for ``self.conveyor.<path>`` (dotted), e.g. ``"parts.x"``."""
+    names = path.split(".")
+
+    def get(self: OwnsConveyor) -> Any:
+        obj: Any = self.conveyor
+        for name in names:
+            obj = getattr(obj, name)
+        return obj
+
+    return property(get, doc=doc)

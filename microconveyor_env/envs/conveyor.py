@@ -8,14 +8,13 @@ import numpy as np
 from gymnasium import spaces
 
 from ..physics import dynamics_kernel as kernel
-from ..physics.simulator import Simulator
 from . import actions, task
-from .common import check_render_mode, check_target
+from .common import OwnsConveyor, check_render_mode, check_target
 from .config import EnvConfig
 from .state import Conveyor
 
 
-class MicroConveyorEnv(gym.Env):
+class MicroConveyorEnv(OwnsConveyor, gym.Env):
     """Goal-conditioned micropart conveyor (physics: Kogut–Etsion contact, stick–slip dynamics).
 
     A part starts ``start_offset`` upstream of actuator 1 (at x = 0) of a linear array of
@@ -117,16 +116,6 @@ class MicroConveyorEnv(gym.Env):
                                doc="this episode's factor on the friction [-]")
     mass_factor = property(lambda self: float(self.conveyor.mass_factor[0]),
                            doc="this episode's factor on the mass [-]")
-
-    @property
-    def sim(self) -> Simulator:
-        """The simulator (its constants, contact table and integrator settings)."""
-        return self.conveyor.sim
-
-    @property
-    def positions(self) -> np.ndarray:
-        """Actuator positions [m] (float64)."""
-        return self.conveyor.positions
 
     # ------------------------------------------------------------------ API
     def reset(self, *, seed: int | None = None,

@@ -11,17 +11,15 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from ..physics import dynamics_kernel as kernel
-from ..physics.simulator import Simulator
 from . import actions as act, task
-from .common import check_render_mode, check_target
+from .common import OwnsConveyor, check_render_mode, check_target, conveyor_field
 from .config import EnvConfig
 from .state import Conveyor
-from .threads import ThreadChooser
 
 MAX_ENVS = 1_000_000  # parts in one batch (each costs ~1 kB of state)
 
 
-class MicroConveyorVectorEnv(VectorEnv):
+class MicroConveyorVectorEnv(OwnsConveyor, VectorEnv):
     """``num_envs`` independent copies of :class:`~microconveyor_env.envs.MicroConveyorEnv`.
 
     Same spaces, rewards and info keys as the single env (batched). Sub-env ``i`` reset with
@@ -72,54 +70,15 @@ class MicroConveyorVectorEnv(VectorEnv):
         self._started: bool = False
 
     # the parts' state (arrays, one element per sub-env; written in place) and configuration
-    @property
-    def x(self) -> np.ndarray:
-        """Positions [m]."""
-        return self.conveyor.parts.x
-
-    @property
-    def v(self) -> np.ndarray:
-        """Velocities [m/s]."""
-        return self.conveyor.parts.v
-
-    @property
-    def t(self) -> np.ndarray:
-        """Simulated times [s]."""
-        return self.conveyor.parts.t
-
-    @property
-    def target(self) -> np.ndarray:
-        """Targets [m]."""
-        return self.conveyor.parts.target
-
-    @property
-    def fired(self) -> np.ndarray:
-        """Actuators fired so far (int64)."""
-        return self.conveyor.parts.fired
-
-    @property
-    def friction_factor(self) -> np.ndarray:
-        """This episode's factor on the friction [-], per sub-env."""
-        return self.conveyor.friction_factor
-
-    @property
-    def mass_factor(self) -> np.ndarray:
-        """This episode's factor on the mass [-], per sub-env."""
-        return self.conveyor.mass_factor
-
-    @property
-    def threads(self) -> ThreadChooser:
-        """Serial or parallel, per step (:mod:`.threads`)."""
-        return self.conveyor.threads
-
-    @property
-    def sim(self) -> Simulator:
-        return self.conveyor.sim
-
-    @property
-    def positions(self) -> np.ndarray:
-        """Actuator positions [m] (float64)."""
-        return self.conveyor.positions
+    x = conveyor_field("parts.x", "Positions [m].")
+    v = conveyor_field("parts.v", "Velocities [m/s].")
+    t = conveyor_field("parts.t", "Simulated times [s].")
+    target = conveyor_field("parts.target", "Targets [m].")
+    fired = conveyor_field("parts.fired", "Actuators fired so far (int64).")
+    friction_factor = conveyor_field("friction_factor",
+                                     "This episode's factor on the friction [-], per sub-env.")
+    mass_factor = conveyor_field("mass_factor", "This episode's factor on the mass [-], per sub-env.")
+    threads = conveyor_field("threads", "Serial or parallel, per step (:mod:`.threads`).")
 
     # ------------------------------------------------------------------ resets
     def _reset_one(self, i: int, options: dict | None) -> None:
