@@ -78,20 +78,16 @@ def record_batched(kw: dict, seed: int, n: int, acts: np.ndarray) -> list:
 def provenance() -> dict:
     """How the data was produced: package version, table format and hash, machine, date."""
     import datetime
-    import hashlib
     import platform
 
     import microconveyor_env
     from microconveyor_env.physics import contact_table
-    from microconveyor_env.presets import load_preset
 
-    base = contact_table.base_table(load_preset("dissertation").contact, use_cache=False)
-    h = hashlib.sha256()
-    for key, value in base.arrays().items():
-        if key != "build_seconds":
-            h.update(key.encode() + np.ascontiguousarray(value, dtype=float).tobytes())
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from support.fingerprint_child import table_hash
+
     return {"package_version": microconveyor_env.__version__,
-            "table_format": contact_table.TABLE_FORMAT, "table_sha256": h.hexdigest(),
+            "table_format": contact_table.TABLE_FORMAT, "table_sha256": table_hash(),
             "numpy": np.__version__, "machine": platform.machine(),
             "processor": platform.processor() or platform.machine(),
             "recorded_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
