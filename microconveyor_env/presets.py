@@ -1,13 +1,18 @@
 """Named parameter presets (YAML files in the repository's ``configs/``, shipped with the package).
 
-``load_preset("dissertation")`` reads ``configs/dissertation.yaml``, validates it, applies its
+``load_preset("conveyor")`` reads ``configs/conveyor.yaml``, validates it, applies its
 ``calibration`` block (if any) and returns a :class:`Preset`. A path to a YAML file works as well as
 a name. :func:`simulator` builds a :class:`~.physics.simulator.Simulator` from a preset (the
-physics layer itself takes parameters, never names). The former preset name ``seed`` still works
-with a DeprecationWarning.
+physics layer itself takes parameters, never names).
+
+The dissertation's two surfaces (docs/physics.md §8): ``feasibility`` (chapter 3, Table 3.1,
+dgamma = 1 J/m^2) and ``conveyor`` (chapter 4, Table 4.2, dgamma = 0.5 J/m^2, calibrated on
+chapter 3's surface through ``calibration.measured_with``). The former names ``dissertation``
+and ``seed`` (both the chapter-3 surface) still work with a DeprecationWarning.
 """
 from __future__ import annotations
 
+import dataclasses
 import functools
 import warnings
 from dataclasses import dataclass, field
@@ -39,6 +44,16 @@ class Preset:
     contact: ContactParams
     calibration: dict[str, Any] = field(default_factory=dict)   # what was fitted (empty: none)
     dynamics: dict[str, Any] = field(default_factory=dict)      # simulator defaults of this preset
+
+    def forces(self) -> dict[str, float]:
+        """The preset's contact figures (SI): pull-off force [N], the friction Q at the part's
+        weight [N] and the slip deceleration Q(m g0) / m on a still flat surface [m/s^2]."""
+        from .physics.contact_table import ContactTable
+
+        table = ContactTable(self.contact)
+        q = float(table.friction(self.contact.part.weight))
+        return {"pull_off_force_N": float(table.pull_off_force), "friction_at_weight_N": q,
+                "slip_deceleration_m_s2": q / self.contact.part.mass}
 
 
 def available_presets() -> list[str]:
@@ -125,12 +140,14 @@ def params_from_dict(data: dict[str, Any]) -> ContactParams:
                          friction_scale=data.get("friction_scale", 1.0))
 
 
-DEFAULT_PRESET = "dissertation"
-RENAMED_PRESETS = {"seed": "dissertation"}  # old name -> new name (deprecated, still accepted)
+DEFAULT_PRESET = "feasibility"
+# old name -> new name (deprecated, still accepted)
+RENAMED_PRESETS = {"seed": "feasibility", "dissertation": "feasibility"}
 
 
 def load_preset(name_or_path: str = DEFAULT_PRESET) -> Preset:
-    """Load, validate and calibrate a preset by name (``dissertation``, ``ke``) or YAML path."""
+    """Load, validate and calibrate a preset by name (``feasibility``, ``conveyor``, ``ke``) or
+    YAML path."""
     name = str(name_or_path)
     if name in RENAMED_PRESETS:
         warnings.warn(f"preset {name!r} is now called {RENAMED_PRESETS[name]!r}",
@@ -148,6 +165,36 @@ def simulator(preset: str = DEFAULT_PRESET, contact: ContactParams | None = None
     return Simulator(p.contact if contact is None else contact, **{**p.dynamics, **kw})
 
 
+def _calibrate(params: ContactParams, cal: dict[str, Any]) -> tuple[ContactParams, dict[str, Any]]:
+    """Apply a preset's calibration block. ``measured_with`` (surface fields, SI): the surface
+    the measured figures belong to; the fit runs there and its beta and friction_scale (surface
+    properties) are carried to this surface."""
+    measured_with = cal.pop("measured_with", None) or {}
+    if not isinstance(measured_with, dict) or not set(measured_with) <= _SURFACE_FIELDS:
+        raise ParameterError(f"calibration.measured_with must map surface fields "
+                             f"{sorted(_SURFACE_FIELDS - {'beta'})} to values, got "
+                             f"{measured_with!r}")
+    if "beta" in measured_with:
+        raise ParameterError("calibration.measured_with cannot set beta: beta is what the fit "
+                             "carries over")
+    if cal.get("friction_load") == "weight":
+        cal["friction_load"] = None
+    try:
+        target = Calibration(**cal)
+    except TypeError as exc:
+        raise ParameterError(f"calibration: {exc}") from None
+    if not measured_with:
+        return calibrate(params, target)
+    fit_on = params.replace(**{f"surface__{k}": v for k, v in measured_with.items()})
+    fitted, report = calibrate(fit_on, target)
+    report["measured_with"] = dict(measured_with)
+    return params.replace(surface__beta=fitted.surface.beta,
+                          friction_scale=fitted.friction_scale), report
+
+
+_SURFACE_FIELDS = {f.name for f in dataclasses.fields(Surface)}
+
+
 @functools.lru_cache(maxsize=32)
 def _load_preset(name_or_path: str) -> Preset:
     data = _read(name_or_path)
@@ -155,14 +202,7 @@ def _load_preset(name_or_path: str) -> Preset:
     report: dict[str, Any] = {}
     cal = data.get("calibration")
     if cal:
-        cal = dict(cal)
-        if cal.get("friction_load") == "weight":
-            cal["friction_load"] = None
-        try:
-            target = Calibration(**cal)
-        except TypeError as exc:
-            raise ParameterError(f"calibration: {exc}") from None
-        params, report = calibrate(params, target)
+        params, report = _calibrate(params, dict(cal))
     dynamics = dict(data.get("dynamics") or {})
     if set(dynamics) - _DYNAMICS_KEYS:
         raise PresetError(f"preset {name_or_path!r}: unknown dynamics keys "

@@ -16,17 +16,17 @@ def _isolated_cache(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
-def dissertation_preset():
+def feasibility_preset():
     from microconveyor_env.presets import load_preset
 
-    return load_preset("dissertation")
+    return load_preset("feasibility")
 
 
 @pytest.fixture(scope="session")
-def dissertation_table(dissertation_preset):
+def feasibility_table(feasibility_preset):
     from microconveyor_env.physics.contact_table import ContactTable
 
-    return ContactTable(dissertation_preset.contact)
+    return ContactTable(feasibility_preset.contact)
 
 
 @pytest.fixture(scope="session")

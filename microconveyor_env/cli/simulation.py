@@ -133,8 +133,8 @@ def cmd_accuracy(args: argparse.Namespace) -> None:
 def _accuracy_episode(args: argparse.Namespace) -> None:
     from ..studies.episodes import episode_study
 
-    if args.preset not in ("dissertation", "seed"):
-        raise ValueError("--episode runs MicroConveyor-v0's own preset (dissertation); drop --preset")
+    if args.preset not in ("feasibility", "dissertation", "seed"):
+        raise ValueError("--episode runs MicroConveyor-v0's own preset (feasibility); drop --preset")
     study = episode_study(n_per_category=args.per_category, seed=args.seed,
                           repeats=min(args.repeats, 5), progress=True)
     if args.plot:

@@ -40,7 +40,7 @@ _PAIRS = {"target_range": (0.0, MAX_TARGET, "m"), "freq_range": (0.0, 1e6, "Hz")
 class EnvConfig:
     """All settings of the environment; see ``configs/envs/MicroConveyor-v0.yaml`` for meanings and units."""
 
-    preset: str = "dissertation"
+    preset: str = "feasibility"
     n_actuators: int = 5
     spacing: float = 0.5e-3
     shape: str = "gaussian"

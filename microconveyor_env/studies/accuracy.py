@@ -34,7 +34,7 @@ def time_firing(sim: Simulator, schedule: Schedule, x0: float,
     return res, statistics.median(walls)
 
 
-def accuracy_study(preset: str = "dissertation", freq: float = 950.0, stroke: float = 200e-6,
+def accuracy_study(preset: str = "feasibility", freq: float = 950.0, stroke: float = 200e-6,
                    x0: float = 0.125e-3, dts: Sequence[float] = DTS, repeats: int = 30,
                    tolerance_m: float = 1e-6, progress: bool = True) -> dict[str, Any]:
     """The speed/accuracy study of one firing (``freq`` [Hz], ``stroke`` [m], start ``x0`` [m]) over

@@ -18,7 +18,7 @@ from ..presets import simulator
 REFERENCE_FIRING = {"freq": 950.0, "stroke": 200e-6, "x0": 0.125e-3}
 
 
-def bench_modes(preset: str = "dissertation", repeats: int = 500) -> dict[str, dict[str, Any]]:
+def bench_modes(preset: str = "feasibility", repeats: int = 500) -> dict[str, dict[str, Any]]:
     """Per mode: median and min wall time [s] of ``repeats`` [-] reference firings, the compiled
     call's median time [s], kernel steps per second [1/s] and the firing's outcome (SI)."""
     sched = Schedule.single(REFERENCE_FIRING["freq"], REFERENCE_FIRING["stroke"])

@@ -40,7 +40,7 @@ def _run(sim: Simulator, schedule: Schedule, x0: float, v0: float = 0.0,
 
 def map_column(task: dict[str, Any]) -> list[dict[str, Any]]:
     """Rows of one (freq [Hz], x0 [m]) column of the engaging map over the task's ``v0s`` [m/s]."""
-    sim = simulator(task.get("preset", "dissertation"), **task.get("sim_kw", {}))
+    sim = simulator(task.get("preset", "feasibility"), **task.get("sim_kw", {}))
     f, h, x0 = task["freq_hz"], task["stroke_m"], task["x0_m"]
     a = sim.flat_deceleration()
     sched = Schedule.single(f, h)
@@ -65,7 +65,7 @@ def engage_map_rows(freqs: Sequence[float] = (300.0, 500.0, 700.0), stroke: floa
                     x0s: Sequence[float] = tuple(
                         np.round(np.arange(-0.6e-3, 0.6e-3 + 1e-9, 0.05e-3), 9)),
                     v0s: Sequence[float] = tuple(np.round(np.arange(-0.5, 0.5 + 1e-9, 0.01), 6)),
-                    preset: str = "dissertation", sim_kw: dict[str, Any] | None = None,
+                    preset: str = "feasibility", sim_kw: dict[str, Any] | None = None,
                     **engine_kw: Any) -> list[dict[str, Any]]:
     """The engaging map: frequencies [Hz] x start positions [m] x initial velocities [m/s], strokes
     of ``stroke`` [m]; ``sim_kw`` go to the simulator, ``engine_kw`` to :func:`.engine.run_tasks`."""
@@ -142,7 +142,7 @@ def check_speed_statement(rows: list[dict[str, Any]], tol_m_s: float = 0.05,
 # ----------------------------------------------------------------------------- two actuators
 def two_column(task: dict[str, Any]) -> list[dict[str, Any]]:
     """Rows of one spacing [m] of the two-actuator map over the task's delays [s]."""
-    sim = simulator(task.get("preset", "dissertation"), **task.get("sim_kw", {}))
+    sim = simulator(task.get("preset", "feasibility"), **task.get("sim_kw", {}))
     f, h, sp, x0 = task["freq_hz"], task["stroke_m"], task["spacing_m"], task["x0_m"]
     arr = ActuatorArray((0.0, sp))
     one = _run(sim, Schedule(arr, (Firing(0, f, h),)), x0)
@@ -173,7 +173,7 @@ def two_actuator_rows(freq: float = 950.0, stroke: float = 200e-6, start_offset:
                           np.round(np.arange(0.2e-3, 1.5e-3 + 1e-9, 0.05e-3), 9)),
                       delays: Sequence[float] = tuple(
                           np.round(np.arange(0.0, 8e-3 + 1e-12, 0.2e-3), 9)),
-                      preset: str = "dissertation", sim_kw: dict[str, Any] | None = None,
+                      preset: str = "feasibility", sim_kw: dict[str, Any] | None = None,
                       **engine_kw: Any) -> list[dict[str, Any]]:
     """Final position over (delay [s], spacing [m]) at ``freq`` [Hz] and ``stroke`` [m], the part
     starting ``start_offset`` [m] upstream of the first actuator."""

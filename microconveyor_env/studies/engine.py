@@ -60,7 +60,7 @@ def _simulator(preset: str, mass: float | None, sigma: float | None, dgamma: flo
                  wavelength=wavelength, sim_kw=dict(sim_items)).simulator()
 
 
-def simulator(preset: str = "dissertation", mass: float | None = None, sigma: float | None = None,
+def simulator(preset: str = "feasibility", mass: float | None = None, sigma: float | None = None,
               dgamma: float | None = None, profile: str = "gaussian", wavelength: float = 0.6e-3,
               **sim_kw: Any) -> Simulator:
     """A :class:`Simulator` for these contact/scene values, cached per process.

@@ -71,7 +71,7 @@ def run_level(task: dict[str, Any]) -> list[dict[str, Any]]:
         kw["min_steps"] = 2
     if task["roughness"] != "constant":
         kw["roughness"] = task["roughness"]
-    sim = simulator(task.get("preset", "dissertation"), **kw)
+    sim = simulator(task.get("preset", "feasibility"), **kw)
     sched = schedule_of(SCENES[task["scene"]])
     x0 = SCENES[task["scene"]]["x0_m"]
     row = {k: task[k] for k in ("scene", "kinematics", "roughness", "mode", "dt_s", "reference")}
@@ -93,7 +93,7 @@ def run_level(task: dict[str, Any]) -> list[dict[str, Any]]:
 def tasks(scenes: Sequence[str] = tuple(SCENES), dts: Sequence[float] = DTS,
           modes: Sequence[str] = MODES, kinematics: Sequence[str] = KINEMATICS,
           roughness: Iterable[str] | None = None, repeats: int = 3,
-          preset: str = "dissertation") -> list[dict[str, Any]]:
+          preset: str = "feasibility") -> list[dict[str, Any]]:
     """The tasks of the study: per scene and physics level a converged reference (event mode,
     ``REFERENCE_DT`` [s]) and every (mode, dt [s]); ``repeats`` [-] timed runs each."""
     roughness = roughness_levels() if roughness is None else tuple(roughness)
@@ -112,7 +112,7 @@ def tasks(scenes: Sequence[str] = tuple(SCENES), dts: Sequence[float] = DTS,
 
 def fidelity_rows(scenes: Sequence[str] = tuple(SCENES), dts: Sequence[float] = DTS,
                   modes: Sequence[str] = MODES, roughness: Iterable[str] | None = None,
-                  repeats: int = 3, preset: str = "dissertation",
+                  repeats: int = 3, preset: str = "feasibility",
                   **engine_kw: Any) -> list[dict[str, Any]]:
     """Raw rows of every (scene, level), steps ``dts`` [s]; :func:`assess` adds the errors."""
     engine_kw.setdefault("desc", "fidelity")

@@ -67,7 +67,7 @@ def reference_firing(contact: ContactParams, freq: float = 950.0, stroke: float 
                      _tables: TableLists | None = None) -> dict[str, Any]:
     """One firing integrated with plain-Python fixed-step RK4 + Karnopp, stroke and coast.
 
-    Parameters: ``contact`` a ContactParams (e.g. ``load_preset("dissertation").contact``), ``freq`` [Hz],
+    Parameters: ``contact`` a ContactParams (e.g. ``load_preset("feasibility").contact``), ``freq`` [Hz],
     ``stroke`` height h [m], ``x0`` start position [m] (part at rest), ``dt`` nominal step [s]
     (adjusted to ``T/n``, ``n = ceil(T/dt)``), ``wavelength`` WL [m], ``x_act`` actuator [m],
     ``max_time`` simulated-time limit [s].
@@ -255,4 +255,4 @@ def converged_dt(contact: ContactParams, target_m: float = 1e-6, reference_m: fl
 if __name__ == "__main__":
     from microconveyor_env.presets import load_preset
 
-    print(json.dumps(converged_dt(load_preset("dissertation").contact), indent=2))
+    print(json.dumps(converged_dt(load_preset("feasibility").contact), indent=2))

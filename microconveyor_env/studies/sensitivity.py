@@ -139,7 +139,7 @@ def design(levels: Mapping[str, Sequence[float]] | None = None) -> list[dict[str
 def run_combination(task: dict[str, Any]) -> list[dict[str, Any]]:
     """All rows of one design combination (task keys: :data:`LEVELS`, plus optional ``preset``,
     ``n_freq``, ``scan_hz``, ``refine``, ``profile``)."""
-    sim = simulator(task.get("preset", "dissertation"), mass=task["mass_kg"], sigma=task["sigma_m"],
+    sim = simulator(task.get("preset", "feasibility"), mass=task["mass_kg"], sigma=task["sigma_m"],
                     dgamma=task["dgamma_J_m2"], profile=task.get("profile", "gaussian"),
                     wavelength=task["wavelength_m"])
     x0 = task["x0_wl"] * task["wavelength_m"]
@@ -161,7 +161,7 @@ def run_combination(task: dict[str, Any]) -> list[dict[str, Any]]:
 
 
 def sensitivity_rows(levels: Mapping[str, Sequence[float]] | None = None, n_freq: int = N_FREQ,
-                     preset: str = "dissertation", scan_hz: Iterable[float] = SCAN_HZ,
+                     preset: str = "feasibility", scan_hz: Iterable[float] = SCAN_HZ,
                      **engine_kw: Any) -> list[dict[str, Any]]:
     """Run the design (see :func:`run_combination`), ``n_freq`` [-] frequencies per combination,
     window scan ``scan_hz`` [Hz]; ``engine_kw`` go to :func:`run_tasks`."""

@@ -46,7 +46,7 @@ def run_sample(task: dict[str, Any]) -> list[dict[str, Any]]:
     """One row: the sample's parameters, its window [Hz], the firing frequency and the travel."""
     p = {k: task[k] for k in PROBLEM["names"]}
     mass = 10.0 ** p["log10_mass_kg"]
-    sim = simulator(task.get("preset", "dissertation"), mass=mass, sigma=p["sigma_m"],
+    sim = simulator(task.get("preset", "feasibility"), mass=mass, sigma=p["sigma_m"],
                     dgamma=p["dgamma_J_m2"], wavelength=p["wavelength_m"])
     x0 = p["x0_wl"] * p["wavelength_m"]
     window, runs = find_window(sim, p["stroke_m"], x0, task.get("scan_hz", SOBOL_SCAN_HZ))
@@ -62,7 +62,7 @@ def run_sample(task: dict[str, Any]) -> list[dict[str, Any]]:
              "outcome": res["outcome"], "distance_m": d, "runs": len(runs) + 1}]
 
 
-def sobol_rows(n_base: int = 128, seed: int = 0, preset: str = "dissertation",
+def sobol_rows(n_base: int = 128, seed: int = 0, preset: str = "feasibility",
                scan_hz: Iterable[float] = SOBOL_SCAN_HZ,
                **engine_kw: Any) -> list[dict[str, Any]]:
     """One row per sample of :func:`samples` (``n_base`` [-]), windows scanned over ``scan_hz``

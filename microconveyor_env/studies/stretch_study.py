@@ -34,7 +34,7 @@ def run_freq(task: dict[str, Any]) -> list[dict[str, Any]]:
             kw["roughness"] = level
         else:
             kw.pop("n_sigma", None)  # a stretch-table setting
-        sim = simulator(task.get("preset", "dissertation"), wavelength=task["wavelength_m"],
+        sim = simulator(task.get("preset", "feasibility"), wavelength=task["wavelength_m"],
                         profile=task["profile"], **kw)
         sched = Schedule.single(task["freq_hz"], task["stroke_m"])
         row = {"freq_hz": task["freq_hz"], "stroke_m": task["stroke_m"], "x0_m": task["x0_m"],
@@ -60,7 +60,7 @@ def run_freq(task: dict[str, Any]) -> list[dict[str, Any]]:
 
 def stretch_rows(freqs: Iterable[float] = tuple(np.arange(200.0, 1500.0 + 1e-9, 25.0).tolist()),
                  stroke: float = 200e-6, x0: float = 0.125e-3, profile: str = "gaussian",
-                 wavelength: float = 0.6e-3, repeats: int = 3, preset: str = "dissertation",
+                 wavelength: float = 0.6e-3, repeats: int = 3, preset: str = "feasibility",
                  sim_kw: dict[str, Any] | None = None,
                  **engine_kw: Any) -> list[dict[str, Any]]:
     """Both levels over ``freqs`` [Hz] for the single-firing scene (stroke [m], start x0 [m],

@@ -31,7 +31,7 @@ MIN_TRAVEL_M = 10e-6  # lower bound of the feasible window: at least this much t
 class Scene:
     """Base values of a single-firing experiment (SI units)."""
 
-    preset: str = "dissertation"
+    preset: str = "feasibility"
     freq: float = 950.0          # Hz
     stroke: float = 200e-6       # m
     x0: float = 0.125e-3         # m, start position (actuator at 0)

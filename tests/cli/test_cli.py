@@ -11,7 +11,7 @@ def run(*args):
 
 def test_contact_json_and_plot(tmp_path):
     png = tmp_path / "contact.png"
-    r = run("contact", "--preset", "dissertation", "--json", "--plot", str(png))
+    r = run("contact", "--preset", "feasibility", "--json", "--plot", str(png))
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     for key in ("pull_off_force_N", "pull_off_separation_m", "separation_at_weight_m",
@@ -29,7 +29,7 @@ def test_error_is_json_with_nonzero_status():
 
 def test_simulate_json_keys_and_plot(tmp_path):
     png = tmp_path / "firing.png"
-    r = run("simulate", "--preset", "dissertation", "--freq", "950", "--stroke", "200e-6", "--x0",
+    r = run("simulate", "--preset", "feasibility", "--freq", "950", "--stroke", "200e-6", "--x0",
             "0.125e-3", "--json", "--plot", str(png))
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)

@@ -58,16 +58,16 @@ def test_sweep_size_is_capped_with_an_override():
 
 
 def test_tiny_dt_is_refused_not_run_and_absurd_dt_does_not_wrap():
-    sim = simulator("dissertation", dt=1e-12)
+    sim = simulator("feasibility", dt=1e-12)
     with pytest.raises(ParameterError, match=r"dt = 1e-12 s.*1\.05e\+09 RK4 steps.*max_steps"):
         sim.simulate(Schedule.single(950.0, 200e-6), 0.125e-3)
-    slow = simulator("dissertation", dt=1.0, min_steps=2)
+    slow = simulator("feasibility", dt=1.0, min_steps=2)
     with pytest.raises(ParameterError, match="inf RK4 steps"):  # 1/(f dt) beyond float range
         slow.simulate(Schedule.single(1e-310, 200e-6), 0.125e-3)
-    big = simulator("dissertation", dt=1e-9, max_steps=10 ** 9)  # the override
+    big = simulator("feasibility", dt=1e-9, max_steps=10 ** 9)  # the override
     big.check_firings(np.array([950.0]), np.array([200e-6]))
     with pytest.raises(ParameterError, match="max_steps"):
-        simulator("dissertation", max_steps=0)
+        simulator("feasibility", max_steps=0)
 
 
 def test_env_step_budget_and_its_override():

@@ -11,7 +11,7 @@ from microconveyor_env.physics.schedule import ActuatorArray, Schedule
 
 @pytest.fixture(scope="module")
 def sim():
-    return presets.simulator("dissertation", dt=1e-4, min_steps=48, max_time=1.0)
+    return presets.simulator("feasibility", dt=1e-4, min_steps=48, max_time=1.0)
 
 
 def test_rows_match_simulate_serial_and_parallel(sim):

@@ -117,7 +117,7 @@ HEAVY_MASS = 2e-8  # kg: 10 x the seed part, so that a finite critical tilt exis
 def heavy_contact():
     from microconveyor_env.presets import load_preset
 
-    return load_preset("dissertation").contact.replace(part__mass=HEAVY_MASS)
+    return load_preset("feasibility").contact.replace(part__mass=HEAVY_MASS)
 
 
 @functools.cache

@@ -252,7 +252,7 @@ def test_load_beyond_table_raises_never_extrapolates():
     from microconveyor_env.physics import forces
     from microconveyor_env.physics.contact_table import TableRangeError
 
-    s = simulator("dissertation")
+    s = simulator("feasibility")
     s.params = s.params.copy()
     s.params[forces.I_NMAX] = 2 * s.mass * 9.81  # ordinary strokes load the part far beyond
     with pytest.raises(TableRangeError, match="exceeded the contact table"):

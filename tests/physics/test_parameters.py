@@ -47,7 +47,7 @@ def test_calibration_targets_validated():
 
 
 def test_preset_errors_are_clear(tmp_path):
-    with pytest.raises(PresetError, match="available: dissertation, ke"):
+    with pytest.raises(PresetError, match="available: conveyor, feasibility, ke"):
         load_preset("no-such-preset")
     bad = tmp_path / "bad.yaml"
     bad.write_text("surface: {sigma: -1}\n")
@@ -62,15 +62,17 @@ def test_preset_errors_are_clear(tmp_path):
 
 
 def test_former_names_still_work_with_a_deprecation_warning():
-    """'seed' was the preset and the kinematics level; configs that still say so keep working."""
+    """'seed' and 'dissertation' were the (chapter-3) preset, 'seed' the kinematics level; configs that still say so keep working."""
     import gymnasium as gym
 
     import microconveyor_env  # noqa: F401
     from microconveyor_env.envs import EnvConfig
     from microconveyor_env.presets import load_preset, simulator
 
-    with pytest.warns(DeprecationWarning, match="'seed' is now called 'dissertation'"):
-        assert load_preset("seed").name == "dissertation"
+    with pytest.warns(DeprecationWarning, match="'seed' is now called 'feasibility'"):
+        assert load_preset("seed").name == "feasibility"
+    with pytest.warns(DeprecationWarning, match="'dissertation' is now called 'feasibility'"):
+        assert load_preset("dissertation").contact == load_preset("feasibility").contact
     with pytest.warns(DeprecationWarning, match="'seed' is now called 'reduced'"):
         assert simulator(kinematics="seed").kinematics == "reduced"
     with pytest.warns(DeprecationWarning):
@@ -78,4 +80,4 @@ def test_former_names_still_work_with_a_deprecation_warning():
     assert cfg.kinematics == "reduced"
     with pytest.warns(DeprecationWarning):
         env = gym.make("MicroConveyor-v0", preset="seed").unwrapped
-    assert env.sim.contact == load_preset("dissertation").contact
+    assert env.sim.contact == load_preset("feasibility").contact

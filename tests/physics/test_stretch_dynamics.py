@@ -19,15 +19,15 @@ N_SIGMA = 5  # a coarse sigma grid keeps the tests' table builds short
 
 @pytest.fixture(scope="module")
 def stretched():
-    return simulator("dissertation", roughness="stretch", n_sigma=N_SIGMA)
+    return simulator("feasibility", roughness="stretch", n_sigma=N_SIGMA)
 
 
 @pytest.mark.parametrize("kinematics", ["reduced", "exact"])
 @pytest.mark.parametrize("mode", ["event", "karnopp"])
 def test_zero_strain_equals_constant_roughness(kinematics, mode):
     """With the active zone shrunk to nothing the part never sees strain: bit-identical runs."""
-    const = simulator("dissertation", kinematics=kinematics, mode=mode)
-    zero = simulator("dissertation", kinematics=kinematics, mode=mode, roughness="stretch",
+    const = simulator("feasibility", kinematics=kinematics, mode=mode)
+    zero = simulator("feasibility", kinematics=kinematics, mode=mode, roughness="stretch",
                      zone_length=1e-12, n_sigma=N_SIGMA)
     scheds = [Schedule.single(950.0, 200e-6),
               Schedule.sequence(ActuatorArray.uniform(3, 0.3e-3), 950.0, 200e-6, 1e-3)]
@@ -59,11 +59,11 @@ def test_compiled_lookup_matches_the_stretch_tables(stretched):
 
 
 def test_strain_beyond_the_tables_is_refused():
-    sim = simulator("dissertation", roughness="stretch", max_strain=0.1, n_sigma=2)
+    sim = simulator("feasibility", roughness="stretch", max_strain=0.1, n_sigma=2)
     with pytest.raises(ParameterError, match="max_strain"):
         sim.simulate(Schedule.single(950.0, 200e-6), x0=0.125e-3)
     with pytest.raises(ParameterError, match="roughness"):
-        simulator("dissertation", roughness="wrinkled")
+        simulator("feasibility", roughness="wrinkled")
 
 
 def test_stretch_study_parallel_equals_serial_and_compares(dask_client):

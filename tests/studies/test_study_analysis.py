@@ -65,7 +65,7 @@ def test_regression_recovers_known_coefficients():
 
 def test_window_matches_the_sweep_window():
     scan = [float(f) for f in np.arange(200.0, 1500.0, 100.0)]
-    sim = simulator("dissertation")
+    sim = simulator("feasibility")
     window, runs = find_window(sim, 200e-6, 0.125e-3, scan, refine=0)
     res = sweep(Scene(), "freq", scan, progress=False)
     assert window == feasible_window(scan, res["displacement_m"], res["outcome"])

@@ -56,7 +56,7 @@ def _kill_when_stalled(marker: Path, killed: list, timeout: float = 120.0) -> No
 def test_study_survives_a_killed_worker(tmp_path):
     """A worker process SIGKILLed while it runs a task: the study finishes on the other worker
     (and the restarted one) with the serial run's rows, bit for bit."""
-    tasks = [{**t, "n_freq": 3, "preset": "dissertation", "scan_hz": SCAN} for t in design(LEVELS)]
+    tasks = [{**t, "n_freq": 3, "preset": "feasibility", "scan_hz": SCAN} for t in design(LEVELS)]
     serial = run_tasks(run_combination, tasks, progress=False)
     marker = tmp_path / "stalled.pid"
     func = functools.partial(_stall_once, str(marker), STALL_AT, run_combination)

@@ -11,7 +11,7 @@ from microconveyor_env.presets import load_preset
 
 
 def table_hash() -> str:
-    base = build_base_table(load_preset("dissertation").contact)
+    base = build_base_table(load_preset("feasibility").contact)
     h = hashlib.sha256()
     for key, value in base.arrays().items():
         if key != "build_seconds":
