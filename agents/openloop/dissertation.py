@@ -5,7 +5,7 @@ Five actuators fire once each, in order, all with the same four numbers: stroke 
 first at 0), delay ``d`` [s] (0-0.1) and stroke ``h`` [m] (100-200 µm). The delay is the
 simulator's (docs/physics.md §1): the still time between the end of one stroke and the start
 of the next; the first actuator fires at t = 0 (a delay before it would only add time). The
-part starts at rest ``config.start_offset`` (0.15 mm) upstream of actuator 1; the target is
+surface is chapter 4's (preset ``conveyor``, Table 4.2: dgamma = 0.5 J/m^2). The part starts at rest ``config.start_offset`` (0.15 mm) upstream of actuator 1; the target is
 10 mm beyond actuator 1.
 
 Cost of a candidate (:func:`dissertation_cost`), with ``e = x_f - x_target``:
@@ -50,6 +50,8 @@ BOUNDS = ((200.0, 10000.0), (500e-6, 1500e-6), (0.0, 0.1), (100e-6, 200e-6))
 # the dissertation's optimum (its Table 4.3) and what it reports for it
 TABLE_4_3 = {"frequency_hz": 719.0, "spacing_m": 500e-6, "delay_s": 1e-3, "stroke_m": 178e-6,
              "final_position_m": 10.02e-3, "travel_time_s": 0.037}
+# the surface of the dissertation's chapter 4 (Table 4.2; docs/physics.md §8)
+PRESET = "conveyor"
 # the dissertation's DE settings
 DE_SETTINGS = {"popsize": 50, "generations": 50, "recombination": 0.8, "mutation": 0.9}
 
@@ -60,20 +62,23 @@ class DissertationProblem:
     ``scale_m`` T_d [m]; ``exponent`` C [-]; ``penalty`` P [-]; ``config``: the model (preset,
     shape, wavelength, kinematics, integrator, dt, max_time, start_offset, n_actuators: the
     env's settings); ``contact``: contact parameters replacing the preset's (None: the
-    preset's)."""
+    preset's); ``start_m`` [m]: the start position (None: ``config.start_offset`` upstream of
+    actuator 1)."""
 
     target_m: float = 10e-3
     time_weight: float = 1e3
     scale_m: float = 50e-6
     exponent: float = 10.0
     penalty: float = 1e5
-    config: EnvConfig = field(default_factory=EnvConfig.from_yaml)
+    config: EnvConfig = field(default_factory=lambda: EnvConfig.from_yaml(preset=PRESET))
     contact: ContactParams | None = None
+    start_m: float | None = None
 
     @property
     def x0_m(self) -> float:
-        """Start position [m] (upstream of actuator 1 at x = 0)."""
-        return -self.config.start_offset
+        """Start position [m]: ``start_m`` if given (either side of actuator 1 at x = 0), else
+        ``config.start_offset`` upstream of actuator 1."""
+        return -self.config.start_offset if self.start_m is None else float(self.start_m)
 
     def simulator(self) -> Simulator:
         """The simulator of ``config`` (with ``contact`` if given)."""

@@ -21,6 +21,7 @@ MIN_LENGTH = 1e-9  # m: below it, |x - target| / tolerance overflows (NaN reward
 # box is [-1, 1], so sigma = 1 already spreads a firing over the whole box); the per-episode
 # friction and mass factors within an order of magnitude of the preset (beyond it, make a preset)
 MAX_ACTION_NOISE = 1.0
+MAX_ACTUATORS = 1000  # an episode has at most this many steps (one firing per actuator)
 FACTOR_BOUNDS = (0.1, 10.0)
 _RANGES = {  # field -> (lo, hi, lo_open, unit)
     "spacing": (1e-6, 1.0, False, "m"), "wavelength": (MIN_WAVELENGTH, 1.0, False, "m"),
@@ -93,9 +94,9 @@ class EnvConfig:
     def _check_integers(self) -> None:
         n = self.n_actuators
         if (isinstance(n, bool) or not isinstance(n, numbers.Real) or not math.isfinite(n)
-                or n != int(n) or not 1 <= n <= 1000):
+                or n != int(n) or not 1 <= n <= MAX_ACTUATORS):
             raise ParameterError(f"EnvConfig.n_actuators = {n!r} is invalid: must be an integer "
-                                 "in [1, 1000]")
+                                 f"in [1, {MAX_ACTUATORS}]")
         object.__setattr__(self, "n_actuators", int(n))
         if not isinstance(self.stop_at_target, bool):
             raise ParameterError(f"EnvConfig.stop_at_target = {self.stop_at_target!r} is invalid: "

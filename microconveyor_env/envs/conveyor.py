@@ -1,4 +1,4 @@
-"""MicroConveyor-v0: carry a micropart to a target with a linear array of micro-actuators."""
+"""MicroConveyor-v0 / -v1: carry a micropart to a target with a linear array of micro-actuators."""
 from __future__ import annotations
 
 from typing import Any
@@ -80,10 +80,28 @@ class MicroConveyorEnv(OwnsConveyor, gym.Env):
     seeded ``s`` draws the same in the single env and in the batched env.
 
     ## Arguments
-    Any field of :class:`EnvConfig` (defaults in ``configs/envs/MicroConveyor-v0.yaml``), e.g.
-    ``gym.make("MicroConveyor-v0", n_actuators=3, tolerance=100e-6)``; ``render_mode`` ``"rgb_array"``
+    Any field of :class:`EnvConfig` (defaults in ``configs/envs/MicroConveyor-v0.yaml``; v1's
+    changes in ``configs/envs/MicroConveyor-v1.yaml``, its ``gym.spec`` kwargs), e.g.
+    ``gym.make("MicroConveyor-v1", n_actuators=3, tolerance=100e-6)``; ``render_mode`` ``"rgb_array"``
     (for a window, wrap with ``gymnasium.wrappers.HumanRendering``, which needs pygame).
     ``reset(options={"target": d})`` sets the target distance d [m] beyond actuator 1.
+    ``spec.max_episode_steps`` (v1) is 1000, the most actuators a config allows: an upper bound
+    that never cuts an episode short, whatever ``n_actuators`` is (an episode ends by itself
+    after at most ``n_actuators`` steps).
+
+    ## Version history
+    * **v1** (package 0.2.0): the same task on the dissertation's **chapter-4 surface** (preset
+      ``conveyor``, Table 4.2: surface energy 0.5 J/m², against 1 J/m² in v0): pull-off
+      2.53 µN instead of 6.2 µN, friction at the weight 17.5 nN instead of 80 nN, so a sliding
+      part decelerates at 8.8 m/s² instead of 40 m/s² and travels ~4.5x further per firing.
+      The target range and the scene (actuators, spacing) were chosen by measuring which
+      targets an open-loop plan reaches and holds under action noise (docs/env.md, "v1's scene
+      and target range"). ``spec.max_episode_steps`` is set. v0's conveyor task ran on chapter
+      3's single-actuator surface, which cannot carry a part past ~5 mm, where the
+      dissertation's conveyor carries it 10 mm.
+    * **v0** (package 0.1.0): the goal-conditioned conveyor on the chapter-3 surface (preset
+      ``feasibility``), 5 actuators 0.5 mm apart, targets 0.5–3 mm. Unchanged and still
+      registered: its stored rollouts and shipped policies reproduce.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4}

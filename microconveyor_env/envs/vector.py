@@ -30,6 +30,7 @@ class MicroConveyorVectorEnv(OwnsConveyor, VectorEnv):
     Threads: ``num_threads`` (an EnvConfig field, also a ``make_vec`` keyword): 1 runs a serial
     loop, k > 1 numba's parallel loop with k threads, ``None`` (default) picks between the two by
     measuring them as it runs (:mod:`.threads`). Results are bit-identical in every case.
+    ``max_episode_steps`` (``make_vec`` passes the spec's): checked to be >= ``n_actuators``.
     Per-episode randomisation (``action_noise``, ``friction_factor_range``, ``mass_factor_range``;
     :mod:`.randomisation`): each part has its own row of constants and draws from streams derived
     from its own generator, so sub-env ``i`` seeded ``seed + i`` draws what the single env seeded
@@ -41,7 +42,8 @@ class MicroConveyorVectorEnv(OwnsConveyor, VectorEnv):
 
     def __init__(self, num_envs: int = 1, render_mode: str | None = None,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
-                 config: EnvConfig | None = None, **kwargs: Any) -> None:
+                 config: EnvConfig | None = None, max_episode_steps: int | None = None,
+                 **kwargs: Any) -> None:
         if (isinstance(num_envs, bool) or not isinstance(num_envs, numbers.Integral)
                 or not 1 <= num_envs <= MAX_ENVS):
             raise ValueError(f"num_envs = {num_envs!r} is invalid: must be an integer in "
@@ -56,6 +58,12 @@ class MicroConveyorVectorEnv(OwnsConveyor, VectorEnv):
         if config is not None and not isinstance(config, EnvConfig):
             raise ValueError(f"config must be an EnvConfig, got {type(config).__name__}")
         self.config: EnvConfig = config or EnvConfig.from_yaml(**kwargs)
+        # make_vec passes the spec's step limit; episodes end by themselves after n_actuators
+        # firings, so a lower limit (which the single env's TimeLimit would apply) is refused
+        if max_episode_steps is not None and max_episode_steps < self.config.n_actuators:
+            raise ValueError(f"max_episode_steps={max_episode_steps} is below the "
+                             f"{self.config.n_actuators} actuators: episodes would be cut "
+                             f"short; pass max_episode_steps={self.config.n_actuators}")
         self.num_envs = n = int(num_envs)
         self.render_mode = render_mode
         # the parts' state, randomisation and compiled step (state.py), shared with the single env
