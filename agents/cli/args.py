@@ -2,8 +2,10 @@
 from __future__ import annotations
 
 import argparse
+import ast
 import math
 from pathlib import Path
+from typing import Any
 
 
 def floats(text: str) -> list[float]:
@@ -63,3 +65,47 @@ def minutes(text: str) -> float:
     if not math.isfinite(v) or v <= 0:
         raise argparse.ArgumentTypeError(f"must be a positive finite number of minutes, got {text}")
     return v
+
+
+_WORDS = {"true": True, "false": False, "null": None, "none": None}
+
+
+def env_kwarg(text: str) -> tuple[str, Any]:
+    """One ``KEY:VALUE`` of ``--env-kwargs`` (rl-zoo3's form): the value a Python literal
+    (``5``, ``0.5e-3``, ``(0.5e-3, 6e-3)``, ``[1, 2]``, ``True``), ``true``/``false``/``null``,
+    or else a plain string (``preset:conveyor``). Parsed as data, never evaluated."""
+    key, sep, raw = text.partition(":")
+    key, raw = key.strip(), raw.strip()
+    if not sep or not key.isidentifier() or not raw:
+        raise argparse.ArgumentTypeError(f"{text!r}: give KEY:VALUE, e.g. n_actuators:7 or "
+                                         "'target_range:(0.5e-3, 6e-3)'")
+    if raw.lower() in _WORDS:
+        return key, _WORDS[raw.lower()]
+    try:
+        value = ast.literal_eval(raw)
+    except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError):
+        value = raw
+    return key, list(value) if isinstance(value, tuple) else value
+
+
+def add_env_args(p: argparse.ArgumentParser, default: str | None = "MicroConveyor-v0",
+                 what: str = "") -> None:
+    """``--env ID`` (a registered version) and ``--env-kwargs KEY:VALUE ...`` (its overrides, as
+    ``gym.make(ID, **kwargs)``)."""
+    from microconveyor_env.envs import ENV_IDS
+
+    p.add_argument("--env", choices=ENV_IDS, default=default,
+                   help=f"env id{what} (default: {default or 'the policy`s own'})")
+    p.add_argument("--env-kwargs", type=env_kwarg, nargs="+", default=None, metavar="KEY:VALUE",
+                   help="env overrides as gym.make(ID, **kwargs): SI units, e.g. n_actuators:7 "
+                        "'target_range:(0.5e-3, 6e-3)'")
+
+
+def env_kwargs_of(args: argparse.Namespace) -> dict[str, Any]:
+    """``--env-kwargs`` as a dict (a key given twice is an error)."""
+    out: dict[str, Any] = {}
+    for key, value in args.env_kwargs or []:
+        if key in out:
+            raise ValueError(f"--env-kwargs: {key} given twice")
+        out[key] = value
+    return out

@@ -9,7 +9,7 @@ from typing import Any
 
 from microconveyor_env.cli.base import command, count, emit
 
-from .args import budgets, folder, levels
+from .args import add_env_args, budgets, env_kwargs_of, folder, levels
 
 
 def add_args(p: argparse.ArgumentParser) -> None:
@@ -34,6 +34,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    help="targets over which PPO's training is amortised in the chart")
     p.add_argument("--plot", type=folder, default=None,
                    help="folder for compare_{compute,tolerance,perturbation}.png and compare.json")
+    add_env_args(p, what=" (the policies must have been trained on its scene)")
 
 
 def run(args: Any) -> None:
@@ -46,10 +47,18 @@ def run(args: Any) -> None:
     bad = sorted(set(methods) - {"de", "cmaes"})
     if bad or not methods:
         raise ValueError(f"--methods {args.methods!r}: choose from de, cmaes")
+    from microconveyor_env.envs import env_config
+
+    from ..rl.shipped import require_shipped
+
+    cfg = env_config(args.env, **env_kwargs_of(args))
     res = compare(n_targets=args.targets, seed=args.seed, budgets=args.budgets, methods=methods,
-                  policy=args.policy, randomised_policy=args.randomised_policy,
+                  policy=args.policy or require_shipped(args.env),
+                  randomised_policy=args.randomised_policy,
                   amortise_over=args.amortise_over, noise_ladder=args.noise,
-                  spread_ladder=args.spread, perturb_repeats=args.repeats)
+                  spread_ladder=args.spread, perturb_repeats=args.repeats, config=cfg,
+                  env_id=args.env)
+    res.update(env_id=args.env, env_kwargs=env_kwargs_of(args))
     if args.plot:
         res["charts"] = plot_all(res, args.plot)
         out = Path(args.plot) / "compare.json"

@@ -6,10 +6,14 @@ import sys
 
 from microconveyor_env.cli.base import command, emit
 
+from .args import add_env_args, env_kwargs_of
+
 
 def _demo_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="out", help="output folder for charts and the summary JSON")
-    p.add_argument("--policy", default=None, help="policy folder (default: the shipped one)")
+    p.add_argument("--policy", default=None,
+                   help="policy folder (default: the one shipped for --env, if any)")
+    add_env_args(p, what=" of the episode and the policy")
 
 
 @command("demo", "the main job: contact report, a firing, a frequency sweep, an env episode and "
@@ -23,7 +27,16 @@ def cmd_demo(args: argparse.Namespace) -> None:
 
     import importlib.util
 
-    if importlib.util.find_spec("stable_baselines3") is None:  # core install: the env-only demo
+    from ..rl.shipped import shipped_path
+
+    args.env_kwargs_dict = env_kwargs_of(args)
+    no_policy = None
+    if importlib.util.find_spec("stable_baselines3") is None:
+        no_policy = ("shipped policy skipped: it needs the train extra (pip install "
+                     "'microconveyor-env[train]')")
+    elif not args.policy and not (shipped_path(env_id=args.env) / "model.zip").is_file():
+        no_policy = f"policy skipped: none is shipped for {args.env} yet (--policy to give one)"
+    if no_policy:  # the env-only demo
         if args.policy:
             raise ValueError("--policy needs stable-baselines3: pip install "
                              "'microconveyor-env[train]'")
@@ -31,16 +44,18 @@ def cmd_demo(args: argparse.Namespace) -> None:
         summary["policy_demo"] = None
         Path(summary["summary_json"]).write_text(json.dumps(summary, indent=2,
                                                             default=json_default))
-        emit(args, summary, "shipped policy skipped: it needs the train extra (pip install "
-                            "'microconveyor-env[train]')\n" + "\n".join(
+        emit(args, summary, no_policy + "\n" + "\n".join(
                                 f"wrote {c}" for c in summary["charts"] + [summary["summary_json"]]))
         return
 
     from ..experiments.demo import load_demo_policy, policy_demo, table
 
-    policy = load_demo_policy(args.policy)   # a bad --policy fails before any other work
+    from microconveyor_env.envs import env_config
+
+    cfg = env_config(args.env, **args.env_kwargs_dict)
+    policy = load_demo_policy(args.policy, cfg, args.env)  # a bad --policy fails at once
     summary = demo_summary(args)
-    demo = policy_demo(args.out, policy)
+    demo = policy_demo(args.out, policy, config=cfg)
     summary["policy_demo"] = demo
     summary["charts"].append(demo["chart"])
     Path(summary["summary_json"]).write_text(json.dumps(summary, indent=2, default=json_default))

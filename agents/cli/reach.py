@@ -7,12 +7,12 @@ from typing import Any
 
 from microconveyor_env.cli.base import command, count, emit, plot_path
 
-from .args import floats
+from .args import add_env_args, env_kwargs_of, floats
 
 
 def _reach_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--targets", type=floats, default=floats("0.5e-3:10e-3:0.5e-3"),
-                   help="targets [m]: lo:hi:step or a comma list (default 0.5-10 mm by 0.5 mm)")
+    p.add_argument("--targets", type=floats, default=floats("0.5e-3:12e-3:0.5e-3"),
+                   help="targets [m]: lo:hi:step or a comma list (default 0.5-12 mm by 0.5 mm)")
     p.add_argument("--budget", type=count(10), default=3000,
                    help="DE episodes per target for the best nominal error")
     p.add_argument("--robust-budget", type=count(0), default=100000,
@@ -21,6 +21,7 @@ def _reach_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--noisy", type=count(1), default=200, help="noisy rollouts per answer")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--plot", type=plot_path, default=None, help="write the reach chart here")
+    add_env_args(p, what=" whose scene is studied (its target_range is ignored: --targets)")
 
 
 @command("reach", "open-loop reach study: best DE error per target and its success under "
@@ -35,8 +36,16 @@ def cmd_reach(args: argparse.Namespace) -> None:
               f"{r['best_noisy_success_rate']:.2f}  ({r['wall_time_s']:.1f} s)", file=sys.stderr,
               flush=True)
 
+    from microconveyor_env.envs import env_config
+
+    kwargs = env_kwargs_of(args)
+    if max(args.targets) > 0.1 or min(args.targets) <= 0:
+        raise ValueError("--targets must lie in (0, 0.1] m")
+    cfg = env_config(args.env, **{**kwargs, "target_range": (min(args.targets), max(args.targets))})
     study = reach_study(args.targets, budget=args.budget, sigma=args.sigma, n_noisy=args.noisy,
-                        seed=args.seed, robust_budget=args.robust_budget, progress=progress)
+                        seed=args.seed, robust_budget=args.robust_budget, config=cfg,
+                        progress=progress)
+    study.update(env_id=args.env, env_kwargs=kwargs)
     if args.plot:
         study["plot"] = plot_reach(study, args.plot)
     rows = "\n".join(f"{r['target_m'] * 1e3:6.2f} mm  {r['best_abs_error_m'] * 1e6:10.2f} um  "

@@ -6,7 +6,7 @@ import sys
 
 from microconveyor_env.cli.base import command, count, emit, plot_path
 
-from .args import minutes
+from .args import add_env_args, env_kwargs_of, minutes
 
 
 def _train_args(p: argparse.ArgumentParser) -> None:
@@ -29,6 +29,7 @@ def _train_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-minutes", type=minutes, default=None,
                    help="stop after this wall time [min], resumed time included")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_env_args(p, what=" to train on (its entry in the conf file gives the hyperparameters)")
 
 
 @command("train", "train PPO (stable-baselines3) on the batched env", _train_args)
@@ -42,10 +43,12 @@ def cmd_train(args: argparse.Namespace) -> None:
                  resume=args.resume, checkpoint_freq=args.checkpoint_freq,
                  eval_freq=args.eval_freq, eval_targets=args.eval_targets,
                  progress_bar=not args.no_progress, max_minutes=args.max_minutes,
-                 allow_config_change=args.allow_config_change, log=log)
+                 allow_config_change=args.allow_config_change, log=log, env_id=args.env,
+                 env_kwargs=env_kwargs_of(args))
     meta["out"] = args.out
     ev = meta["evaluation"]
-    text = f"{meta['steps']} steps in {meta['wall_time_s']:.0f} s -> {args.out}"
+    text = (f"{meta['env_id']} {meta.get('env_kwargs') or ''}: {meta['steps']} steps in "
+            f"{meta['wall_time_s']:.0f} s -> {args.out}")
     if ev:
         text += (f"\nsuccess +-50/100/250 um: {ev['success_rate_50um']:.2f} / "
                  f"{ev['success_rate_100um']:.2f} / {ev['success_rate_250um']:.2f}, median "
@@ -82,18 +85,34 @@ def _evaluate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the fixed target set")
     p.add_argument("--tolerance", type=float, default=None,
                    help="success tolerance [m] (default: the env's, 50 um)")
+    add_env_args(p, default=None, what=": the policy's scene, refused if it differs from the "
+                                       "one the policy was trained in (randomisation aside)")
 
 
-@command("evaluate", "evaluate a PPO policy on a fixed seeded set of targets", _evaluate_args)
+@command("evaluate", "evaluate a PPO policy on a fixed seeded set of targets, in the scene it "
+                     "was trained in", _evaluate_args)
 def cmd_evaluate(args: argparse.Namespace) -> None:
     from ..rl.evaluate import evaluate, load_policy
-    from ..rl.shipped import shipped_path
+    from ..rl.shipped import require_shipped
 
     if args.tolerance is not None and not 0 < args.tolerance < 1:
         raise ValueError(f"--tolerance {args.tolerance!r} must be in (0, 1) m")
-    pol = load_policy(args.policy or shipped_path())
-    res = evaluate(pol, args.targets, args.seed, args.tolerance)
-    res["policy"] = str(pol.path)
+    path = args.policy or require_shipped(args.env or "MicroConveyor-v0")
+    asked = None
+    if args.env or args.env_kwargs:
+        from microconveyor_env.envs import env_config
+
+        from ..rl.policy_files import FIRST_ENV_ID, policy_env_kwargs, read_policy_meta
+
+        # the scene asked for: the policy's own kwargs updated by --env-kwargs, on --env (or
+        # the policy's env id); load_policy refuses it if it is another scene
+        meta = read_policy_meta(path)
+        asked = env_config(args.env or meta.get("env_id", FIRST_ENV_ID),
+                           **{**policy_env_kwargs(meta), **env_kwargs_of(args)})
+    pol = load_policy(path, asked)
+    res = evaluate(pol, args.targets, args.seed, args.tolerance, config=asked)
+    res.update(policy=str(pol.path), env_id=pol.env_id, env_kwargs=pol.metadata.get(
+        "env_kwargs", (pol.metadata.get("hyperparams") or {}).get("env_kwargs", {})))
     emit(args, res)
 
 

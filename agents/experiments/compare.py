@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from microconveyor_env.envs import EnvConfig
+from microconveyor_env.envs import EnvConfig, env_config
 from microconveyor_env.envs.actions import encode_actions
 
 from ..rl.evaluate import fixed_targets, load_policy, rollout
@@ -100,27 +100,30 @@ def compare(n_targets: int = 20, seed: int = 0, budgets: Sequence[int] = (100, 3
             randomised_policy: str | Path | None = None, amortise_over: int = 100,
             noise_ladder: Sequence[float] = NOISE_LADDER,
             spread_ladder: Sequence[float] = SPREAD_LADDER, perturb_repeats: int = 5,
-            config: EnvConfig | None = None, progress: bool = True) -> dict:
-    """Run the comparison on ``n_targets`` fixed targets (drawn with ``seed`` from the default
-    range); ``budgets``: episodes per target for each open-loop ``method``; ``policy``: the PPO
-    policy (default: shipped), ``randomised_policy``: the PPO trained under randomisation
-    (default: shipped ``ppo_randomised`` if present; ``""`` to skip);
+            config: EnvConfig | None = None, progress: bool = True,
+            env_id: str = "MicroConveyor-v0") -> dict:
+    """Run the comparison on ``n_targets`` fixed targets (drawn with ``seed`` from the target
+    range of ``config``, default ``env_id``'s defaults; the policies must have been trained on
+    its scene); ``budgets``: episodes per target for each open-loop ``method``; ``policy``: the PPO
+    policy (default: the one shipped for ``env_id``), ``randomised_policy``: the PPO trained
+    under randomisation (default: ``env_id``'s shipped ``ppo_randomised`` if present; ``""`` to
+    skip);
     ``amortise_over``: N targets for the amortised PPO point; the ladders: execution noise σ
     [action units] and factor spread r [-] of the perturbation charts, each replayed
     ``perturb_repeats`` times per target. Returns a JSON-able dict (``rows``, ``tolerance``,
     ``perturbation``, ``crossover``)."""
     from tqdm import tqdm
 
-    from ..rl.shipped import shipped_path
+    from ..rl.shipped import require_shipped, shipped_path
 
-    cfg = config or EnvConfig.from_yaml()
+    cfg = config or env_config(env_id)
     targets = fixed_targets(cfg, n_targets, seed)
-    ppo = load_policy(policy or shipped_path(), cfg)
+    ppo = load_policy(policy or require_shipped(env_id), cfg)
     meta = ppo.metadata
     train_wall, train_steps = float(meta.get("wall_time_s", np.nan)), int(meta.get("steps", 0))
     rand_path: Path | None = None
     if randomised_policy is None:
-        cand = shipped_path("ppo_randomised")
+        cand = shipped_path("ppo_randomised", env_id)
         rand_path = cand if (cand / "model.zip").is_file() else None
     elif randomised_policy != "":
         rand_path = Path(randomised_policy)

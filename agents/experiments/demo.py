@@ -12,20 +12,24 @@ from ..plots.trajectories import plot_policy_paths
 from ..rl.evaluate import Policy, load_policy, rollout
 
 
-def load_demo_policy(policy_path: str | Path | None = None) -> Policy:
-    """The demo's policy (default: the shipped one), loaded before any other work so that a bad
-    ``--policy`` fails at once."""
-    from ..rl.shipped import shipped_path
+def load_demo_policy(policy_path: str | Path | None = None, config: EnvConfig | None = None,
+                     env_id: str = "MicroConveyor-v0") -> Policy:
+    """The demo's policy (default: the one shipped for ``env_id``) for the scene ``config``
+    (default: ``env_id``'s defaults), loaded before any other work so that a bad ``--policy``
+    (or one of another scene) fails at once."""
+    from microconveyor_env.envs import env_config
 
-    return load_policy(policy_path or shipped_path(), EnvConfig.from_yaml())
+    from ..rl.shipped import require_shipped
+
+    return load_policy(policy_path or require_shipped(env_id), config or env_config(env_id))
 
 
 def policy_demo(out_dir: str | Path, policy: Policy | str | Path | None = None,
-                n_targets: int = 6) -> dict:
-    """The demo's policy part; ``policy`` a loaded :class:`~.policy_files.Policy` or a path
-    (default: the shipped policy)."""
-    cfg = EnvConfig.from_yaml()
-    pol = policy if isinstance(policy, Policy) else load_demo_policy(policy)
+                n_targets: int = 6, config: EnvConfig | None = None) -> dict:
+    """The demo's policy part on ``config`` (default: MicroConveyor-v0's); ``policy`` a loaded
+    :class:`~.policy_files.Policy` or a path (default: the shipped policy)."""
+    cfg = config or EnvConfig.from_yaml()
+    pol = policy if isinstance(policy, Policy) else load_demo_policy(policy, cfg)
     lo, hi = cfg.target_range
     targets = np.linspace(lo, hi, n_targets)
     res = rollout(pol, targets, cfg, seed=0, record=True)

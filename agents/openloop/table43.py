@@ -86,12 +86,13 @@ def _seed_summary(results: list[Any], target_m: float) -> dict[str, Any]:
 
 
 def explain(problem: DissertationProblem | None = None, reoptimize: bool = True,
-            seeds: Sequence[int] = range(10), params: dict[str, float] | None = None,
+            seeds: Sequence[int] = range(10), budget: int | None = None,
+            params: dict[str, float] | None = None,
             variants: list[tuple[str, Change]] | None = None,
             progress: Callable[[dict[str, Any]], None] | None = None) -> list[dict[str, Any]]:
     """One row per variant: the Table 4.3 schedule (or ``params``) replayed under it
     (``table43_*``: final position [m], travel time [s], outcome) and, with ``reoptimize``, the
-    dissertation's DE (2,550 episodes) under it for each of ``seeds`` (``de_*``: every seed's
+    dissertation's DE (``budget`` episodes, default its 2,550) under it for each of ``seeds`` (``de_*``: every seed's
     final position [m] and travel time [s], their medians, how many meet :data:`GOAL`, the
     median seed's optimum); ``progress(row)`` after each row."""
     base = problem or DissertationProblem()
@@ -106,7 +107,8 @@ def explain(problem: DissertationProblem | None = None, reoptimize: bool = True,
                                "table43_travel_time_s": rep["travel_time_s"],
                                "table43_outcome": rep["outcome"]}
         if reoptimize:
-            results = [solve_dissertation("de", seed=s, problem=prob) for s in seeds]
+            results = [solve_dissertation("de", seed=s, problem=prob, budget=budget)
+                       for s in seeds]
             row.update(_seed_summary(results, prob.target_m))
         row["wall_time_s"] = time.perf_counter() - t0
         rows.append(row)

@@ -1,8 +1,12 @@
 """A policy folder, loaded as data and checked as a unit.
 
 A policy folder holds ``model.zip`` (stable-baselines3), ``normalization.json`` (observation
-statistics) and ``metadata.json`` (algorithm, env id, hyperparameters, evaluation and the sha256 of
-the other two files). Loading it runs no code from any of them (:mod:`.sb3_files`,
+statistics) and ``metadata.json`` (algorithm, env id and env kwargs, hyperparameters, evaluation
+and the sha256 of the other two files). The env id and kwargs name the scene the policy was
+trained in (:func:`policy_scene`); evaluating it in another scene (other actuators, surface,
+targets, tolerance, ...: :func:`~microconveyor_env.envs.scene_differences`) is refused, never
+silently done. Per-episode randomisation and runtime knobs are not the scene: a policy may be
+tested under perturbations. Loading it runs no code from any of them (:mod:`.sb3_files`,
 :mod:`.normalization`), and every part must agree with the others: the algorithm the zip's keys
 identify with the one the metadata names, the zip's spaces with the env's, the statistics' shape
 with the observations, the files with their recorded hashes. A disagreement is one
@@ -16,14 +20,16 @@ from typing import Any
 
 import numpy as np
 
-from microconveyor_env.envs import EnvConfig
+from microconveyor_env.envs import EnvConfig, env_config, scene_differences
+from microconveyor_env.envs.versions import check_env_id, nominal
+from microconveyor_env.physics.materials import ParameterError
 
 from . import normalization
 from .checkpoint import META, MODEL, CheckpointError, read_meta, verify_files
 from .normalization import NORMALIZATION, NormalizationError, ObsNormalizer
 from .sb3_files import ModelFileError, algo_of, check_spaces, read_data, safe_load
 
-ENV_NAME = "MicroConveyor-v0"
+FIRST_ENV_ID = "MicroConveyor-v0"  # what a policy without an env id in its metadata was trained on
 
 
 class PolicyError(ValueError):
@@ -39,6 +45,12 @@ class Policy:
     normalizer: ObsNormalizer | None
     metadata: dict[str, Any]
     path: Path
+    # the scene it was trained in, randomisation off (None: unknown, no metadata)
+    config: EnvConfig | None = None
+
+    @property
+    def env_id(self) -> str:
+        return str(self.metadata.get("env_id", FIRST_ENV_ID))
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         """Deterministic actions in [-1, 1]^3 for a batch of raw observations."""
@@ -97,11 +109,49 @@ def _normalizer(folder: Path, model_file: Path, meta: dict[str, Any],
                       f"observations, say so in {META}: {{\"hyperparams\": {{\"normalize\": null}}}}")
 
 
-def load_policy(path: str | Path, config: EnvConfig | None = None) -> Policy:
-    """The policy at ``path`` (a policy folder, or a model zip with its files beside it) for the
-    env ``config`` (default: the packaged MicroConveyor-v0 config), checked as a unit."""
-    from .hyperparams import ENV_ID
+def read_policy_meta(path: str | Path) -> dict[str, Any]:
+    """The checked metadata of the policy at ``path`` (folder or model zip; {}: none)."""
+    return _metadata(_locate(Path(path))[0])
 
+
+def policy_env_kwargs(meta: dict[str, Any]) -> dict[str, Any]:
+    """The env kwargs a policy was trained with (``env_kwargs``; older metadata: the
+    hyperparameters' ``env_kwargs``)."""
+    kw = meta.get("env_kwargs")
+    if kw is None:
+        kw = (meta.get("hyperparams") or {}).get("env_kwargs") or {}
+    if not isinstance(kw, dict):
+        raise PolicyError(f"env_kwargs in the metadata must be a mapping, got {kw!r}")
+    return dict(kw)
+
+
+def policy_scene(meta: dict[str, Any], where: str = "metadata") -> EnvConfig:
+    """The config of the env a policy was trained on: ``env_config(env_id, **env_kwargs)``."""
+    try:
+        return env_config(check_env_id(str(meta.get("env_id", FIRST_ENV_ID))),
+                          **policy_env_kwargs(meta))
+    except ParameterError as exc:
+        raise PolicyError(f"{where}: the env the policy was trained on cannot be made ({exc})") \
+            from None
+
+
+def check_scene(trained: EnvConfig, asked: EnvConfig, meta: dict[str, Any], where: str) -> None:
+    """PolicyError when ``asked`` is another scene than the one the policy was trained in."""
+    diff = scene_differences(trained, asked)
+    if diff:
+        fields = "; ".join(f"{k}: trained {a!r}, asked {b!r}" for k, (a, b) in diff.items())
+        raise PolicyError(f"{where}: the policy was trained on {meta.get('env_id', FIRST_ENV_ID)}"
+                          f" with env kwargs {policy_env_kwargs(meta)}, and the env asked for "
+                          f"differs in {fields}. Evaluating a policy on another scene is refused; "
+                          "give the policy's own --env/--env-kwargs (or none)")
+
+
+def load_policy(path: str | Path, config: EnvConfig | None = None) -> Policy:
+    """The policy at ``path`` (a policy folder, or a model zip with its files beside it), checked
+    as a unit, for the env ``config`` (default: the scene it was trained in, from its metadata,
+    with per-episode randomisation off;
+    a policy without metadata: MicroConveyor-v0's defaults). A ``config`` of another scene than
+    the policy's is refused (:func:`check_scene`)."""
     folder, model_file = _locate(Path(path))
     meta = _metadata(folder)
     try:
@@ -116,15 +166,18 @@ def load_policy(path: str | Path, config: EnvConfig | None = None) -> Policy:
         raise PolicyError(f"{str(model_file)!r} is not a stable-baselines3 PPO model (it is "
                           f"{'of an unknown kind' if algo is None else algo.upper()}); "
                           "evaluate loads PPO policies")
-    if meta.get("env_id", ENV_ID) != ENV_ID:
-        raise PolicyError(f"{str(folder / META)!r}: the policy was trained on "
-                          f"{meta['env_id']!r}, not {ENV_ID!r}")
-    cfg = config or EnvConfig.from_yaml()
+    trained = policy_scene(meta, repr(str(folder / META))) if meta else None
+    if trained is not None and config is not None:
+        check_scene(trained, config, meta, repr(str(folder / META)))
+    if trained is not None:
+        trained = nominal(trained)
+    cfg = config or trained or env_config(FIRST_ENV_ID)
     obs_space, act_space = _spaces(cfg)
     try:
-        check_spaces(model_file, data, obs_space.shape, act_space.shape, ENV_NAME)
+        check_spaces(model_file, data, obs_space.shape, act_space.shape,
+                     str(meta.get("env_id", FIRST_ENV_ID)))
         normalizer = _normalizer(folder, model_file, meta, obs_space.shape)
         model = safe_load(model_file, "ppo", obs_space, act_space)
     except ModelFileError as exc:
         raise PolicyError(str(exc)) from None
-    return Policy(model, normalizer, meta, folder)
+    return Policy(model, normalizer, meta, folder, trained)

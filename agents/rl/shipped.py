@@ -22,3 +22,13 @@ def shipped_policies() -> dict[str, list[str]]:
     root = Path(str(resources.files("agents") / "policies"))
     return {env.name: sorted(p.name for p in env.iterdir() if (p / "model.zip").is_file())
             for env in sorted(root.iterdir()) if env.is_dir()}
+
+
+def require_shipped(env_id: str = DEFAULT_ENV_ID, name: str = "ppo") -> Path:
+    """:func:`shipped_path`, or a ValueError naming what is shipped when there is none."""
+    path = shipped_path(name, env_id)
+    if not (path / "model.zip").is_file():
+        have = "; ".join(f"{e}: {', '.join(n)}" for e, n in shipped_policies().items()) or "none"
+        raise ValueError(f"no shipped {name!r} policy for {env_id} (shipped: {have}); train one "
+                         "(microconveyor train --env ...) and pass --policy")
+    return path

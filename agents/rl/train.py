@@ -28,7 +28,8 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList, ProgressBarCallback
 from stable_baselines3.common.vec_env import VecEnv, VecMonitor, VecNormalize
 
-from microconveyor_env.envs import EnvConfig
+from microconveyor_env.envs import EnvConfig, env_config
+from microconveyor_env.envs.versions import check_env_id
 from microconveyor_env.envs.sb3 import MicroConveyorSB3VecEnv
 
 from . import checkpoint, hyperparams, normalization
@@ -253,20 +254,27 @@ def train(out: str | Path, steps: int | None = None, seed: int = 0, conf_file: s
           eval_freq: int = 250_000, eval_targets: int = 100, eval_seed: int = 12345,
           progress_bar: bool = True, tensorboard: bool = True, overrides: dict | None = None,
           max_minutes: float | None = None, allow_config_change: bool = False,
-          log: Log | None = None) -> dict:
+          log: Log | None = None, env_id: str = hyperparams.ENV_ID,
+          env_kwargs: dict | None = None) -> dict:
     """Train (or resume) PPO into ``out`` for ``steps`` (or until ``max_minutes`` of wall time,
-    resumed runs included); returns the metadata written there."""
+    resumed runs included); returns the metadata written there. The env: ``env_id`` (a
+    registered version; its entry in the conf file gives the hyperparameters) with the conf
+    file's ``env_kwargs`` updated by ``env_kwargs`` (as ``gym.make(env_id, **kwargs)``), or
+    ``config`` if given; the metadata records ``env_id`` and the merged ``env_kwargs``."""
     import torch
 
     check_budgets(steps, max_minutes, checkpoint_freq, eval_freq, eval_targets)
     torch.set_num_threads(1)  # small nets: one thread is fastest, and 2 cores are shared with the env
     out = Path(out)
     with checkpoint.folder_lock(out):
-        hp = hyperparams.load(conf_file)
+        hp = hyperparams.load(conf_file, check_env_id(env_id))
         hp.update(overrides or {})
-        cfg = config or EnvConfig.from_yaml(**(hp.get("env_kwargs") or {}))
+        if env_kwargs:
+            hp["env_kwargs"] = {**(hp.get("env_kwargs") or {}), **env_kwargs}
+        cfg = config or env_config(env_id, **(hp.get("env_kwargs") or {}))
         chash = config_hash(cfg, hp)
-        run_meta = {"format": FORMAT, "env_id": hyperparams.ENV_ID, "algo": "ppo",
+        run_meta = {"format": FORMAT, "env_id": env_id, "algo": "ppo",
+                    "env_kwargs": dict(hp.get("env_kwargs") or {}),
                     "config_hash": chash, "seed": seed, "hyperparams": hp,
                     "env_config": dataclasses.asdict(cfg)}
         tb = str(out / "tb") if tensorboard else None

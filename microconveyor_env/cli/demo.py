@@ -40,7 +40,8 @@ def demo_summary(args) -> dict:
     charts.append(plot_firing(firing, scene.freq, out_dir / "firing.png", stroke=scene.stroke))
     freq = sweep(scene, "freq", parse_values("200:1500:25", "freq"), progress=True)
     charts.append(plot_sweep(freq, out_dir / "sweep.png"))
-    episode = _demo_episode(out_dir / "episode.png")
+    episode = _demo_episode(out_dir / "episode.png", getattr(args, "env", None) or ENV_ID,
+                            getattr(args, "env_kwargs_dict", None) or {})
     charts.append(episode.pop("chart"))
     summary = {"preset": preset.name, "contact": table.report(), "calibration": preset.calibration,
                "reference_firing": firing.to_dict(), "window_hz": freq["window_hz"],
@@ -51,14 +52,22 @@ def demo_summary(args) -> dict:
     return summary
 
 
-def _demo_episode(path):
-    """One MicroConveyor-v0 episode with a constant action (950 Hz, 200 um, no delay), rendered."""
+ENV_ID = "MicroConveyor-v0"
+
+
+def _demo_episode(path, env_id=ENV_ID, env_kwargs=None):
+    """One episode of ``env_id`` (with ``env_kwargs``) with a fixed schedule: every actuator
+    fires 950 Hz, 200 um, no delay; rendered."""
+    import warnings
+
     import gymnasium as gym
 
     from ..envs import actions
     from ..plots import save_frames
 
-    env = gym.make("MicroConveyor-v0", render_mode="rgb_array")
+    with warnings.catch_warnings():  # the demo picks v0 on purpose: no "out of date" notice
+        warnings.filterwarnings("ignore", message=".*is out of date", category=DeprecationWarning)
+        env = gym.make(env_id, render_mode="rgb_array", **(env_kwargs or {}))
     env.reset(seed=0, options={"target": 1e-3})
     action = actions.encode_actions(950.0, 200e-6, 0.0, env.unwrapped.config)
     frames, total = [env.render()], 0.0
@@ -68,7 +77,8 @@ def _demo_episode(path):
         frames.append(env.render())
         if term or trunc:
             break
-    return {"chart": save_frames(frames, path), "return": total, **info}
+    return {"chart": save_frames(frames, path), "env_id": env_id, "env_kwargs": env_kwargs or {},
+            "return": total, **info}
 
 
 ARGS["demo"] = _demo_args

@@ -32,7 +32,7 @@ def check_env_id(env_id: str) -> str:
     return env_id
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _overrides(env_id: str) -> tuple[tuple[str, Any], ...]:
     from ..presets import parse_yaml
 
@@ -71,3 +71,10 @@ def scene_differences(trained: EnvConfig, asked: EnvConfig) -> dict[str, tuple[A
     a, b = dataclasses.asdict(trained), dataclasses.asdict(asked)
     skip = RUNTIME_FIELDS | PERTURBATION_FIELDS
     return {k: (a[k], b[k]) for k in a if k not in skip and a[k] != b[k]}
+
+
+def nominal(config: EnvConfig) -> EnvConfig:
+    """``config`` with per-episode randomisation off (its scene under nominal conditions)."""
+    off: dict[str, Any] = {f.name: f.default for f in dataclasses.fields(EnvConfig)
+                           if f.name in PERTURBATION_FIELDS}
+    return dataclasses.replace(config, **off)
