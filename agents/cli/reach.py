@@ -45,9 +45,11 @@ def cmd_reach(args: argparse.Namespace) -> None:
     study = reach_study(args.targets, budget=args.budget, sigma=args.sigma, n_noisy=args.noisy,
                         seed=args.seed, robust_budget=args.robust_budget, config=cfg,
                         progress=progress)
-    study.update(env_id=args.env, env_kwargs=kwargs)
+    study.update(env_id=args.env, env_kwargs=kwargs,
+                 scene_label=f"{args.env}: {cfg.n_actuators} actuators {cfg.spacing * 1e3:g} mm "
+                             f"apart, preset {cfg.preset}, action noise σ = {args.sigma:g}")
     if args.plot:
-        study["plot"] = plot_reach(study, args.plot)
+        study["plot"] = plot_reach(study, args.plot)  # after the scene label is in
     rows = "\n".join(f"{r['target_m'] * 1e3:6.2f} mm  {r['best_abs_error_m'] * 1e6:10.2f} um  "
                      f"{r['best_noisy_success_rate']:.2f}  {'robust' if r['robust'] else ''}"
                      for r in study["rows"])

@@ -27,7 +27,9 @@ def plot_reach(study: dict, path: str) -> str:
     if rr:
         for ax in (a1, a2):
             ax.axvspan(rr[0] * 1e3, rr[1] * 1e3, color="g", alpha=0.1)
-    fig.suptitle(f"Reach of open-loop schedules (DE, {study['budget_episodes']} episodes/target)")
+    scene = study.get("scene_label")
+    fig.suptitle(f"Reach of open-loop schedules (DE, {study['budget_episodes']} episodes/target)"
+                 + (f"\n{scene}" if scene else ""), fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

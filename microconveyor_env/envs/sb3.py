@@ -23,10 +23,18 @@ _SCALAR_INFO = ("is_success", "position_error_m", "outcome", "sim_time_s", "freq
 class MicroConveyorSB3VecEnv(VecEnv):
     """``num_envs`` parts in one compiled batch, with SB3's VecEnv semantics.
 
-    Keyword arguments are :class:`~microconveyor_env.envs.EnvConfig` fields (or ``config=``).
+    ``env_id``: a registered version (``"MicroConveyor-v1"``: its defaults, as ``gym.make``
+    gives them; None: MicroConveyor-v0's); keyword arguments are
+    :class:`~microconveyor_env.envs.EnvConfig` fields overriding them (or ``config=``).
     """
 
-    def __init__(self, num_envs: int = 8, **kwargs: Any) -> None:
+    def __init__(self, num_envs: int = 8, env_id: str | None = None, **kwargs: Any) -> None:
+        if env_id is not None:
+            if "config" in kwargs:
+                raise ValueError("give either env_id (with keyword overrides) or config=")
+            from .versions import env_config
+
+            kwargs = {"config": env_config(env_id, **kwargs)}
         self.venv = MicroConveyorVectorEnv(num_envs, autoreset_mode=AutoresetMode.SAME_STEP,
                                            **kwargs)
         self._actions: np.ndarray | None = None
