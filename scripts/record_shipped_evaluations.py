@@ -19,9 +19,9 @@ import sys
 import numpy as np
 
 from agents.rl.checkpoint import MODEL, NORMALIZATION, sha256
+from agents.rl.policy_files import policy_scene
 from agents.rl.evaluate import fixed_targets, load_policy, rollout, summarize
 from agents.rl.shipped import shipped_path
-from microconveyor_env.envs import EnvConfig
 
 # folder -> {evaluation key: which env config ("nominal" or "trained": the run's env_kwargs)}
 EVALUATIONS = {"ppo": {"evaluation": "nominal", "evaluation_fresh": "nominal"},
@@ -53,8 +53,8 @@ def record(name: str) -> None:
     episodes = {}
     for key, which in EVALUATIONS[name].items():
         old = meta[key]
-        cfg = (EnvConfig.from_yaml(**meta["hyperparams"]["env_kwargs"]) if which == "trained"
-               else EnvConfig.from_yaml())
+        # "trained": the scene and randomisation it was trained under; "nominal": randomisation off
+        cfg = policy_scene(meta) if which == "trained" else pol.config
         targets = fixed_targets(cfg, old["n_targets"], old["seed"])
         res = rollout(pol, targets, cfg, seed=old["seed"])
         summary = summarize(res, cfg.tolerance)
