@@ -13,7 +13,8 @@ def _demo_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="out", help="output folder for charts and the summary JSON")
     p.add_argument("--policy", default=None,
                    help="policy folder (default: the one shipped for --env, if any)")
-    add_env_args(p, what=" of the episode and the policy")
+    add_env_args(p, what=" of the episode and the policy (its surface also for the contact, "
+                         "firing and sweep charts unless --preset is given)")
 
 
 @command("demo", "the main job: contact report, a firing, a frequency sweep, an env episode and "
@@ -29,7 +30,13 @@ def cmd_demo(args: argparse.Namespace) -> None:
 
     from ..rl.shipped import shipped_path
 
+    from microconveyor_env.cli.base import DEFAULT_PRESET
+    from microconveyor_env.envs import env_config
+
     args.env_kwargs_dict = env_kwargs_of(args)
+    cfg = env_config(args.env, **args.env_kwargs_dict)
+    if args.preset == DEFAULT_PRESET:  # the physics part shows the env's surface
+        args.preset = cfg.preset
     no_policy = None
     if importlib.util.find_spec("stable_baselines3") is None:
         no_policy = ("shipped policy skipped: it needs the train extra (pip install "
@@ -50,9 +57,6 @@ def cmd_demo(args: argparse.Namespace) -> None:
 
     from ..experiments.demo import load_demo_policy, policy_demo, table
 
-    from microconveyor_env.envs import env_config
-
-    cfg = env_config(args.env, **args.env_kwargs_dict)
     policy = load_demo_policy(args.policy, cfg, args.env)  # a bad --policy fails at once
     summary = demo_summary(args)
     demo = policy_demo(args.out, policy, config=cfg)

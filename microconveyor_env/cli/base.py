@@ -90,10 +90,13 @@ def count(lo: int, hi: int | None = None) -> Callable[[str], int]:
     return parse
 
 
+DEFAULT_PRESET = "feasibility"
+
+
 def common_args(p: argparse.ArgumentParser) -> None:
     """The options of every command: ``--json`` and ``--preset``."""
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    p.add_argument("--preset", default="feasibility",
+    p.add_argument("--preset", default=DEFAULT_PRESET,
                    help="preset name (feasibility: chapter 3's surface; conveyor: chapter 4's; "
                         "ke: uncalibrated) or YAML path")
 

@@ -108,3 +108,14 @@ def test_commands_take_env_and_refuse_what_does_not_fit(tmp_path):
     assert out["env_id"] == "MicroConveyor-v1" and len(out["rows"]) == 1
     r = _cli("evaluate", "--env", "MicroConveyor-v9", "--json")
     assert r.returncode == 2 and "MicroConveyor-v9" in r.stdout
+
+
+def test_demo_on_v1_shows_v1s_surface_and_says_no_policy_is_shipped(tmp_path):
+    r = _cli("demo", "--env", "MicroConveyor-v1", "--out", str(tmp_path), "--json")
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["preset"] == "conveyor" and out["policy_demo"] is None
+    assert out["episode"]["env_id"] == "MicroConveyor-v1"
+    assert (tmp_path / "episode.png").stat().st_size > 1000
+    # chapter 4's surface conveys over a narrower window than chapter 3's (225-1250 Hz)
+    assert out["window_hz"] == [200.0, 800.0]
