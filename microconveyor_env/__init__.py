@@ -1,5 +1,6 @@
 """microconveyor-env: micropart conveyor simulator (Kogut–Etsion contact, stick–slip dynamics)
-and the Gymnasium environments ``MicroConveyor-v0`` and ``MicroConveyor-v1``.
+and the Gymnasium environments ``MicroConveyor-v0``, ``MicroConveyor-v1`` and its goal-conditioned
+variant ``MicroConveyorGoal-v1`` (Dict observation, ``compute_reward``; for HER).
 
 Importing the package registers both (idempotent), each with a vector entry point to the batched
 env, so ``gym.make("MicroConveyor-v1")`` and ``gym.make_vec("MicroConveyor-v1", N)`` work;
@@ -16,15 +17,17 @@ LATEST_ENV_ID = "MicroConveyor-v1"
 def _register() -> None:
     from gymnasium.envs.registration import register, registry
 
-    from .envs.versions import ENV_IDS, max_episode_steps, registered_kwargs
+    from .envs.versions import ALL_ENV_IDS, ENTRY_POINTS, ENV_IDS, max_episode_steps, \
+        registered_kwargs
 
-    for env_id in ENV_IDS:
+    for env_id in ALL_ENV_IDS:
         if env_id in registry:
             continue
         # v0 stays registered exactly as it was (no TimeLimit: its episodes end by themselves)
         steps = None if env_id == ENV_ID else max_episode_steps(env_id)
-        register(id=env_id, entry_point="microconveyor_env.envs.conveyor:MicroConveyorEnv",
-                 vector_entry_point="microconveyor_env.envs.vector:MicroConveyorVectorEnv",
+        vector = ("microconveyor_env.envs.vector:MicroConveyorVectorEnv" if env_id in ENV_IDS
+                  else None)  # the goal variant vectorises with Gymnasium's Sync/Async envs
+        register(id=env_id, entry_point=ENTRY_POINTS[env_id], vector_entry_point=vector,
                  kwargs=registered_kwargs(env_id), max_episode_steps=steps,
                  disable_env_checker=False)
 

@@ -19,6 +19,11 @@ from .config import MAX_ACTUATORS, EnvConfig
 
 ENV_IDS = ("MicroConveyor-v0", "MicroConveyor-v1")
 LATEST = ENV_IDS[-1]
+# interface variants: same scene and defaults as their base version, another observation
+GOAL_ENV_IDS = {"MicroConveyorGoal-v1": "MicroConveyor-v1"}   # Dict observation (envs/goal.py)
+ALL_ENV_IDS = ENV_IDS + tuple(GOAL_ENV_IDS)
+ENTRY_POINTS = {**{i: "microconveyor_env.envs.conveyor:MicroConveyorEnv" for i in ENV_IDS},
+                **{i: "microconveyor_env.envs.goal:MicroConveyorGoalEnv" for i in GOAL_ENV_IDS}}
 # how an env runs, not what it simulates: may differ between training and evaluation
 RUNTIME_FIELDS = frozenset({"num_threads", "max_steps"})
 # per-episode randomisation: the conditions a policy is tested under, not the scene it acts in
@@ -27,8 +32,8 @@ PERTURBATION_FIELDS = frozenset({"action_noise", "friction_factor_range", "mass_
 
 def check_env_id(env_id: str) -> str:
     """``env_id`` if it is a registered version, else a ParameterError naming the versions."""
-    if env_id not in ENV_IDS:
-        raise ParameterError(f"unknown env id {env_id!r}; registered: {', '.join(ENV_IDS)}")
+    if env_id not in ALL_ENV_IDS:
+        raise ParameterError(f"unknown env id {env_id!r}; registered: {', '.join(ALL_ENV_IDS)}")
     return env_id
 
 
@@ -47,9 +52,14 @@ def _overrides(env_id: str) -> tuple[tuple[str, Any], ...]:
     return tuple((k, tuple(v) if isinstance(v, list) else v) for k, v in data.items())
 
 
+def base_env_id(env_id: str) -> str:
+    """The scene version of ``env_id`` (itself, or the version an interface variant wraps)."""
+    return GOAL_ENV_IDS.get(check_env_id(env_id), env_id)
+
+
 def registered_kwargs(env_id: str) -> dict[str, Any]:
     """The keyword arguments ``env_id`` is registered with (its defaults beyond v0's)."""
-    return dict(_overrides(check_env_id(env_id)))
+    return dict(_overrides(base_env_id(env_id)))
 
 
 def env_config(env_id: str = LATEST, **overrides: Any) -> EnvConfig:
