@@ -297,8 +297,28 @@ def train(out: str | Path, steps: int | None = None, seed: int = 0, conf_file: s
             _refuse_used_folder(out)
             model = _new_model(env, hp, seed, tb)
         total = int(steps if steps is not None else hp.get("n_timesteps", 1e6))
+        if resume:
+            _check_budget_left(model.num_timesteps, total, wall_before, max_minutes, log)
         return _learn(model, out, cfg, total, resume, run_meta, wall_before, checkpoint_freq,
                       eval_freq, eval_targets, eval_seed, progress_bar, max_minutes, log)
+
+
+def _check_budget_left(done: int, total: int, wall_before: float, max_minutes: float | None,
+                       log: Log | None) -> None:
+    """A resumed run continues the whole run's budgets (steps and wall time count from its
+    start): refuse one with nothing left, rather than stopping after one rollout in silence."""
+    if done >= total:
+        raise ValueError(f"nothing to resume: the run already has {done} of its {total} steps; "
+                         "give a larger --steps (the budget counts the whole run)")
+    if max_minutes is not None and wall_before >= 60.0 * max_minutes:
+        raise ValueError(f"nothing to resume: the run already used {wall_before / 60:.2f} min of "
+                         f"its --max-minutes {max_minutes:g}; give a larger --max-minutes (the "
+                         "budget counts the whole run)")
+    if log:
+        left = "" if max_minutes is None else \
+            f", {max_minutes - wall_before / 60:.2f} of {max_minutes:g} min left"
+        log(f"resume: continuing at step {done} of {total}{left}; the learning-rate schedule "
+            "continues from the run's progress")
 
 
 def _learn(model: BudgetPPO, out: Path, cfg: EnvConfig, total: int, resume: bool, run_meta: dict,

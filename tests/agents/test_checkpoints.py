@@ -105,6 +105,36 @@ def test_resume_refuses_what_it_cannot_honour(tmp_path):
         train(tmp_path / "old", resume=True, **kw)
 
 
+def test_resume_continues_the_whole_runs_budgets_and_schedule(tmp_path, monkeypatch):
+    """Steps, wall time and the learning-rate schedule count from the run's start: a resumed run
+    picks the schedule up where it stopped (no sawtooth), and one with nothing left is refused
+    with a message, not stopped after one rollout."""
+    from agents.rl.train import BudgetPPO, train
+
+    kw = dict(seed=0, overrides=SMALL, checkpoint_freq=512, eval_freq=0, eval_targets=0,
+              progress_bar=False, tensorboard=False)
+    train(tmp_path / "a", steps=512, **kw)
+    with pytest.raises(ValueError, match="already has 512 of its 512 steps"):
+        train(tmp_path / "a", steps=512, resume=True, **kw)
+    with pytest.raises(ValueError, match="already used .* of its --max-minutes 1e-05"):
+        train(tmp_path / "a", steps=4096, max_minutes=1e-5, resume=True, **kw)
+    seen = []
+    orig = BudgetPPO._update_current_progress_remaining
+
+    def record(self, num_timesteps, total_timesteps):
+        orig(self, num_timesteps, total_timesteps)
+        seen.append(self._current_progress_remaining)
+
+    monkeypatch.setattr(BudgetPPO, "_update_current_progress_remaining", record)
+    lines = []
+    meta = train(tmp_path / "a", steps=2048, resume=True, log=lines.append, **kw)
+    assert meta["steps"] >= 2048
+    # SB3 updates the progress after each 512-step rollout: the first resumed one ends at step
+    # 1024 of 2048 (0.5 remaining); a schedule restarted from the resumed step would say 0.75
+    assert seen[:3] == pytest.approx([0.5, 0.25, 0.0], abs=0.01)
+    assert any("continuing at step 512 of 2048" in line for line in lines)
+
+
 @pytest.mark.parametrize("bad", [{"max_minutes": math.nan}, {"max_minutes": -1.0},
                                  {"max_minutes": 0}, {"steps": 0}, {"steps": 1.5},
                                  {"checkpoint_freq": 0}, {"eval_freq": -1}])
