@@ -22,8 +22,34 @@ def iqm(x: Sequence[float] | np.ndarray) -> float:
     return float(trim_mean(np.asarray(x, float), 0.25))
 
 
+# what must agree between runs for their seeds to be aggregated (the seed itself may differ)
+SAME = ("env_id", "env_kwargs", "algo", "hyperparams")
+
+
+def check_same_config(metas: Sequence[dict], runs: Sequence[str | Path]) -> None:
+    """ValueError naming the runs and keys whose env or training config differ from the first
+    run's: averaging seeds of different configs would mean nothing."""
+    first = metas[0]
+    for run, meta in zip(runs[1:], metas[1:], strict=True):
+        diff = [k for k in SAME if json.dumps(meta.get(k), sort_keys=True, default=str)
+                != json.dumps(first.get(k), sort_keys=True, default=str)]
+        if meta.get("hyperparams") and first.get("hyperparams") and "hyperparams" in diff:
+            a, b = first["hyperparams"], meta["hyperparams"]
+            diff.remove("hyperparams")
+            diff += [f"hyperparams.{k}" for k in sorted(set(a) | set(b))
+                     if json.dumps(a.get(k), sort_keys=True, default=str)
+                     != json.dumps(b.get(k), sort_keys=True, default=str)]
+        if diff:
+            raise ValueError(f"runs of different configs cannot be aggregated over seeds: "
+                             f"{str(run)!r} differs from {str(runs[0])!r} in {', '.join(diff)}")
+
+
 def aggregate(runs: Sequence[str | Path], reps: int = 2000, seed: int = 0) -> dict:
-    evs = [json.loads((Path(r) / "metadata.json").read_text())["evaluation"] for r in runs]
+    """IQM and 95 % bootstrap CI of the final evaluations of ``runs`` (run folders of one
+    config; refused otherwise, :func:`check_same_config`)."""
+    metas = [json.loads((Path(r) / "metadata.json").read_text()) for r in runs]
+    check_same_config(metas, runs)
+    evs = [m["evaluation"] for m in metas]
     rng = np.random.default_rng(seed)
     out: dict = {"runs": [str(r) for r in runs]}
     for key in KEYS:

@@ -165,3 +165,21 @@ def test_seeds_command_reports_curves_and_plots(tmp_path):
     assert (tmp_path / "curves.png").stat().st_size > 10_000
     r = run("seeds", str(tmp_path / "nope"), "--json")
     assert r.returncode == 2 and "error" in json.loads(r.stdout)
+
+
+def test_seeds_refuses_runs_of_different_configs(tmp_path):
+    from agents.rl.seeds import aggregate
+
+    runs = fake_runs(tmp_path)
+    base = {"env_id": "MicroConveyor-v1", "env_kwargs": {"num_threads": 1}, "algo": "ppo",
+            "hyperparams": {"gamma": 0.99, "n_envs": 64}}
+    for i, r in enumerate(runs):
+        meta = json.loads((r / "metadata.json").read_text())
+        (r / "metadata.json").write_text(json.dumps({**meta, **base, "seed": i}))
+    assert aggregate(runs)["success_rate_50um"]["per_seed"] == [0.2, 0.5, 0.8]  # seeds differ: fine
+    meta = json.loads((runs[2] / "metadata.json").read_text())
+    meta["env_kwargs"] = {"num_threads": 1, "n_actuators": 10}
+    meta["hyperparams"] = {"gamma": 0.9, "n_envs": 64}
+    (runs[2] / "metadata.json").write_text(json.dumps(meta))
+    with pytest.raises(ValueError, match="differs from .* in env_kwargs, hyperparams.gamma"):
+        aggregate(runs)
