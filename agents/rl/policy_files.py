@@ -27,7 +27,7 @@ from microconveyor_env.physics.materials import ParameterError
 from . import normalization
 from .checkpoint import META, MODEL, CheckpointError, read_meta, verify_files
 from .normalization import NORMALIZATION, NormalizationError, ObsNormalizer
-from .sb3_files import ModelFileError, algo_of, check_spaces, read_data, safe_load
+from .sb3_files import ALGOS, ModelFileError, algo_of, check_spaces, read_data, safe_load
 
 FIRST_ENV_ID = "MicroConveyor-v0"  # what a policy without an env id in its metadata was trained on
 
@@ -157,15 +157,14 @@ def load_policy(path: str | Path, config: EnvConfig | None = None) -> Policy:
     try:
         data = read_data(model_file)
     except ModelFileError as exc:
-        raise PolicyError(f"{exc}; not a stable-baselines3 PPO model") from None
+        raise PolicyError(f"{exc}; not a stable-baselines3 model") from None
     algo = algo_of(data)
     if meta.get("algo") and algo is not None and meta["algo"] != algo:
         raise PolicyError(f"{str(folder / META)!r} says {str(meta['algo']).upper()}, but "
                           f"{str(model_file)!r} is an {algo.upper()} model")
-    if algo != "ppo":
-        raise PolicyError(f"{str(model_file)!r} is not a stable-baselines3 PPO model (it is "
-                          f"{'of an unknown kind' if algo is None else algo.upper()}); "
-                          "evaluate loads PPO policies")
+    if algo is None:
+        raise PolicyError(f"{str(model_file)!r} is not a model of a kind this loader knows "
+                          f"(stable-baselines3 {', '.join(a.upper() for a in ALGOS)})")
     trained = policy_scene(meta, repr(str(folder / META))) if meta else None
     if trained is not None and config is not None:
         check_scene(trained, config, meta, repr(str(folder / META)))
@@ -177,7 +176,7 @@ def load_policy(path: str | Path, config: EnvConfig | None = None) -> Policy:
         check_spaces(model_file, data, obs_space.shape, act_space.shape,
                      str(meta.get("env_id", FIRST_ENV_ID)))
         normalizer = _normalizer(folder, model_file, meta, obs_space.shape)
-        model = safe_load(model_file, "ppo", obs_space, act_space)
+        model = safe_load(model_file, algo, obs_space, act_space)
     except ModelFileError as exc:
         raise PolicyError(str(exc)) from None
     return Policy(model, normalizer, meta, folder, trained)

@@ -125,6 +125,7 @@ def custom_objects(path: Path, data: dict[str, Any], algo: str, observation_spac
     (SB3 rebuilds them at the next ``learn``). Unknown pickled entries and a policy class other
     than the algorithm's are refused."""
     from stable_baselines3.common.buffers import ReplayBuffer, RolloutBuffer
+    from stable_baselines3.common.type_aliases import TrainFreq, TrainFrequencyUnit
 
     _, policy_name = ALGOS[algo]
     known: dict[str, Any] = {
@@ -135,7 +136,8 @@ def custom_objects(path: Path, data: dict[str, Any], algo: str, observation_spac
         "rollout_buffer_class": RolloutBuffer, "rollout_buffer_kwargs": {},
         "replay_buffer_class": ReplayBuffer, "replay_buffer_kwargs": {}, "action_noise": None,
         "target_policy_noise": None, "target_noise_clip": None, "ent_coef": None,
-        "train_freq": None, "use_sde_at_warmup": None,
+        # off-policy training settings: they only matter to a resumed training
+        "train_freq": TrainFreq(1, TrainFrequencyUnit.STEP), "use_sde_at_warmup": False,
     }
     out: dict[str, Any] = {}
     for key, value in data.items():

@@ -54,12 +54,13 @@ class MicroConveyorGoalEnv(MicroConveyorEnv):
             "achieved_goal": goal, "desired_goal": goal})
         self._tc = task.constants(self.config)
 
-    def reset(self, *, seed: int | None = None,
+    def reset(self, *, seed: int | None = None,  # type: ignore[override]  # Dict observation
               options: dict[str, Any] | None = None) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         _, info = super().reset(seed=seed, options=options)
         return self._goal_obs(), info
 
-    def step(self, action: Any) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+    def step(self, action: Any  # type: ignore[override]  # Dict observation
+             ) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
         x0, t0 = self.x, self.t
         _, _, terminated, truncated, info = super().step(action)
         info["x_before_m"], info["t_before_s"] = x0, t0
@@ -75,7 +76,7 @@ class MicroConveyorGoalEnv(MicroConveyorEnv):
         transition (``info`` a dict): a float; a batch (``info`` a sequence of dicts, goals of
         shape (B, 1)): an array (B,)."""
         single = isinstance(info, Mapping)
-        infos = [info] if single else list(info)
+        infos: list[Mapping[str, Any]] = [info] if isinstance(info, Mapping) else list(info)
         if any(k not in inf for inf in infos for k in INFO_KEYS):
             raise ValueError("MicroConveyorGoal-v1's reward depends on the transition (progress "
                              f"from the previous position): compute_reward needs info with "

@@ -101,7 +101,7 @@ def test_evaluate_cli_missing_or_incompatible_policy(tmp_path):
     assert len(r.stderr.strip().splitlines()) == 1
     (tmp_path / "junk.zip").write_bytes(b"not a zip")
     r = run("evaluate", "--policy", str(tmp_path / "junk.zip"), "--json")
-    assert r.returncode == 2 and "not a stable-baselines3 PPO model" in r.stdout
+    assert r.returncode == 2 and "not a stable-baselines3 model" in r.stdout
     import gymnasium as gym
     from stable_baselines3 import PPO
 

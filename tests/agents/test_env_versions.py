@@ -119,3 +119,26 @@ def test_demo_on_v1_shows_v1s_surface_and_says_no_policy_is_shipped(tmp_path):
     assert (tmp_path / "episode.png").stat().st_size > 1000
     # chapter 4's surface conveys over a narrower window than chapter 3's (225-1250 Hz)
     assert out["window_hz"] == [200.0, 800.0]
+
+
+@pytest.mark.parametrize("algo", ["SAC", "TD3"])
+def test_off_policy_zips_load_as_data_and_act_as_trained(tmp_path, algo):
+    import numpy as np
+    import stable_baselines3 as sb3
+
+    from microconveyor_env.envs import MicroConveyorEnv
+
+    env = MicroConveyorEnv(config=env_config("MicroConveyor-v1"))
+    model = getattr(sb3, algo)("MlpPolicy", env, learning_starts=10, seed=0, device="cpu",
+                               policy_kwargs={"net_arch": [16]})
+    model.learn(40)
+    model.save(tmp_path / "model.zip")
+    (tmp_path / "metadata.json").write_text(json.dumps({
+        "env_id": "MicroConveyor-v1", "algo": algo.lower(), "env_kwargs": {},
+        "hyperparams": {"normalize": None}}))
+    pol = load_policy(tmp_path)
+    obs = np.stack([env.reset(seed=s)[0] for s in range(4)])
+    np.testing.assert_array_equal(pol.act(obs), model.predict(obs, deterministic=True)[0])
+    r = _cli("evaluate", "--policy", str(tmp_path), "--targets", "3", "--json")
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["env_id"] == "MicroConveyor-v1"
