@@ -89,13 +89,13 @@ def env_kwarg(text: str) -> tuple[str, Any]:
 
 
 def add_env_args(p: argparse.ArgumentParser, default: str | None = "MicroConveyor-v0",
-                 what: str = "") -> None:
+                 what: str = "", default_text: str | None = None) -> None:
     """``--env ID`` (a registered version) and ``--env-kwargs KEY:VALUE ...`` (its overrides, as
-    ``gym.make(ID, **kwargs)``)."""
+    ``gym.make(ID, **kwargs)``); ``default_text`` says what a ``None`` default means."""
     from microconveyor_env.envs import ENV_IDS
 
     p.add_argument("--env", choices=ENV_IDS, default=default,
-                   help=f"env id{what} (default: {default or 'the policy`s own'})")
+                   help=f"env id{what} (default: {default or default_text})")
     p.add_argument("--env-kwargs", type=env_kwarg, nargs="+", default=None, metavar="KEY:VALUE",
                    help="env overrides as gym.make(ID, **kwargs): SI units, e.g. n_actuators:7 "
                         "'target_range:(0.5e-3, 6e-3)'")

@@ -33,8 +33,8 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    help="dissertation: also replay Table 4.3's schedule under one-at-a-time model "
                         "changes and re-run the DE under each, for 10 seeds from --seed (~30 s "
                         "at the default budget)")
-    add_env_args(p, default=None, what=" of --problem target (default MicroConveyor-v0; the "
-                                       "dissertation problem is its own model)")
+    add_env_args(p, default=None, default_text="MicroConveyor-v0",
+                 what=" of --problem target (the dissertation problem is its own model)")
 
 
 def run(args: argparse.Namespace) -> None:

@@ -85,8 +85,9 @@ def _evaluate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the fixed target set")
     p.add_argument("--tolerance", type=float, default=None,
                    help="success tolerance [m] (default: the env's, 50 um)")
-    add_env_args(p, default=None, what=": the policy's scene, refused if it differs from the "
-                                       "one the policy was trained in (randomisation aside)")
+    add_env_args(p, default=None, default_text="the policy's own, from its metadata",
+                 what=": refused if it differs from the scene the policy was trained in "
+                      "(randomisation aside)")
 
 
 @command("evaluate", "evaluate a PPO policy on a fixed seeded set of targets, in the scene it "
