@@ -125,6 +125,15 @@ def _read(name_or_path: str) -> dict[str, Any]:
 
 def _section(cls: type[Any], data: dict[str, Any], key: str) -> Any:
     raw = data.get(key) or {}
+    valid = sorted(f.name for f in dataclasses.fields(cls))
+    unknown = sorted(set(raw) - set(valid), key=str)
+    if unknown:
+        import difflib
+
+        hints = [f"{u!r} (did you mean {close[0]!r}?)" if (close := difflib.get_close_matches(
+            str(u), valid, n=1)) else repr(u) for u in unknown]
+        raise ParameterError(f"{key}: unknown key{'s' if len(unknown) > 1 else ''} "
+                             f"{', '.join(hints)}; valid keys: {', '.join(valid)}")
     try:
         return cls(**raw)
     except TypeError as exc:

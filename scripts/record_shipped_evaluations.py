@@ -4,7 +4,7 @@ episode in ``episodes.json`` beside it, with how they were produced.
 Run from the repository root after a change that moves the dynamics (the tests compare a fresh
 evaluation with these records within tolerances derived in tests/test_shipped_policies.py)::
 
-    python scripts/record_shipped_evaluations.py
+    python scripts/record_shipped_evaluations.py [ENV_ID/NAME ...]   (default: all shipped)
 
 Also records the sha256 of ``model.zip`` and ``normalization.json`` in the metadata (the loader
 refuses a folder whose files do not match) and the folder format.
@@ -23,7 +23,8 @@ from agents.rl.policy_files import policy_scene
 from agents.rl.evaluate import fixed_targets, load_policy, rollout, summarize
 from agents.rl.shipped import shipped_path
 
-# folder -> {evaluation key: which env config ("nominal" or "trained": the run's env_kwargs)}
+# policy name -> {evaluation key: which env config ("nominal": the trained scene without
+# randomisation, "trained": with the run's randomisation)}
 EVALUATIONS = {"ppo": {"evaluation": "nominal", "evaluation_fresh": "nominal"},
                "ppo_randomised": {"evaluation": "trained", "evaluation_nominal": "nominal"}}
 EPISODES = "episodes.json"
@@ -43,8 +44,8 @@ def provenance() -> dict:
             "command": "python scripts/record_shipped_evaluations.py"}
 
 
-def record(name: str) -> None:
-    folder = shipped_path(name)
+def record(env_id: str, name: str) -> None:
+    folder = shipped_path(name, env_id)
     meta_path = folder / "metadata.json"
     meta = json.loads(meta_path.read_text())
     meta.pop("files", None)                      # re-hashed below
@@ -63,7 +64,7 @@ def record(name: str) -> None:
         episodes[key] = {"config": which, "seed": old["seed"],
                          "target_m": res["targets_m"].tolist(), "error_m": res["error_m"].tolist(),
                          "outcome": res["outcome"].tolist(), "firings": res["firings"].tolist()}
-        print(f"{name} {key}: success {summary['success_rate_50um']:.3f}, median "
+        print(f"{env_id}/{name} {key}: success {summary['success_rate_50um']:.3f}, median "
               f"{summary['median_abs_error_m'] * 1e6:.4f} um", file=sys.stderr)
     meta["format"] = 2
     meta["evaluation_provenance"] = provenance()
@@ -73,5 +74,10 @@ def record(name: str) -> None:
 
 
 if __name__ == "__main__":
-    for n in (sys.argv[1:] or list(EVALUATIONS)):
-        record(n)
+    from agents.rl.shipped import shipped_policies
+
+    wanted = sys.argv[1:] or [f"{e}/{n}" for e, names in shipped_policies().items()
+                              for n in names]
+    for item in wanted:
+        env_id, _, name = item.partition("/")
+        record(env_id, name)

@@ -29,6 +29,9 @@ def _train_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-minutes", type=minutes, default=None,
                    help="stop after this wall time [min], resumed time included")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--quick", action="store_true",
+                   help="see it learn in 3 minutes: --max-minutes 3 (unless given), an evaluation "
+                        "on 50 targets every 250,000 steps printed as it goes")
     add_env_args(p, what=" to train on (its entry in the conf file gives the hyperparameters)")
 
 
@@ -39,6 +42,9 @@ def cmd_train(args: argparse.Namespace) -> None:
     def log(line: str) -> None:
         print(line, file=sys.stderr, flush=True)
 
+    if args.quick:
+        args.max_minutes = args.max_minutes or 3.0
+        args.eval_freq, args.eval_targets = 250_000, 50
     meta = train(args.out, steps=args.steps, seed=args.seed, conf_file=args.conf_file,
                  resume=args.resume, checkpoint_freq=args.checkpoint_freq,
                  eval_freq=args.eval_freq, eval_targets=args.eval_targets,

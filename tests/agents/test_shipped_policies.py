@@ -21,26 +21,31 @@ pytest.importorskip("stable_baselines3")
 
 from agents.rl.evaluate import TOLERANCES, fixed_targets, load_policy, rollout, summarize  # noqa: E402
 from agents.rl.shipped import shipped_path  # noqa: E402
+from agents.rl.policy_files import policy_scene  # noqa: E402
 from microconveyor_env.envs import EnvConfig  # noqa: E402
+from microconveyor_env.envs.versions import nominal  # noqa: E402
 
 EPISODE_TOL_M = 1e-6
 
 
 def _config(meta: dict, which: str) -> EnvConfig:
-    return (EnvConfig.from_yaml(**meta["hyperparams"]["env_kwargs"]) if which == "trained"
-            else EnvConfig.from_yaml())
+    """The scene the policy was trained in (its env id and kwargs), with its randomisation
+    ("trained") or without ("nominal")."""
+    scene = policy_scene(meta)
+    return scene if which == "trained" else nominal(scene)
 
 
 def _successes(err: np.ndarray, outcome: np.ndarray, tol: float) -> np.ndarray:
     return (outcome == "rest") & (np.abs(err) <= tol)
 
 
-def assert_reproduces(name: str, key: str) -> dict:
-    """Re-run the evaluation ``key`` of shipped policy ``name`` and compare it, episode by
-    episode, with the record in its ``episodes.json`` (tolerances: module docstring)."""
-    pol = load_policy(shipped_path(name))
+def assert_reproduces(name: str, key: str, env_id: str = "MicroConveyor-v0") -> dict:
+    """Re-run the evaluation ``key`` of shipped policy ``name`` of ``env_id`` and compare it,
+    episode by episode, with the record in its ``episodes.json`` (tolerances: module
+    docstring)."""
+    pol = load_policy(shipped_path(name, env_id))
     meta = pol.metadata
-    rec = json.loads((shipped_path(name) / "episodes.json").read_text())[key]
+    rec = json.loads((shipped_path(name, env_id) / "episodes.json").read_text())[key]
     cfg = _config(meta, rec["config"])
     targets = fixed_targets(cfg, meta[key]["n_targets"], rec["seed"])
     np.testing.assert_array_equal(targets, rec["target_m"])       # pure numpy RNG: exact

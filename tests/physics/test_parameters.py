@@ -59,6 +59,10 @@ def test_preset_errors_are_clear(tmp_path):
         load_preset(str(typo))
     with pytest.raises(ParameterError, match="surface"):
         params_from_dict({"surface": {"sigmaa": 1e-8}})
+    # a typo names itself, the likely key and every valid one
+    with pytest.raises(ParameterError, match=r"surface: unknown key 'dgama' \(did you mean "
+                                             r"'dgamma'\?\); valid keys: beta, dgamma, eps, psi, sigma"):
+        params_from_dict({"surface": {"dgama": 1.0}})
 
 
 def test_former_names_still_work_with_a_deprecation_warning():
