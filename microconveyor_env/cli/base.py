@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import sys
 import traceback
 from typing import Any, NoReturn, TypeVar
@@ -181,12 +182,30 @@ def _report(argv: list[str], command: str, msg: str, error_type: str) -> None:
     print(f"microconveyor{' ' + command if command else ''}: {msg}", file=sys.stderr, flush=True)
 
 
+_NEGATIVE = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+
+
+def attach_negative_values(argv: list[str]) -> list[str]:
+    """``--x0 -0.125e-3`` as ``--x0=-0.125e-3``: argparse takes a token that starts with ``-``
+    and is not a plain negative number (``-1``, ``-0.5``; an exponent is enough to fail that
+    test) for an option, and refuses the value. A negative number right after a ``--long``
+    option without ``=`` is attached to it."""
+    out: list[str] = []
+    for tok in argv:
+        if (_NEGATIVE.match(tok) and out and out[-1].startswith("--") and "=" not in out[-1]
+                and out[-1] != "--"):
+            out[-1] = f"{out[-1]}={tok}"
+        else:
+            out.append(tok)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line (``argv``: the arguments, default ``sys.argv[1:]``); exit status."""
     argv = list(sys.argv[1:] if argv is None else argv)
     command = ""
     try:
-        args = build_parser().parse_args(argv)
+        args = build_parser().parse_args(attach_negative_values(argv))
         command = args.command
         args.func(args)
     except KeyboardInterrupt:

@@ -97,3 +97,18 @@ def test_a_missing_optional_package_names_the_extra_to_install():
     assert "pip install 'microconveyor-env[studies]'" in missing_extra(exc)
     assert missing_extra(ModuleNotFoundError("x", name="numpy_not_an_extra")) is None
     assert fail(["--json"], "stretch", exc) == 2
+
+
+def test_negative_values_follow_their_option():
+    """``--x0 -0.125e-3`` (an exponent makes argparse take it for an option) works as
+    ``--x0=-0.125e-3``: the mirror image of the reference firing."""
+    from microconveyor_env.cli.base import attach_negative_values
+
+    assert attach_negative_values(["simulate", "--x0", "-0.125e-3", "--json"]) == \
+        ["simulate", "--x0=-0.125e-3", "--json"]
+    assert attach_negative_values(["--a", "-1", "-v", "--b=2", "-3e2"]) == \
+        ["--a=-1", "-v", "--b=2", "-3e2"]          # short flags and "=" forms are left alone
+    r = run("simulate", "--freq", "950", "--stroke", "200e-6", "--x0", "-0.125e-3", "--json")
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["x0_m"] == -0.125e-3 and abs(out["displacement_m"] - 1164e-6) < 2e-6
