@@ -17,18 +17,17 @@ LATEST_ENV_ID = "MicroConveyor-v1"
 def _register() -> None:
     from gymnasium.envs.registration import register, registry
 
-    from .envs.versions import ALL_ENV_IDS, ENTRY_POINTS, ENV_IDS, max_episode_steps, \
-        registered_kwargs
+    # the light module only: the envs themselves load when one is made
+    from .env_ids import ALL_ENV_IDS, ENTRY_POINTS, ENV_IDS, VECTOR_ENTRY_POINT, \
+        max_episode_steps, overrides
 
     for env_id in ALL_ENV_IDS:
         if env_id in registry:
             continue
-        # v0 stays registered exactly as it was (no TimeLimit: its episodes end by themselves)
-        steps = None if env_id == ENV_ID else max_episode_steps(env_id)
-        vector = ("microconveyor_env.envs.vector:MicroConveyorVectorEnv" if env_id in ENV_IDS
-                  else None)  # the goal variant vectorises with Gymnasium's Sync/Async envs
+        # v0 stays registered exactly as it was (kwargs {}, no TimeLimit)
+        vector = VECTOR_ENTRY_POINT if env_id in ENV_IDS else None  # goal: Sync/Async envs
         register(id=env_id, entry_point=ENTRY_POINTS[env_id], vector_entry_point=vector,
-                 kwargs=registered_kwargs(env_id), max_episode_steps=steps,
+                 kwargs=overrides(env_id), max_episode_steps=max_episode_steps(env_id),
                  disable_env_checker=False)
 
 

@@ -6,9 +6,11 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 # room -> rooms it may import (besides itself); "mce" is microconveyor_env
-INFRA = {"mce.jit_cache"}   # package infrastructure: any room may use it, it imports no room
+# package infrastructure: any room may use it, it imports no room
+INFRA = {"mce.jit_cache", "mce.env_ids"}
 ALLOWED = {
     "mce.jit_cache": set(),
+    "mce.env_ids": set(),
     "mce.physics": set(),
     "mce.presets": {"mce.physics"},
     "mce.plots": {"mce.physics"},

@@ -7,6 +7,7 @@ import numbers
 from dataclasses import dataclass
 from importlib import resources
 
+from ..env_ids import MAX_ACTUATORS
 from ..physics.kinematics import SHAPES
 from ..physics.materials import ParameterError, check_range
 from ..physics.validation import MAX_STEPS, MIN_DT, MIN_WAVELENGTH, \
@@ -21,7 +22,6 @@ MIN_LENGTH = 1e-9  # m: below it, |x - target| / tolerance overflows (NaN reward
 # box is [-1, 1], so sigma = 1 already spreads a firing over the whole box); the per-episode
 # friction and mass factors within an order of magnitude of the preset (beyond it, make a preset)
 MAX_ACTION_NOISE = 1.0
-MAX_ACTUATORS = 1000  # an episode has at most this many steps (one firing per actuator)
 FACTOR_BOUNDS = (0.1, 10.0)
 _RANGES = {  # field -> (lo, hi, lo_open, unit)
     "spacing": (1e-6, 1.0, False, "m"), "wavelength": (MIN_WAVELENGTH, 1.0, False, "m"),

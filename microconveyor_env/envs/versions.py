@@ -10,20 +10,17 @@ own versions carry theirs). What each version changed and why: the env card's ve
 from __future__ import annotations
 
 import dataclasses
-import functools
-from importlib import resources
 from typing import Any
 
+# the ids themselves live in the light ..env_ids (registration imports only it); re-exported
+from ..env_ids import ALL_ENV_IDS, ENTRY_POINTS, ENV_IDS, GOAL_ENV_IDS, LATEST, MAX_ACTUATORS, \
+    base_id, overrides
 from ..physics.materials import ParameterError
-from .config import MAX_ACTUATORS, EnvConfig
+from .config import EnvConfig
 
-ENV_IDS = ("MicroConveyor-v0", "MicroConveyor-v1")
-LATEST = ENV_IDS[-1]
-# interface variants: same scene and defaults as their base version, another observation
-GOAL_ENV_IDS = {"MicroConveyorGoal-v1": "MicroConveyor-v1"}   # Dict observation (envs/goal.py)
-ALL_ENV_IDS = ENV_IDS + tuple(GOAL_ENV_IDS)
-ENTRY_POINTS = {**{i: "microconveyor_env.envs.conveyor:MicroConveyorEnv" for i in ENV_IDS},
-                **{i: "microconveyor_env.envs.goal:MicroConveyorGoalEnv" for i in GOAL_ENV_IDS}}
+__all__ = ["ALL_ENV_IDS", "ENTRY_POINTS", "ENV_IDS", "GOAL_ENV_IDS", "LATEST", "MAX_ACTUATORS",
+           "base_env_id", "check_env_id", "env_config", "nominal", "registered_kwargs",
+           "scene_differences"]
 # how an env runs, not what it simulates: may differ between training and evaluation
 RUNTIME_FIELDS = frozenset({"num_threads", "max_steps"})
 # per-episode randomisation: the conditions a policy is tested under, not the scene it acts in
@@ -37,42 +34,24 @@ def check_env_id(env_id: str) -> str:
     return env_id
 
 
-@functools.cache
-def _overrides(env_id: str) -> tuple[tuple[str, Any], ...]:
-    from ..presets import parse_yaml
-
-    if env_id == ENV_IDS[0]:
-        return ()
-    res = resources.files("microconveyor_env.configs") / "envs" / f"{env_id}.yaml"
-    data = parse_yaml(res.read_text(), f"env config {env_id}") or {}
-    known = {f.name for f in dataclasses.fields(EnvConfig)}
-    if not isinstance(data, dict) or set(data) - known:
-        raise ParameterError(f"configs/envs/{env_id}.yaml: unknown keys "
-                             f"{sorted(set(data) - known) if isinstance(data, dict) else data!r}")
-    return tuple((k, tuple(v) if isinstance(v, list) else v) for k, v in data.items())
-
-
 def base_env_id(env_id: str) -> str:
     """The scene version of ``env_id`` (itself, or the version an interface variant wraps)."""
-    return GOAL_ENV_IDS.get(check_env_id(env_id), env_id)
+    return base_id(check_env_id(env_id))
 
 
 def registered_kwargs(env_id: str) -> dict[str, Any]:
-    """The keyword arguments ``env_id`` is registered with (its defaults beyond v0's)."""
-    return dict(_overrides(base_env_id(env_id)))
+    """The keyword arguments ``env_id`` is registered with (its defaults beyond v0's), checked
+    against :class:`EnvConfig`'s fields."""
+    kw = overrides(check_env_id(env_id))
+    unknown = sorted(set(kw) - {f.name for f in dataclasses.fields(EnvConfig)})
+    if unknown:
+        raise ParameterError(f"configs/envs/{base_id(env_id)}.yaml: unknown keys {unknown}")
+    return kw
 
 
 def env_config(env_id: str = LATEST, **overrides: Any) -> EnvConfig:
     """The validated config of ``gym.make(env_id, **overrides)`` (SI units)."""
     return EnvConfig.from_yaml(**{**registered_kwargs(env_id), **overrides})
-
-
-def max_episode_steps(env_id: str) -> int:
-    """``spec.max_episode_steps`` of ``env_id``: the longest episode any config of it can have
-    (one step per actuator, at most :data:`~.config.MAX_ACTUATORS`), so the TimeLimit that
-    ``gym.make`` adds never cuts an episode short, whatever ``n_actuators`` is."""
-    check_env_id(env_id)
-    return MAX_ACTUATORS
 
 
 def scene_differences(trained: EnvConfig, asked: EnvConfig) -> dict[str, tuple[Any, Any]]:

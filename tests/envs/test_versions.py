@@ -66,3 +66,19 @@ def test_scene_differences_ignore_runtime_and_randomisation():
     assert scene_differences(a, other) == {"n_actuators": (a.n_actuators, 7),
                                            "tolerance": (a.tolerance, 1e-4)}
     assert "preset" in scene_differences(a, env_config("MicroConveyor-v0"))
+
+
+def test_registering_stays_light():
+    """``import microconveyor_env`` registers every id from the light env_ids module: no env,
+    numba kernel or contact table is imported until an env is made."""
+    import subprocess
+    import sys
+
+    code = ("import sys, microconveyor_env, gymnasium as gym; "
+            "print(sorted(k for k in gym.registry if 'MicroConveyor' in k)); "
+            "print(any(m.startswith(('microconveyor_env.envs', 'microconveyor_env.physics', "
+            "'numba')) for m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120, check=True).stdout.splitlines()
+    assert out == ["['MicroConveyor-v0', 'MicroConveyor-v1', 'MicroConveyorGoal-v1']", "False"]
+    assert registered_kwargs("MicroConveyorGoal-v1") == registered_kwargs("MicroConveyor-v1")
