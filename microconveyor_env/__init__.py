@@ -32,3 +32,16 @@ def _register() -> None:
 
 
 _register()
+
+_SUBMODULES = ("envs", "physics", "presets", "studies", "plots", "cli")
+
+
+def __getattr__(name: str) -> object:
+    """``microconveyor_env.envs`` (and the other subpackages) on first use, so that
+    ``import microconveyor_env; help(microconveyor_env.envs.MicroConveyorEnv)`` works while the
+    import itself stays light (PEP 562)."""
+    if name in _SUBMODULES:
+        import importlib
+
+        return importlib.import_module(f".{name}", __name__)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -82,3 +82,10 @@ def test_registering_stays_light():
                          timeout=120, check=True).stdout.splitlines()
     assert out == ["['MicroConveyor-v0', 'MicroConveyor-v1', 'MicroConveyorGoal-v1']", "False"]
     assert registered_kwargs("MicroConveyorGoal-v1") == registered_kwargs("MicroConveyor-v1")
+    # the subpackages are still one attribute away (the README's help(...) line)
+    code = ("import microconveyor_env; "
+            "print(microconveyor_env.envs.MicroConveyorEnv.__name__, "
+            "microconveyor_env.presets.load_preset.__name__)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120, check=True).stdout.split()
+    assert out == ["MicroConveyorEnv", "load_preset"]
