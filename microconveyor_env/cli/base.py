@@ -33,11 +33,13 @@ def command(name: str, help_: str, add_args: Callable[[argparse.ArgumentParser],
 
 def emit(args: argparse.Namespace, result: dict[str, Any], human: str = "") -> None:
     """Print ``result`` (SI values, unit-suffixed keys) as one JSON object with ``--json``, else
-    ``human`` or one ``key value`` line per entry."""
+    ``human`` or one line per entry in the units people read (:mod:`.human`)."""
     if args.json:
         print(json.dumps(result, indent=None, default=json_default, allow_nan=False))
     else:
-        print(human or "\n".join(f"{k:32s} {v}" for k, v in result.items()))
+        from .human import format_result
+
+        print(human or format_result(result))
 
 
 def json_default(o: object) -> Any:
