@@ -113,25 +113,32 @@ def plot_firing(result: Result, freq: float, path: str | Path, delay: float = 0.
 
 
 def plot_sweep(sweep: dict[str, Any], path: str | Path, title: str = "") -> Path:
-    """Travel [m, drawn in µm] versus the swept parameter (in its own unit, ``sweep['unit']``),
-    detachment and the feasible window marked."""
+    """Signed travel x_final - x0 [m, drawn in µm; negative: upstream] versus the swept
+    parameter (in its own unit, ``sweep['unit']``); the line breaks at detachments (marked),
+    the feasible window is shaded, or "no window" written with the reason."""
     vals = np.asarray(sweep[sweep["values_key"]], dtype=object)
     fig, ax = _subplots(figsize=(8, 4.5))
     numeric = sweep["param"] != "profile"
     x = np.asarray(vals, float) if numeric else np.arange(len(vals))
-    d = np.abs(np.asarray(sweep["displacement_m"])) * 1e6
+    d = np.asarray(sweep["displacement_m"], float) * 1e6
     det = np.array([o == "detached" for o in sweep["outcome"]])
-    ax.plot(x[~det], d[~det], "o-", ms=3, label="travel |x_final - x0|")
+    ax.plot(x, np.where(det, np.nan, d), "o-", ms=3, label="travel x_final − x0 (rest)")
     if det.any():
         ax.plot(x[det], d[det], "rx", label="detached (travel until detachment)")
-    win = sweep.get("window" + sweep["values_key"][len(sweep["param"]):])
+    ax.axhline(0.0, color="k", lw=0.6)
+    key = "window" + sweep["values_key"][len(sweep["param"]):]
+    win = sweep.get(key)
     if win:
         ax.axvspan(win[0], win[1], color="tab:green", alpha=0.1,
                    label=f"feasible window {win[0]:g} .. {win[1]:g} {sweep['unit']}")
+    elif sweep.get("no_window_reason"):
+        ax.text(0.5, 0.5, sweep["no_window_reason"], transform=ax.transAxes, ha="center",
+                va="center", color="tab:red", fontsize=10,
+                bbox={"facecolor": "white", "edgecolor": "tab:red", "alpha": 0.9})
     if not numeric:
         ax.set_xticks(x, list(vals))
     ax.set_xlabel(f"{sweep['param']} [{sweep['unit']}]")
-    ax.set_ylabel("travel [µm]")
+    ax.set_ylabel("travel [µm] (negative: upstream)")
     ax.set_title(title or f"travel of one firing versus {sweep['param']}")
     ax.legend(fontsize=8)
     return _save(fig, path)

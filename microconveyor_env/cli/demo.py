@@ -39,7 +39,8 @@ def demo_summary(args) -> dict:
     firing = fine.run(record=True)
     charts.append(plot_firing(firing, scene.freq, out_dir / "firing.png", stroke=scene.stroke))
     freq = sweep(scene, "freq", parse_values("200:1500:25", "freq"), progress=True)
-    charts.append(plot_sweep(freq, out_dir / "sweep.png"))
+    charts.append(plot_sweep(freq, out_dir / "sweep.png",
+                             f"preset {preset.name}: travel of one firing versus frequency"))
     episode = _demo_episode(out_dir / "episode.png", getattr(args, "env", None) or ENV_ID,
                             getattr(args, "env_kwargs_dict", None) or {})
     charts.append(episode.pop("chart"))

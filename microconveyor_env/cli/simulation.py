@@ -93,7 +93,8 @@ def cmd_sweep(args: argparse.Namespace) -> None:
     if args.plot:
         from ..plots import plot_sweep
 
-        out["plot"] = str(plot_sweep(res, args.plot))
+        out["plot"] = str(plot_sweep(res, args.plot, f"preset {args.preset}: travel of one "
+                                                     f"firing versus {param}"))
     emit(args, out, _sweep_text(res))
 
 
@@ -101,10 +102,14 @@ def _sweep_text(res: dict[str, Any]) -> str:
     lines = [f"{res['param']:>12s}  travel [µm]  outcome"]
     for v, d, o in zip(res[res["values_key"]], res["displacement_m"], res["outcome"], strict=True):
         lines.append(f"{v!s:>12s}  {d * 1e6:11.2f}  {o}")
-    window = res.get("window" + res["values_key"][len(res["param"]):])
+    key = "window" + res["values_key"][len(res["param"]):]
+    window = res.get(key)
     if window is not None:
         lines.append(f"feasible window: {window} {res['unit']}")
+    elif res.get("no_window_reason"):  # a window was looked for and there is none: say why
+        lines.append(res["no_window_reason"])
     return "\n".join(lines)
+
 
 
 def _sweep_args(p: argparse.ArgumentParser) -> None:

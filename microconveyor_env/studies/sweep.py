@@ -116,6 +116,20 @@ def feasible_window(values: Iterable[Any], travel: Iterable[float],
     return None if lo is None else [lo, hi]
 
 
+def no_window_reason(travel: Iterable[float], outcomes: Iterable[str]) -> str:
+    """Why a sweep has no feasible window, in words (for text and charts)."""
+    travel, outcomes = list(travel), list(outcomes)
+    if outcomes and all(o == "detached" for o in outcomes):
+        return "no window: the part detached at every value"
+    if outcomes and outcomes[0] == "detached":
+        return "no window: the part detached already at the first value"
+    if not any(abs(d) >= MIN_TRAVEL_M for d, o in zip(travel, outcomes, strict=True)
+               if o != "detached"):
+        return (f"no window: the part never moved {MIN_TRAVEL_M * 1e6:g} µm or more "
+                f"({sum(o == 'detached' for o in outcomes)} of {len(outcomes)} values detached)")
+    return "no window"
+
+
 def sweep(scene: Scene, param: str, values: Iterable[Any], progress: bool = True,
           max_points: int = MAX_POINTS) -> dict[str, Any]:
     """Run the scene for each value of ``param`` (in its unit, :data:`SWEEPABLE`); travel [m],
@@ -147,6 +161,8 @@ def sweep(scene: Scene, param: str, values: Iterable[Any], progress: bool = True
     if param != "profile":
         suffix = key[len(param):]
         out["window" + suffix] = feasible_window(values, travel, outcomes)
+        if out["window" + suffix] is None:
+            out["no_window_reason"] = no_window_reason(travel, outcomes)
         ok = [i for i, o in enumerate(outcomes) if o != "detached"]
         if ok:
             best = max(ok, key=lambda i: abs(travel[i]))

@@ -112,3 +112,23 @@ def test_negative_values_follow_their_option():
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     assert out["x0_m"] == -0.125e-3 and abs(out["displacement_m"] - 1164e-6) < 2e-6
+
+
+def test_a_sweep_without_window_says_why(tmp_path):
+    from microconveyor_env.studies.sweep import no_window_reason
+
+    assert no_window_reason([0.0, 1e-6], ["rest", "rest"]).startswith(
+        "no window: the part never moved 10 µm")
+    assert no_window_reason([1e-3, 2e-3], ["detached", "detached"]) == \
+        "no window: the part detached at every value"
+    # pure KE (the uncalibrated `ke` preset) barely moves the part: text, JSON and chart say so
+    png = tmp_path / "sweep.png"
+    r = run("sweep", "--preset", "ke", "--freq", "200:800:300", "--stroke", "200e-6",
+            "--no-progress", "--plot", str(png))
+    assert r.returncode == 0, r.stderr
+    assert "no window: the part never moved 10 µm or more" in r.stdout
+    assert png.stat().st_size > 1000
+    r = run("sweep", "--preset", "ke", "--freq", "200:800:300", "--stroke", "200e-6",
+            "--no-progress", "--json")
+    out = json.loads(r.stdout)
+    assert out["window_hz"] is None and out["no_window_reason"].startswith("no window")
