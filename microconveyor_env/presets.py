@@ -204,9 +204,27 @@ def _calibrate(params: ContactParams, cal: dict[str, Any]) -> tuple[ContactParam
 _SURFACE_FIELDS = {f.name for f in dataclasses.fields(Surface)}
 
 
+class PresetWarning(UserWarning):
+    """A preset that leaves values to the package's defaults."""
+
+
+def _warn_if_incomplete(name: str, data: dict[str, Any]) -> None:
+    """A preset file that omits values gets the defaults of :mod:`.physics.materials` (the
+    dissertation's steel pair) for them: say which, rather than complete it in silence."""
+    missing = []
+    for key, cls in (("materials", Materials), ("surface", Surface), ("part", Part)):
+        given = data.get(key) or {}
+        missing += [f"{key}.{f.name}" for f in dataclasses.fields(cls) if f.name not in given]
+    if missing:
+        warnings.warn(f"preset {name!r} does not give {', '.join(missing)}: the defaults (the "
+                      "dissertation's steel pair, configs/feasibility.yaml) are used for them",
+                      PresetWarning, stacklevel=4)
+
+
 @functools.lru_cache(maxsize=32)
 def _load_preset(name_or_path: str) -> Preset:
     data = _read(name_or_path)
+    _warn_if_incomplete(name_or_path, data)
     params = params_from_dict(data)
     report: dict[str, Any] = {}
     cal = data.get("calibration")

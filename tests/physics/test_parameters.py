@@ -46,6 +46,7 @@ def test_calibration_targets_validated():
         Calibration(friction_load=1e-8)
 
 
+@pytest.mark.filterwarnings("ignore::microconveyor_env.presets.PresetWarning")  # partial files
 def test_preset_errors_are_clear(tmp_path):
     with pytest.raises(PresetError, match="available: conveyor, feasibility, ke"):
         load_preset("no-such-preset")
@@ -85,3 +86,20 @@ def test_former_names_still_work_with_a_deprecation_warning():
     with pytest.warns(DeprecationWarning):
         env = gym.make("MicroConveyor-v0", preset="seed").unwrapped
     assert env.sim.contact == load_preset("feasibility").contact
+
+
+def test_an_incomplete_preset_says_what_it_leaves_to_the_defaults(tmp_path):
+    from microconveyor_env.presets import PresetWarning, load_preset
+
+    f = tmp_path / "only_e1.yaml"
+    f.write_text("materials: {E1: 1.7e+11}\n")
+    with pytest.warns(PresetWarning, match=r"does not give materials.nu1, .*surface.sigma, .*"
+                                           r"part.mass"):
+        p = load_preset(str(f))
+    assert p.contact.materials.E1 == 1.7e11
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")   # the shipped presets are complete
+        for name in ("feasibility", "conveyor", "ke"):
+            load_preset(name)
