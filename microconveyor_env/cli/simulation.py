@@ -45,6 +45,13 @@ def _sim_kw(args: argparse.Namespace) -> dict[str, Any]:
     return kw
 
 
+def _simulate_args(p: argparse.ArgumentParser) -> None:
+    _scene_args(p)
+    p.add_argument("--trajectory", metavar="FILE.csv", default=None,
+                   help="write the recorded trajectory as CSV: t_s, x_m, v_m_s (SI; every RK4 "
+                        "step of the stroke, 32 exact points per coast)")
+
+
 @command("simulate", "one firing of one actuator: travel, outcome, timing")
 def cmd_simulate(args: argparse.Namespace) -> None:
     """One firing of the scene (SI options); travel [m], outcome and timing [s]."""
@@ -54,7 +61,7 @@ def cmd_simulate(args: argparse.Namespace) -> None:
                   wavelength=args.wavelength, profile=args.profile, sim_kw=_sim_kw(args))
     sim = scene.simulator()
     scene.run()  # load the compiled kernel first, so wall_time_s is the steady-state figure
-    res = scene.run(record=bool(args.plot))
+    res = scene.run(record=bool(args.plot or args.trajectory))
     out: dict[str, Any] = {
            "preset": args.preset, "freq_hz": args.freq, "stroke_m": args.stroke, "x0_m": args.x0,
            "profile": args.profile, "mode": args.mode, "kinematics": args.kinematics,
@@ -64,7 +71,23 @@ def cmd_simulate(args: argparse.Namespace) -> None:
         from ..plots import plot_firing
 
         out["plot"] = str(plot_firing(res, args.freq, args.plot, stroke=args.stroke))
+    if args.trajectory:
+        out["trajectory_csv"] = _write_trajectory(res.trajectory, args.trajectory)
     emit(args, out)
+
+
+def _write_trajectory(traj: Any, path: str) -> str:
+    """The recorded ``t_s, x_m, v_m_s`` as CSV (SI, full precision); written whole or not at all."""
+    import os
+
+    import numpy as np
+
+    cols = ("t_s", "x_m", "v_m_s")
+    rows = np.column_stack([np.asarray(traj[c], float) for c in cols])
+    tmp = f"{path}.tmp"
+    np.savetxt(tmp, rows, delimiter=",", header=",".join(cols), comments="", fmt="%.17g")
+    os.replace(tmp, path)
+    return path
 
 
 @command("sweep", "travel versus one parameter (frequency by default) and the feasible window")
@@ -207,5 +230,5 @@ def _bench_args(p: argparse.ArgumentParser) -> None:
                    help="do not run the (slow) plain-Python reference")
 
 
-ARGS.update({"simulate": _scene_args, "sweep": _sweep_args, "accuracy": _accuracy_args,
+ARGS.update({"simulate": _simulate_args, "sweep": _sweep_args, "accuracy": _accuracy_args,
              "bench": _bench_args})

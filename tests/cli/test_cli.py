@@ -3,6 +3,8 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 
 def run(*args):
     return subprocess.run([sys.executable, "-m", "microconveyor_env.cli", *args],
@@ -132,3 +134,17 @@ def test_a_sweep_without_window_says_why(tmp_path):
             "--no-progress", "--json")
     out = json.loads(r.stdout)
     assert out["window_hz"] is None and out["no_window_reason"].startswith("no window")
+
+
+def test_simulate_exports_its_trajectory(tmp_path):
+    import numpy as np
+
+    csv = tmp_path / "firing.csv"
+    r = run("simulate", "--freq", "950", "--stroke", "200e-6", "--trajectory", str(csv), "--json")
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["trajectory_csv"] == str(csv)
+    data = np.loadtxt(csv, delimiter=",", skiprows=1)
+    assert csv.read_text().splitlines()[0] == "t_s,x_m,v_m_s"
+    assert data[0, 1] == out["x0_m"] and np.all(np.diff(data[:, 0]) >= 0)
+    assert data[-1, 1] == pytest.approx(out["x0_m"] + out["displacement_m"], abs=1e-12)
