@@ -231,8 +231,10 @@ def plot_episode_accuracy(study: dict[str, Any], path: str | Path) -> Path:
     return _save(fig, path)
 
 
-def save_frames(frames: Sequence[np.ndarray], path: str | Path, cols: int = 2) -> Path:
-    """Tile rendered env frames (uint8 H x W x 3 [px]) into one PNG, ``cols`` [-] per row."""
+def save_frames(frames: Sequence[np.ndarray], path: str | Path, cols: int = 2,
+                title: str = "") -> Path:
+    """Tile rendered env frames (uint8 H x W x 3 [px]) into one PNG, ``cols`` [-] per row,
+    under ``title``."""
     n = len(frames)
     rows = (n + cols - 1) // cols
     h, w = frames[0].shape[:2]
@@ -241,4 +243,6 @@ def save_frames(frames: Sequence[np.ndarray], path: str | Path, cols: int = 2) -
         ax.axis("off")
     for ax, fr in zip(axes.ravel(), frames, strict=False):  # spare cells stay blank
         ax.imshow(fr)
+    if title:
+        fig.suptitle(title, fontsize=9)
     return _save(fig, path)
