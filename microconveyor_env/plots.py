@@ -120,6 +120,11 @@ def plot_sweep(sweep: dict[str, Any], path: str | Path, title: str = "") -> Path
     fig, ax = _subplots(figsize=(8, 4.5))
     numeric = sweep["param"] != "profile"
     x = np.asarray(vals, float) if numeric else np.arange(len(vals))
+    unit, scale = sweep["unit"], 1.0
+    if numeric and unit == "m":  # lengths in the unit people read, not metres with an offset
+        big = float(np.max(np.abs(x))) if x.size else 0.0
+        unit, scale = ("nm", 1e9) if big < 1e-6 else ("µm", 1e6) if big < 1e-2 else ("mm", 1e3)
+    x = x * scale
     d = np.asarray(sweep["displacement_m"], float) * 1e6
     det = np.array([o == "detached" for o in sweep["outcome"]])
     ax.plot(x, np.where(det, np.nan, d), "o-", ms=3, label="travel x_final − x0 (rest)")
@@ -129,15 +134,15 @@ def plot_sweep(sweep: dict[str, Any], path: str | Path, title: str = "") -> Path
     key = "window" + sweep["values_key"][len(sweep["param"]):]
     win = sweep.get(key)
     if win:
-        ax.axvspan(win[0], win[1], color="tab:green", alpha=0.1,
-                   label=f"feasible window {win[0]:g} .. {win[1]:g} {sweep['unit']}")
+        ax.axvspan(win[0] * scale, win[1] * scale, color="tab:green", alpha=0.1,
+                   label=f"feasible window {win[0] * scale:g} .. {win[1] * scale:g} {unit}")
     elif sweep.get("no_window_reason"):
         ax.text(0.5, 0.5, sweep["no_window_reason"], transform=ax.transAxes, ha="center",
                 va="center", color="tab:red", fontsize=10,
                 bbox={"facecolor": "white", "edgecolor": "tab:red", "alpha": 0.9})
     if not numeric:
         ax.set_xticks(x, list(vals))
-    ax.set_xlabel(f"{sweep['param']} [{sweep['unit']}]")
+    ax.set_xlabel(f"{sweep['param']} [{unit}]")
     ax.set_ylabel("travel [µm] (negative: upstream)")
     ax.set_title(title or f"travel of one firing versus {sweep['param']}")
     ax.legend(fontsize=8)

@@ -122,9 +122,12 @@ def cmd_sweep(args: argparse.Namespace) -> None:
 
 
 def _sweep_text(res: dict[str, Any]) -> str:
+    from .human import format_value
+
     lines = [f"{res['param']:>12s}  travel [µm]  outcome"]
     for v, d, o in zip(res[res["values_key"]], res["displacement_m"], res["outcome"], strict=True):
-        lines.append(f"{v!s:>12s}  {d * 1e6:11.2f}  {o}")
+        shown = format_value(res["values_key"], v)[1]  # in the unit people read
+        lines.append(f"{shown:>12s}  {d * 1e6:11.2f}  {o}")
     key = "window" + res["values_key"][len(res["param"]):]
     window = res.get(key)
     if window is not None:
