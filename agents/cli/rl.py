@@ -30,8 +30,9 @@ def _train_args(p: argparse.ArgumentParser) -> None:
                    help="stop after this wall time [min], resumed time included")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--quick", action="store_true",
-                   help="see it learn in 3 minutes: --max-minutes 3 (unless given), an evaluation "
-                        "on 50 targets every 250,000 steps printed as it goes")
+                   help="a short look: --max-minutes 3 (unless given), an evaluation on 50 "
+                        "targets every 250,000 steps printed as it goes (on v1 the default recipe "
+                        "does not yet learn visibly in 3 minutes: docs/agents.md)")
     add_env_args(p, what=" to train on (its entry in the conf file gives the hyperparameters)")
 
 
