@@ -145,6 +145,7 @@ def test_conveyor_preset_figures_against_direct_ke_evaluation():
     assert pull_off < 6.2e-6 * 0.5 and q_w < 8e-8
 
 
+@pytest.mark.filterwarnings("ignore::microconveyor_env.presets.PresetWarning")  # partial files
 def test_measured_with_is_validated(tmp_path):
     from microconveyor_env.physics.materials import ParameterError
     from microconveyor_env.presets import load_preset
