@@ -109,3 +109,12 @@ def env_kwargs_of(args: argparse.Namespace) -> dict[str, Any]:
             raise ValueError(f"--env-kwargs: {key} given twice")
         out[key] = value
     return out
+
+
+def env_config_of(args: argparse.Namespace, default: str = "MicroConveyor-v0",
+                  **fixed: Any) -> Any:
+    """The EnvConfig of ``--env`` (``default`` if not given) with ``--env-kwargs``, then
+    ``fixed`` (a command's own overrides, e.g. reach's target range)."""
+    from microconveyor_env.envs import env_config
+
+    return env_config(args.env or default, **{**env_kwargs_of(args), **fixed})

@@ -9,7 +9,7 @@ from typing import Any
 
 from microconveyor_env.cli.base import command, count, emit
 
-from .args import add_env_args, budgets, env_kwargs_of, folder, levels
+from .args import add_env_args, budgets, env_config_of, env_kwargs_of, folder, levels
 
 
 def add_args(p: argparse.ArgumentParser) -> None:
@@ -47,16 +47,12 @@ def run(args: Any) -> None:
     bad = sorted(set(methods) - {"de", "cmaes"})
     if bad or not methods:
         raise ValueError(f"--methods {args.methods!r}: choose from de, cmaes")
-    from microconveyor_env.envs import env_config
-
-    from ..rl.shipped import require_shipped
-
-    cfg = env_config(args.env, **env_kwargs_of(args))
     res = compare(n_targets=args.targets, seed=args.seed, budgets=args.budgets, methods=methods,
-                  policy=args.policy or require_shipped(args.env),
+                  policy=args.policy,
                   randomised_policy=args.randomised_policy,
                   amortise_over=args.amortise_over, noise_ladder=args.noise,
-                  spread_ladder=args.spread, perturb_repeats=args.repeats, config=cfg,
+                  spread_ladder=args.spread, perturb_repeats=args.repeats,
+                  config=env_config_of(args),
                   env_id=args.env)
     res.update(env_id=args.env, env_kwargs=env_kwargs_of(args))
     if args.plot:

@@ -6,7 +6,7 @@ import sys
 
 from microconveyor_env.cli.base import command, emit
 
-from .args import add_env_args, env_kwargs_of
+from .args import add_env_args, env_config_of, env_kwargs_of
 
 
 def _demo_args(p: argparse.ArgumentParser) -> None:
@@ -31,10 +31,9 @@ def cmd_demo(args: argparse.Namespace) -> None:
     from ..rl.shipped import shipped_path
 
     from microconveyor_env.cli.base import DEFAULT_PRESET
-    from microconveyor_env.envs import env_config
 
     args.env_kwargs_dict = env_kwargs_of(args)
-    cfg = env_config(args.env, **args.env_kwargs_dict)
+    cfg = env_config_of(args)
     if args.preset == DEFAULT_PRESET:  # the physics part shows the env's surface
         args.preset = cfg.preset
     no_policy = None

@@ -8,7 +8,7 @@ from typing import Any
 
 from microconveyor_env.cli.base import command, count, emit
 
-from .args import add_env_args, env_kwargs_of, folder
+from .args import add_env_args, env_config_of, env_kwargs_of, folder
 
 PROBLEMS = ("target", "dissertation")
 
@@ -63,12 +63,10 @@ def _target(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     from ..plots.optimize import plot_error_history
     from ..plots.trajectories import plot_plan_trajectories
 
-    from microconveyor_env.envs import env_config
-
     target = 2e-3 if args.target is None else args.target
     kw = {} if args.popsize is None else {"popsize": args.popsize}
     env_id, env_kw = args.env or "MicroConveyor-v0", env_kwargs_of(args)
-    cfg = env_config(env_id, **env_kw)
+    cfg = env_config_of(args)
     res = solve_target(target, args.method, args.budget or 2000, args.seed, config=cfg, **kw)
     out: dict[str, Any] = {"problem": "target", "env_id": env_id, "env_kwargs": env_kw,
                            **res.to_dict()}

@@ -7,7 +7,7 @@ from typing import Any
 
 from microconveyor_env.cli.base import command, count, emit, plot_path
 
-from .args import add_env_args, env_kwargs_of, floats
+from .args import add_env_args, env_config_of, env_kwargs_of, floats
 
 
 def _reach_args(p: argparse.ArgumentParser) -> None:
@@ -36,12 +36,10 @@ def cmd_reach(args: argparse.Namespace) -> None:
               f"{r['best_noisy_success_rate']:.2f}  ({r['wall_time_s']:.1f} s)", file=sys.stderr,
               flush=True)
 
-    from microconveyor_env.envs import env_config
-
     kwargs = env_kwargs_of(args)
     if max(args.targets) > 0.1 or min(args.targets) <= 0:
         raise ValueError("--targets must lie in (0, 0.1] m")
-    cfg = env_config(args.env, **{**kwargs, "target_range": (min(args.targets), max(args.targets))})
+    cfg = env_config_of(args, target_range=(min(args.targets), max(args.targets)))
     study = reach_study(args.targets, budget=args.budget, sigma=args.sigma, n_noisy=args.noisy,
                         seed=args.seed, robust_budget=args.robust_budget, config=cfg,
                         progress=progress)

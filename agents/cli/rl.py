@@ -119,8 +119,10 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
                            **{**policy_env_kwargs(meta), **env_kwargs_of(args)})
     pol = load_policy(path, asked)
     res = evaluate(pol, args.targets, args.seed, args.tolerance, config=asked)
-    res.update(policy=str(pol.path), env_id=pol.env_id, env_kwargs=pol.metadata.get(
-        "env_kwargs", (pol.metadata.get("hyperparams") or {}).get("env_kwargs", {})))
+    from ..rl.policy_files import policy_env_kwargs
+
+    res.update(policy=str(pol.path), env_id=pol.env_id,
+               env_kwargs=policy_env_kwargs(pol.metadata))
     emit(args, res)
 
 

@@ -1,6 +1,7 @@
 """PPO hyperparameters from ``configs/ppo.yml`` (rl-zoo3's format, keyed by env id)."""
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from importlib import resources
 from typing import Any
@@ -30,6 +31,13 @@ def load(path: str | None = None, env_id: str = ENV_ID) -> dict:
     if hp.get("normalize") is True:
         hp["normalize"] = {}
     return hp
+
+
+def changed_keys(old: dict, new: dict) -> list[str]:
+    """Top-level keys whose values differ between two configs (compared as sorted JSON)."""
+    keys = sorted(set(old) | set(new))
+    return [k for k in keys if json.dumps(old.get(k), sort_keys=True, default=str)
+            != json.dumps(new.get(k), sort_keys=True, default=str)]
 
 
 def linear_schedule(value: float) -> Callable[[float], float]:

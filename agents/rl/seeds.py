@@ -29,16 +29,15 @@ SAME = ("env_id", "env_kwargs", "algo", "hyperparams")
 def check_same_config(metas: Sequence[dict], runs: Sequence[str | Path]) -> None:
     """ValueError naming the runs and keys whose env or training config differ from the first
     run's: averaging seeds of different configs would mean nothing."""
+    from .hyperparams import changed_keys
+
     first = metas[0]
     for run, meta in zip(runs[1:], metas[1:], strict=True):
-        diff = [k for k in SAME if json.dumps(meta.get(k), sort_keys=True, default=str)
-                != json.dumps(first.get(k), sort_keys=True, default=str)]
-        if meta.get("hyperparams") and first.get("hyperparams") and "hyperparams" in diff:
-            a, b = first["hyperparams"], meta["hyperparams"]
+        diff = changed_keys({k: first.get(k) for k in SAME}, {k: meta.get(k) for k in SAME})
+        if "hyperparams" in diff and first.get("hyperparams") and meta.get("hyperparams"):
             diff.remove("hyperparams")
-            diff += [f"hyperparams.{k}" for k in sorted(set(a) | set(b))
-                     if json.dumps(a.get(k), sort_keys=True, default=str)
-                     != json.dumps(b.get(k), sort_keys=True, default=str)]
+            diff += [f"hyperparams.{k}"
+                     for k in changed_keys(first["hyperparams"], meta["hyperparams"])]
         if diff:
             raise ValueError(f"runs of different configs cannot be aggregated over seeds: "
                              f"{str(run)!r} differs from {str(runs[0])!r} in {', '.join(diff)}")

@@ -79,13 +79,6 @@ def config_hash(cfg: EnvConfig, hp: dict) -> str:
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
 
-def _changed_keys(old: dict, new: dict) -> list[str]:
-    """Top-level hyperparameter and env keys whose values differ (for the refusal message)."""
-    keys = sorted(set(old) | set(new))
-    return [k for k in keys if json.dumps(old.get(k), sort_keys=True, default=str)
-            != json.dumps(new.get(k), sort_keys=True, default=str)]
-
-
 class Periodic(BaseCallback):
     """Checkpoints and fixed-target evaluations at step intervals, with the wall-time budget."""
 
@@ -217,7 +210,7 @@ def _resumable(out: Path, chash: str, hp: dict, allow_config_change: bool,
         for skip in gen.skipped:
             log(f"resume: skipped damaged checkpoint {skip}")
     if gen.meta.get("config_hash") != chash:
-        changed = _changed_keys(gen.meta.get("hyperparams") or {}, hp)
+        changed = hyperparams.changed_keys(gen.meta.get("hyperparams") or {}, hp)
         what = (f"hyperparameters {', '.join(changed)}" if changed else "the env config")
         if not allow_config_change:
             raise CheckpointError(

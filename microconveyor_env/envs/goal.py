@@ -56,15 +56,15 @@ class MicroConveyorGoalEnv(MicroConveyorEnv):
 
     def reset(self, *, seed: int | None = None,  # type: ignore[override]  # Dict observation
               options: dict[str, Any] | None = None) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-        _, info = super().reset(seed=seed, options=options)
-        return self._goal_obs(), info
+        obs, info = super().reset(seed=seed, options=options)
+        return self._goal_obs(obs), info
 
     def step(self, action: Any  # type: ignore[override]  # Dict observation
              ) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
         x0, t0 = self.x, self.t
-        _, _, terminated, truncated, info = super().step(action)
+        flat, _, terminated, truncated, info = super().step(action)
         info["x_before_m"], info["t_before_s"] = x0, t0
-        obs = self._goal_obs()
+        obs = self._goal_obs(flat)
         reward = self.compute_reward(obs["achieved_goal"], obs["desired_goal"], info)
         return obs, reward, terminated, truncated, info
 
@@ -92,12 +92,13 @@ class MicroConveyorGoalEnv(MicroConveyorEnv):
                                  self._tc)
         return float(out[0]) if single else out
 
-    def _goal_obs(self) -> dict[str, np.ndarray]:
-        cfg, b = self.config, task.OBS_BOUND
-        fired = self.fired
-        nxt = (fired * cfg.spacing - self.x) / cfg.spacing if fired < cfg.n_actuators else 0.0
-        vec = np.array([self.x / task.LENGTH_SCALE, self.v / task.VELOCITY_SCALE, nxt,
-                        self.t / cfg.max_time, fired / cfg.n_actuators])
-        clip = lambda a: np.clip(a, -b, b).astype(np.float32)  # noqa: E731
-        return {"observation": clip(vec), "achieved_goal": clip([self.x / task.LENGTH_SCALE]),
-                "desired_goal": clip([self.target / task.LENGTH_SCALE])}
+    def _goal_obs(self, flat: np.ndarray) -> dict[str, np.ndarray]:
+        """The Dict observation from the base env's compiled one (``flat``: error, velocity,
+        next actuator, time, fraction fired, target): the goal-free entries 1-4 are reused, the
+        position and target are taken exactly (not error + target, which would round)."""
+        b = task.OBS_BOUND
+        x = np.float32(min(max(self.x / task.LENGTH_SCALE, -b), b))
+        target = np.float32(min(max(self.target / task.LENGTH_SCALE, -b), b))
+        return {"observation": np.concatenate(([x], flat[1:5])).astype(np.float32),
+                "achieved_goal": np.array([x], np.float32),
+                "desired_goal": np.array([target], np.float32)}
