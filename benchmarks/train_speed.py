@@ -19,6 +19,9 @@ import time
 from stable_baselines3 import PPO
 
 from agents.rl import train as T
+from agents.rl.algos import algo_class
+
+BudgetPPO = algo_class("ppo")
 
 
 def _spin(stop) -> None:
@@ -29,7 +32,7 @@ def _spin(stop) -> None:
 
 def one(steps: int, update_threads: int) -> dict:
     acc = {"collect": 0.0, "update": 0.0}
-    collect, update = PPO.collect_rollouts, T.BudgetPPO.train
+    collect, update = PPO.collect_rollouts, BudgetPPO.train
 
     def timed_collect(self, *a, **k):
         t = time.perf_counter()
@@ -45,8 +48,8 @@ def one(steps: int, update_threads: int) -> dict:
         finally:
             acc["update"] += time.perf_counter() - t
 
-    PPO.collect_rollouts, T.BudgetPPO.train = timed_collect, timed_update
-    T.BudgetPPO.update_threads = update_threads
+    PPO.collect_rollouts, BudgetPPO.train = timed_collect, timed_update
+    BudgetPPO.update_threads = update_threads
     try:
         with tempfile.TemporaryDirectory() as out:
             t0 = time.perf_counter()
@@ -54,8 +57,8 @@ def one(steps: int, update_threads: int) -> dict:
                            progress_bar=False, tensorboard=False)
             wall = time.perf_counter() - t0
     finally:
-        PPO.collect_rollouts, T.BudgetPPO.train = collect, update
-        T.BudgetPPO.update_threads = 1
+        PPO.collect_rollouts, BudgetPPO.train = collect, update
+        BudgetPPO.update_threads = 1
     n = meta["steps"]
     return {"steps_per_s": n / wall, "collect_s": acc["collect"], "update_s": acc["update"],
             "wall_s": wall, "steps": n}

@@ -10,11 +10,19 @@ from .args import add_env_args, env_kwargs_of, minutes
 
 
 def _train_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", default="runs/ppo", help="run folder (model, stats, checkpoints, logs)")
+    from ..rl.algos import ALGO_NAMES
+
+    p.add_argument("--algo", choices=ALGO_NAMES, default="ppo",
+                   help="algorithm: ppo (stable-baselines3, on the compiled batch), sac "
+                        "(stable-baselines3), tqc (sb3-contrib); sac and tqc on "
+                        "MicroConveyorGoal-v1 use HER (default: ppo)")
+    p.add_argument("--out", default=None,
+                   help="run folder (model, stats, checkpoints, logs) (default: runs/ALGO)")
     p.add_argument("--steps", type=count(1), default=None,
                    help="total environment steps (default: n_timesteps of the conf file)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--conf-file", default=None, help="rl-zoo3 style YAML (default configs/ppo.yml)")
+    p.add_argument("--conf-file", default=None,
+                   help="rl-zoo3 style YAML (default: the shipped configs/ALGO.yml)")
     p.add_argument("--resume", action="store_true",
                    help="continue from the newest complete checkpoint in OUT/checkpoints "
                         "(refused if there is none or the config differs)")
@@ -33,10 +41,12 @@ def _train_args(p: argparse.ArgumentParser) -> None:
                    help="a short look: --max-minutes 3 (unless given), an evaluation on 50 "
                         "targets every 250,000 steps printed as it goes (on v1 the default recipe "
                         "does not yet learn visibly in 3 minutes: docs/agents.md)")
-    add_env_args(p, what=" to train on (its entry in the conf file gives the hyperparameters)")
+    add_env_args(p, what=" to train on (its entry in the conf file gives the hyperparameters)",
+                 goal=True)
 
 
-@command("train", "train PPO (stable-baselines3) on the batched env", _train_args)
+@command("train", "train PPO, SAC or TQC on the conveyor (checkpoints, evaluations, resume)",
+         _train_args)
 def cmd_train(args: argparse.Namespace) -> None:
     from ..rl.train import train
 
@@ -46,7 +56,8 @@ def cmd_train(args: argparse.Namespace) -> None:
     if args.quick:
         args.max_minutes = args.max_minutes or 3.0
         args.eval_freq, args.eval_targets = 250_000, 50
-    meta = train(args.out, steps=args.steps, seed=args.seed, conf_file=args.conf_file,
+    args.out = args.out or f"runs/{args.algo}"
+    meta = train(args.out, algo=args.algo, steps=args.steps, seed=args.seed, conf_file=args.conf_file,
                  resume=args.resume, checkpoint_freq=args.checkpoint_freq,
                  eval_freq=args.eval_freq, eval_targets=args.eval_targets,
                  progress_bar=not args.no_progress, max_minutes=args.max_minutes,
@@ -97,8 +108,8 @@ def _evaluate_args(p: argparse.ArgumentParser) -> None:
                       "(randomisation aside)")
 
 
-@command("evaluate", "evaluate a PPO policy on a fixed seeded set of targets, in the scene it "
-                     "was trained in", _evaluate_args)
+@command("evaluate", "evaluate a policy (PPO, SAC, TQC, TD3) on a fixed seeded set of targets, "
+                     "in the scene it was trained in", _evaluate_args)
 def cmd_evaluate(args: argparse.Namespace) -> None:
     from ..rl.evaluate import evaluate, load_policy
     from ..rl.shipped import require_shipped

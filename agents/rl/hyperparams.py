@@ -1,4 +1,4 @@
-"""PPO hyperparameters from ``configs/ppo.yml`` (rl-zoo3's format, keyed by env id)."""
+"""Hyperparameters from ``configs/<algo>.yml`` (rl-zoo3's format, keyed by env id)."""
 from __future__ import annotations
 
 import json
@@ -13,19 +13,23 @@ ENV_ID = "MicroConveyor-v0"
 RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs")
 
 
-def load(path: str | None = None, env_id: str = ENV_ID) -> dict:
-    """The hyperparameters of ``env_id`` from ``path`` (default: the shipped configs/ppo.yml),
-    with ``policy_kwargs`` and ``normalize`` strings evaluated as rl-zoo3 does (dict(...))."""
+def load(path: str | None = None, env_id: str = ENV_ID, algo: str = "ppo") -> dict:
+    """The hyperparameters of ``env_id`` from ``path`` (default: the shipped
+    ``configs/<algo>.yml``), with the ``dict(...)`` strings (``policy_kwargs``, ``normalize``,
+    ``replay_buffer_kwargs``) parsed as rl-zoo3 writes them (as data: nothing is evaluated)."""
     if path is None:
-        text = (resources.files("microconveyor_env.configs") / "ppo.yml").read_text()
+        try:
+            text = (resources.files("microconveyor_env.configs") / f"{algo}.yml").read_text()
+        except FileNotFoundError:
+            raise ValueError(f"no shipped config for {algo!r} (configs/{algo}.yml)") from None
     else:
         with open(path) as fh:
             text = fh.read()
     data = yaml.safe_load(text) or {}
     if env_id not in data:
-        raise ValueError(f"{path or 'configs/ppo.yml'} has no entry for {env_id!r}")
+        raise ValueError(f"{path or f'configs/{algo}.yml'} has no entry for {env_id!r}")
     hp = dict(data[env_id])
-    for key in ("policy_kwargs", "normalize"):
+    for key in ("policy_kwargs", "normalize", "replay_buffer_kwargs"):
         if isinstance(hp.get(key), str):
             hp[key] = _eval_dict(hp[key])
     if hp.get("normalize") is True:
@@ -94,11 +98,31 @@ def _node_value(node: Any, text: str) -> Any:
                          "them is evaluated") from None
 
 
-def ppo_kwargs(hp: dict) -> dict:
-    """PPO(...) keyword arguments; ``lin_<value>`` strings (learning_rate, clip_range) become
-    linear schedules as in rl-zoo3."""
-    out = {k: v for k, v in hp.items() if k not in RUN_KEYS}
+# replay buffers a config may name (rl-zoo3 writes the class name)
+REPLAY_BUFFERS = ("HerReplayBuffer", "ReplayBuffer", "DictReplayBuffer")
+
+
+def algo_kwargs(hp: dict) -> dict:
+    """The algorithm's keyword arguments (PPO(...), SAC(...), TQC(...)): ``lin_<value>``
+    strings (learning_rate, clip_range) become linear schedules as in rl-zoo3, a named
+    ``replay_buffer_class`` the SB3 class, a ``train_freq`` list a tuple. A deep copy: SB3
+    writes into the dicts it is given (SAC adds ``use_sde`` to ``policy_kwargs``), and ``hp``
+    is what the run's config hash and metadata record."""
+    import copy
+
+    out = copy.deepcopy({k: v for k, v in hp.items() if k not in RUN_KEYS})
     for key in ("learning_rate", "clip_range"):
         if isinstance(out.get(key), str) and out[key].startswith("lin_"):
             out[key] = linear_schedule(float(out[key][4:]))
+    name = out.get("replay_buffer_class")
+    if name is not None:
+        if name not in REPLAY_BUFFERS:
+            raise ValueError(f"replay_buffer_class {name!r}: one of {', '.join(REPLAY_BUFFERS)}")
+        import stable_baselines3.common.buffers as buffers
+        from stable_baselines3 import HerReplayBuffer
+
+        out["replay_buffer_class"] = (HerReplayBuffer if name == "HerReplayBuffer"
+                                      else getattr(buffers, name))
+    if isinstance(out.get("train_freq"), list):
+        out["train_freq"] = tuple(out["train_freq"])
     return out

@@ -53,7 +53,15 @@ class Policy:
         return str(self.metadata.get("env_id", FIRST_ENV_ID))
 
     def act(self, obs: np.ndarray) -> np.ndarray:
-        """Deterministic actions in [-1, 1]^3 for a batch of raw observations."""
+        """Deterministic actions in [-1, 1]^3 for a batch of raw observations of the Box env
+        (a policy trained on the goal-conditioned env gets them as its Dict observations)."""
+        from gymnasium import spaces
+
+        if isinstance(self.model.observation_space, spaces.Dict):
+            from microconveyor_env.envs.goal import goal_observations
+
+            action, _ = self.model.predict(goal_observations(obs), deterministic=True)
+            return action
         if self.normalizer is not None:
             obs = self.normalizer(obs)
         action, _ = self.model.predict(obs, deterministic=True)
@@ -80,10 +88,12 @@ def _metadata(folder: Path) -> dict[str, Any]:
     return meta
 
 
-def _spaces(config: EnvConfig) -> tuple[Any, Any]:
+def _spaces(config: EnvConfig, env_id: str) -> tuple[Any, Any]:
     from microconveyor_env.envs import MicroConveyorEnv
+    from microconveyor_env.envs.goal import MicroConveyorGoalEnv
+    from microconveyor_env.envs.versions import GOAL_ENV_IDS
 
-    env = MicroConveyorEnv(config=config)
+    env = (MicroConveyorGoalEnv if env_id in GOAL_ENV_IDS else MicroConveyorEnv)(config=config)
     return env.observation_space, env.action_space
 
 
@@ -171,10 +181,10 @@ def load_policy(path: str | Path, config: EnvConfig | None = None) -> Policy:
     if trained is not None:
         trained = nominal(trained)
     cfg = config or trained or env_config(FIRST_ENV_ID)
-    obs_space, act_space = _spaces(cfg)
+    env_id = str(meta.get("env_id", FIRST_ENV_ID))
+    obs_space, act_space = _spaces(cfg, env_id)
     try:
-        check_spaces(model_file, data, obs_space.shape, act_space.shape,
-                     str(meta.get("env_id", FIRST_ENV_ID)))
+        check_spaces(model_file, data, obs_space, act_space, env_id)
         normalizer = _normalizer(folder, model_file, meta, obs_space.shape)
         model = safe_load(model_file, algo, obs_space, act_space)
     except ModelFileError as exc:

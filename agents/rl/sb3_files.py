@@ -19,6 +19,8 @@ import zipfile
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 SERIALIZED = ":serialized:"
 
 
@@ -26,16 +28,23 @@ class ModelFileError(ValueError):
     """A model zip that is not a stable-baselines3 model of the expected kind."""
 
 
-# algorithm -> (keys its data JSON always has, the policy class its pickle must name)
-ALGOS: dict[str, tuple[frozenset[str], str]] = {
+# algorithm -> (keys its data JSON always has, the policy classes its pickle may name: for
+# Box observations, and MultiInputPolicy for Dict ones). Checked in this order: PPO's keys
+# include A2C's, TQC's SAC's.
+ALGOS: dict[str, tuple[frozenset[str], tuple[str, ...]]] = {
     "ppo": (frozenset({"n_epochs", "clip_range", "n_steps", "batch_size"}),
-            "stable_baselines3.common.policies.ActorCriticPolicy"),
+            ("stable_baselines3.common.policies.ActorCriticPolicy",
+             "stable_baselines3.common.policies.MultiInputActorCriticPolicy")),
     "a2c": (frozenset({"n_steps", "normalize_advantage"}),
-            "stable_baselines3.common.policies.ActorCriticPolicy"),
+            ("stable_baselines3.common.policies.ActorCriticPolicy",)),
+    "tqc": (frozenset({"top_quantiles_to_drop_per_net", "target_entropy", "buffer_size"}),
+            ("sb3_contrib.tqc.policies.TQCPolicy", "sb3_contrib.tqc.policies.MultiInputPolicy")),
     "sac": (frozenset({"target_entropy", "tau", "buffer_size"}),
-            "stable_baselines3.sac.policies.SACPolicy"),
+            ("stable_baselines3.sac.policies.SACPolicy",
+             "stable_baselines3.sac.policies.MultiInputPolicy")),
     "td3": (frozenset({"policy_delay", "target_policy_noise"}),
-            "stable_baselines3.td3.policies.TD3Policy"),
+            ("stable_baselines3.td3.policies.TD3Policy",
+             "stable_baselines3.td3.policies.MultiInputPolicy")),
 }
 
 
@@ -57,8 +66,7 @@ def read_data(path: Path) -> dict[str, Any]:
 
 
 def algo_of(data: dict[str, Any]) -> str | None:
-    """The algorithm a model's ``data`` keys identify (``ppo``, ``a2c``, ``sac``, ``td3``), or None.
-    PPO is checked before A2C (PPO's keys include A2C's)."""
+    """The algorithm a model's ``data`` keys identify (a key of :data:`ALGOS`), or None."""
     for algo, (keys, _) in ALGOS.items():
         if keys <= set(data):
             return algo
@@ -106,39 +114,71 @@ def _shape_of(entry: Any) -> tuple[int, ...] | None:
         return None
 
 
-def check_spaces(path: Path, data: dict[str, Any], obs_shape: tuple[int, ...],
-                 act_shape: tuple[int, ...], env_name: str) -> None:
-    """Refuse a model whose observation or action shape is not ``obs_shape``/``act_shape``."""
-    got_obs, got_act = _shape_of(data.get("observation_space")), _shape_of(data.get("action_space"))
+def _dict_shapes(entry: Any) -> dict[str, tuple[int, ...]] | None:
+    """A Dict space's ``{key: shape}`` from the readable ``spaces`` SB3 writes beside the
+    pickle (e.g. "{'achieved_goal': Box(-10.0, 10.0, (1,), float32), ...}")."""
+    import re
+
+    text = entry.get("spaces") if isinstance(entry, dict) else None
+    if not isinstance(text, str):
+        return None
+    found = re.findall(r"'(\w+)': Box\([^()]*\(([\d, ]*)\)", text)
+    return {k: tuple(int(v) for v in dims.split(",") if v.strip()) for k, dims in found} or None
+
+
+def check_spaces(path: Path, data: dict[str, Any], observation_space: Any, action_space: Any,
+                 env_name: str) -> None:
+    """Refuse a model whose observation or action shapes are not those of the spaces given (a
+    Dict observation space: the same keys with the same shapes)."""
+    from gymnasium import spaces
+
+    obs_entry = data.get("observation_space")
+    if isinstance(observation_space, spaces.Dict):
+        want_obs: Any = {k: sp.shape for k, sp in observation_space.spaces.items()}
+        got_obs: Any = _dict_shapes(obs_entry)
+    else:
+        want_obs, got_obs = observation_space.shape, _shape_of(obs_entry)
+    got_act = _shape_of(data.get("action_space"))
     if got_obs is None or got_act is None:
         raise ModelFileError(f"{str(path)!r} does not state its observation and action shapes")
-    if got_obs != obs_shape or got_act != act_shape:
+    if got_obs != want_obs or got_act != action_space.shape:
         raise ModelFileError(f"{str(path)!r} was trained for observations {got_obs} and actions "
-                             f"{got_act}; {env_name} has {obs_shape} and {act_shape}")
+                             f"{got_act}; {env_name} has {want_obs} and {action_space.shape}")
 
 
 def custom_objects(path: Path, data: dict[str, Any], algo: str, observation_space: Any,
-                   action_space: Any, learning_rate: Any = 0.0,
-                   clip_range: Any = 0.2) -> dict[str, Any]:
+                   action_space: Any, **given: Any) -> dict[str, Any]:
     """Replacements for every pickled entry of ``data``, so that SB3's ``load`` unpickles none:
-    the spaces given, the schedules given (they only matter to a resumed training), fresh buffers
-    (SB3 rebuilds them at the next ``learn``). Unknown pickled entries and a policy class other
-    than the algorithm's are refused."""
-    from stable_baselines3.common.buffers import ReplayBuffer, RolloutBuffer
+    the spaces given, fresh buffers (SB3 rebuilds them at the next ``learn``), default schedules
+    and training settings (they only matter to a resumed training, which passes its own in
+    ``given``: ``learning_rate``, ``clip_range``, ``replay_buffer_class``, ...). Unknown pickled
+    entries and a policy class other than the algorithm's are refused."""
+    from gymnasium import spaces
+    from stable_baselines3.common.buffers import (DictReplayBuffer, DictRolloutBuffer,
+                                                  ReplayBuffer, RolloutBuffer)
     from stable_baselines3.common.type_aliases import TrainFreq, TrainFrequencyUnit
 
-    _, policy_name = ALGOS[algo]
+    _, policy_names = ALGOS[algo]
+    is_dict = isinstance(observation_space, spaces.Dict)
     known: dict[str, Any] = {
         "observation_space": observation_space, "action_space": action_space,
-        "learning_rate": learning_rate, "lr_schedule": lambda _: 0.0, "clip_range": clip_range,
+        "learning_rate": 0.0, "lr_schedule": lambda _: 0.0, "clip_range": 0.2,
         "clip_range_vf": None, "_last_obs": None, "_last_episode_starts": None,
         "_last_original_obs": None, "ep_info_buffer": None, "ep_success_buffer": None,
-        "rollout_buffer_class": RolloutBuffer, "rollout_buffer_kwargs": {},
-        "replay_buffer_class": ReplayBuffer, "replay_buffer_kwargs": {}, "action_noise": None,
+        "rollout_buffer_class": DictRolloutBuffer if is_dict else RolloutBuffer,
+        "rollout_buffer_kwargs": {}, "replay_buffer_class":
+            DictReplayBuffer if is_dict else ReplayBuffer, "replay_buffer_kwargs": {},
+        "action_noise": None,
         "target_policy_noise": None, "target_noise_clip": None, "ent_coef": None,
         # off-policy training settings: they only matter to a resumed training
         "train_freq": TrainFreq(1, TrainFrequencyUnit.STEP), "use_sde_at_warmup": False,
+        # TQC stores it as a numpy scalar; SAC's "auto" value
+        "target_entropy": -float(np.prod(action_space.shape)),
     }
+    unknown = set(given) - set(known)
+    if unknown:
+        raise ValueError(f"custom_objects: unknown entries {sorted(unknown)}")
+    known.update(given)
     out: dict[str, Any] = {}
     for key, value in data.items():
         if not (isinstance(value, dict) and SERIALIZED in value):
@@ -149,17 +189,21 @@ def custom_objects(path: Path, data: dict[str, Any], algo: str, observation_spac
             except (ValueError, binascii.Error, TypeError) as exc:
                 raise ModelFileError(f"{str(path)!r}: its policy_class entry is not a readable "
                                      f"pickle ({exc})") from None
-            if names != [policy_name]:
+            if len(names) != 1 or names[0] not in policy_names:
                 raise ModelFileError(f"{str(path)!r}: its policy_class names {names or 'nothing'}, "
-                                     f"not {policy_name} ({algo.upper()}'s policy); refusing "
-                                     "to load it")
-            out[key] = _policy_class(policy_name)
+                                     f"not {' or '.join(policy_names)} ({algo.upper()}'s "
+                                     "policy); refusing to load it")
+            out[key] = _policy_class(names[0])
         elif key in known:
             out[key] = known[key]
         else:
             raise ModelFileError(f"{str(path)!r}: its data entry {key!r} holds a pickled Python "
                                  "object this loader does not know; it is not unpickled (that "
                                  "could run code), so the model is refused")
+    # plain-JSON settings that belong to the buffer class above (HER's goal_selection_strategy,
+    # copy_info_dict, ...) go with it
+    if "replay_buffer_kwargs" in data:
+        out["replay_buffer_kwargs"] = known["replay_buffer_kwargs"]
     return out
 
 
@@ -171,7 +215,11 @@ def _policy_class(dotted: str) -> Any:
 
 
 def algo_class(algo: str) -> Any:
-    """The SB3 algorithm class of ``algo``."""
+    """The SB3 (or sb3-contrib) algorithm class of ``algo``."""
+    if algo == "tqc":
+        from sb3_contrib import TQC
+
+        return TQC
     import stable_baselines3 as sb3
 
     return getattr(sb3, algo.upper())
@@ -179,7 +227,7 @@ def algo_class(algo: str) -> Any:
 
 def safe_load(path: Path, algo: str, observation_space: Any, action_space: Any,
               cls: Any = None, env: Any = None, load_kwargs: dict[str, Any] | None = None,
-              **schedules: Any) -> Any:
+              **given: Any) -> Any:
     """``cls.load(path)`` (default: SB3's class of ``algo``) with every pickled entry replaced
     (see :func:`custom_objects`) and the weights read by torch with ``weights_only=True``; on
     CPU, around ``env`` if given, with ``load_kwargs`` set on the model. Shape mismatches of the
@@ -189,7 +237,7 @@ def safe_load(path: Path, algo: str, observation_space: Any, action_space: Any,
     if found != algo:
         raise ModelFileError(f"{str(path)!r} is {'an unknown kind of' if found is None else 'a'} "
                              f"{(found or 'model').upper()} model, not {algo.upper()}")
-    objs = custom_objects(path, data, algo, observation_space, action_space, **schedules)
+    objs = custom_objects(path, data, algo, observation_space, action_space, **given)
     try:
         return (cls or algo_class(algo)).load(path, env=env, device="cpu", custom_objects=objs,
                                               **(load_kwargs or {}))

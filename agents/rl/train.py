@@ -1,6 +1,6 @@
-"""PPO (stable-baselines3) on the batched env through the SB3 adapter.
+"""Training PPO, SAC or TQC (:mod:`.algos`) on the conveyor.
 
-Hyperparameters from ``configs/ppo.yml`` (:mod:`.hyperparams`). During training: a progress
+Hyperparameters from ``configs/<algo>.yml`` (:mod:`.hyperparams`). During training: a progress
 bar, tensorboard logs (``OUT/tb``), one line per checkpoint and per evaluation (through ``log``),
 a checkpoint generation every ``checkpoint_freq`` steps in ``OUT/checkpoints`` (written
 atomically, :mod:`.checkpoint`; ``resume=True`` continues from the newest complete one, so a
@@ -23,16 +23,16 @@ from pathlib import Path
 from typing import Any
 from collections.abc import Callable
 
-from stable_baselines3 import PPO
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList, ProgressBarCallback
 from stable_baselines3.common.vec_env import VecEnv, VecMonitor, VecNormalize
 
 from microconveyor_env.envs import EnvConfig, env_config
-from microconveyor_env.envs.versions import check_env_id
+from microconveyor_env.envs.versions import GOAL_ENV_IDS, check_env_id
 from microconveyor_env.envs.sb3 import MicroConveyorSB3VecEnv
 
 from . import checkpoint, hyperparams, normalization
+from .algos import ALGO_NAMES, algo_class
 from .checkpoint import META, MODEL, NORMALIZATION, CheckpointError
 from .evaluate import Policy, evaluate
 from .sb3_files import ModelFileError, algo_of, read_data, safe_load
@@ -42,40 +42,8 @@ LEGACY_CHECKPOINT = "checkpoint"
 Log = Callable[[str], None]
 
 
-class BudgetPPO(PPO):
-    """PPO whose schedules (``lin_`` learning rate, clip range) run out with whichever budget
-    ends first: the step count or the wall time (``budget_clock() -> fraction of the wall
-    budget used``). So a run capped by ``--max-minutes`` on a busy machine still ends with a
-    fully decayed learning rate, as the shipped policy's recipe expects."""
-
-    budget_clock: Callable[[], float] | None = None  # set by train(); not saved with the model
-    _current_progress_remaining: float  # SB3's, declared for type checking without SB3 installed
-    # torch threads for the gradient updates (rollouts keep one). 2 gain 15 % on an idle 2-core
-    # machine but fall to ~450 steps/s when the cores are busy (benchmarks/train_speed.py)
-    update_threads = 1
-
-    def _excluded_save_params(self) -> list:
-        return [*super()._excluded_save_params(), "budget_clock", "update_threads"]
-
-    def train(self) -> None:
-        import torch
-
-        before = torch.get_num_threads()
-        torch.set_num_threads(self.update_threads)
-        try:
-            super().train()
-        finally:
-            torch.set_num_threads(before)
-
-    def _update_current_progress_remaining(self, num_timesteps: int, total_timesteps: int) -> None:
-        super()._update_current_progress_remaining(num_timesteps, total_timesteps)
-        if self.budget_clock is not None:
-            self._current_progress_remaining = max(0.0, min(
-                self._current_progress_remaining, 1.0 - self.budget_clock()))
-
-
-def config_hash(cfg: EnvConfig, hp: dict) -> str:
-    blob = json.dumps({"env": dataclasses.asdict(cfg), "ppo": hp}, sort_keys=True, default=str)
+def config_hash(cfg: EnvConfig, hp: dict, algo: str = "ppo") -> str:
+    blob = json.dumps({"env": dataclasses.asdict(cfg), algo: hp}, sort_keys=True, default=str)
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
 
@@ -146,8 +114,20 @@ def _write_model(model: BaseAlgorithm, folder: Path) -> None:
         normalization.write(env, folder / NORMALIZATION)
 
 
-def make_env(cfg: EnvConfig, hp: dict, seed: int) -> VecMonitor:
-    venv = MicroConveyorSB3VecEnv(int(hp.get("n_envs", 64)), config=cfg)
+def make_env(cfg: EnvConfig, hp: dict, seed: int, env_id: str = hyperparams.ENV_ID
+             ) -> VecMonitor:
+    """The training envs: the compiled batch (Box observations), or for a goal-conditioned id
+    ``n_envs`` single Dict-observation envs (what SB3's HerReplayBuffer relabels)."""
+    n = int(hp.get("n_envs", 64))
+    venv: VecEnv
+    if env_id in GOAL_ENV_IDS:
+        from stable_baselines3.common.vec_env import DummyVecEnv
+
+        from microconveyor_env.envs.goal import MicroConveyorGoalEnv
+
+        venv = DummyVecEnv([lambda: MicroConveyorGoalEnv(config=cfg)] * n)
+    else:
+        venv = MicroConveyorSB3VecEnv(n, config=cfg)
     venv.seed(seed)
     return VecMonitor(venv)
 
@@ -180,20 +160,20 @@ def _refuse_used_folder(out: Path) -> None:
                               "to continue it, or choose another --out")
 
 
-def _check_generation(need_stats: bool) -> Callable[[Path, dict], None]:
+def _check_generation(algo: str, need_stats: bool) -> Callable[[Path, dict], None]:
     def check(folder: Path, meta: dict) -> None:
-        if meta.get("algo") != "ppo" or algo_of(read_data(folder / MODEL)) != "ppo":
-            raise CheckpointError("not a PPO checkpoint")
+        if meta.get("algo") != algo or algo_of(read_data(folder / MODEL)) != algo:
+            raise CheckpointError(f"not a {algo.upper()} checkpoint")
         if need_stats:
             normalization.read(folder / NORMALIZATION)
     return check
 
 
 def _resumable(out: Path, chash: str, hp: dict, allow_config_change: bool,
-               log: Log | None) -> checkpoint.Generation:
+               log: Log | None, algo: str) -> checkpoint.Generation:
     need_stats = bool(hp.get("normalize"))
     try:
-        gen = checkpoint.latest(out, _check_generation(need_stats))
+        gen = checkpoint.latest(out, _check_generation(algo, need_stats))
     except ModelFileError as exc:  # pragma: no cover - latest() turns these into skips
         raise CheckpointError(str(exc)) from None
     if gen is None:
@@ -220,26 +200,34 @@ def _resumable(out: Path, chash: str, hp: dict, allow_config_change: bool,
     return gen
 
 
-def _new_model(env: VecEnv, hp: dict, seed: int, tb: str | None) -> BudgetPPO:
+def _new_model(env: VecEnv, hp: dict, seed: int, tb: str | None, algo: str) -> Any:
     norm = hp.get("normalize") or None
     if norm is not None:
         env = VecNormalize(env, **{"gamma": hp.get("gamma", 0.99), **norm})
-    return BudgetPPO(hp.get("policy", "MlpPolicy"), env, seed=seed, device="cpu", verbose=0,
-                     tensorboard_log=tb, **hyperparams.ppo_kwargs(hp))
+    return algo_class(algo)(hp.get("policy", "MlpPolicy"), env, seed=seed, device="cpu",
+                            verbose=0, tensorboard_log=tb, **hyperparams.algo_kwargs(hp))
 
 
-def _resumed_model(gen: checkpoint.Generation, env: VecEnv, hp: dict, tb: str | None
-                   ) -> BudgetPPO:
+def _resumed_model(gen: checkpoint.Generation, env: VecEnv, hp: dict, tb: str | None,
+                   algo: str) -> Any:
+    """The checkpoint's model around ``env``. Off-policy: the replay buffer is not in the
+    checkpoint (SB3 stores it as a pickle), so a resumed SAC/TQC refills it from scratch."""
     if (gen.folder / NORMALIZATION).is_file():
         env = normalization.restore(env, normalization.read(gen.folder / NORMALIZATION))
-    kw = hyperparams.ppo_kwargs(hp)
+    kw = hyperparams.algo_kwargs(hp)
     try:
-        return safe_load(gen.folder / MODEL, "ppo", env.observation_space, env.action_space,
-                         cls=BudgetPPO, env=env, load_kwargs={"tensorboard_log": tb},
-                         learning_rate=kw.get("learning_rate", 3e-4),
-                         clip_range=kw.get("clip_range", 0.2))
+        given = {k: kw[k] for k in ("learning_rate", "clip_range", "replay_buffer_class",
+                                    "replay_buffer_kwargs", "target_entropy")
+                 if k in kw and kw[k] != "auto"}
+        model = safe_load(gen.folder / MODEL, algo, env.observation_space, env.action_space,
+                          cls=algo_class(algo), env=env, load_kwargs={"tensorboard_log": tb},
+                          **given)
     except ModelFileError as exc:
         raise CheckpointError(str(exc)) from None
+    if hasattr(model, "learning_starts"):
+        # the refilled buffer collects learning_starts steps again before the first update
+        model.learning_starts = int(gen.steps) + int(hp.get("learning_starts", 100))
+    return model
 
 
 def train(out: str | Path, steps: int | None = None, seed: int = 0, conf_file: str | None = None,
@@ -248,8 +236,9 @@ def train(out: str | Path, steps: int | None = None, seed: int = 0, conf_file: s
           progress_bar: bool = True, tensorboard: bool = True, overrides: dict | None = None,
           max_minutes: float | None = None, allow_config_change: bool = False,
           log: Log | None = None, env_id: str = hyperparams.ENV_ID,
-          env_kwargs: dict | None = None) -> dict:
-    """Train (or resume) PPO into ``out`` for ``steps`` (or until ``max_minutes`` of wall time,
+          env_kwargs: dict | None = None, algo: str = "ppo") -> dict:
+    """Train (or resume) ``algo`` (:data:`.algos.ALGO_NAMES`; hyperparameters from
+    ``conf_file``, default ``configs/<algo>.yml``) into ``out`` for ``steps`` (or until ``max_minutes`` of wall time,
     resumed runs included); returns the metadata written there. The env: ``env_id`` (a
     registered version; its entry in the conf file gives the hyperparameters) with the conf
     file's ``env_kwargs`` updated by ``env_kwargs`` (as ``gym.make(env_id, **kwargs)``), or
@@ -257,25 +246,27 @@ def train(out: str | Path, steps: int | None = None, seed: int = 0, conf_file: s
     import torch
 
     check_budgets(steps, max_minutes, checkpoint_freq, eval_freq, eval_targets)
+    if algo not in ALGO_NAMES:
+        raise ValueError(f"unknown algorithm {algo!r}; choose from {', '.join(ALGO_NAMES)}")
     torch.set_num_threads(1)  # small nets: one thread is fastest, and 2 cores are shared with the env
     out = Path(out)
     with checkpoint.folder_lock(out):
-        hp = hyperparams.load(conf_file, check_env_id(env_id))
+        hp = hyperparams.load(conf_file, check_env_id(env_id), algo)
         hp.update(overrides or {})
         if env_kwargs:
             hp["env_kwargs"] = {**(hp.get("env_kwargs") or {}), **env_kwargs}
         cfg = config or env_config(env_id, **(hp.get("env_kwargs") or {}))
-        chash = config_hash(cfg, hp)
-        run_meta = {"format": FORMAT, "env_id": env_id, "algo": "ppo",
+        chash = config_hash(cfg, hp, algo)
+        run_meta = {"format": FORMAT, "env_id": env_id, "algo": algo,
                     "env_kwargs": dict(hp.get("env_kwargs") or {}),
                     "config_hash": chash, "seed": seed, "hyperparams": hp,
                     "env_config": dataclasses.asdict(cfg)}
         tb = str(out / "tb") if tensorboard else None
-        env = make_env(cfg, hp, seed)
+        env = make_env(cfg, hp, seed, env_id)
         wall_before = 0.0
         if resume:
-            gen = _resumable(out, chash, hp, allow_config_change, log)
-            model = _resumed_model(gen, env, hp, tb)
+            gen = _resumable(out, chash, hp, allow_config_change, log, algo)
+            model = _resumed_model(gen, env, hp, tb, algo)
             wall_before = float(gen.meta.get("wall_time_s", 0.0))
             changes = list(gen.meta.get("config_changes", []))
             if gen.meta.get("config_hash") != chash:
@@ -288,10 +279,13 @@ def train(out: str | Path, steps: int | None = None, seed: int = 0, conf_file: s
                     "of wall time already spent")
         else:
             _refuse_used_folder(out)
-            model = _new_model(env, hp, seed, tb)
+            model = _new_model(env, hp, seed, tb, algo)
         total = int(steps if steps is not None else hp.get("n_timesteps", 1e6))
         if resume:
             _check_budget_left(model.num_timesteps, total, wall_before, max_minutes, log)
+            if log and hasattr(model, "replay_buffer"):
+                log(f"resume: the replay buffer is not checkpointed; it refills for "
+                    f"{model.learning_starts - model.num_timesteps} steps before updates resume")
         return _learn(model, out, cfg, total, resume, run_meta, wall_before, checkpoint_freq,
                       eval_freq, eval_targets, eval_seed, progress_bar, max_minutes, log)
 
@@ -314,7 +308,7 @@ def _check_budget_left(done: int, total: int, wall_before: float, max_minutes: f
             "continues from the run's progress")
 
 
-def _learn(model: BudgetPPO, out: Path, cfg: EnvConfig, total: int, resume: bool, run_meta: dict,
+def _learn(model: Any, out: Path, cfg: EnvConfig, total: int, resume: bool, run_meta: dict,
            wall_before: float, checkpoint_freq: int, eval_freq: int, eval_targets: int,
            eval_seed: int, progress_bar: bool, max_minutes: float | None, log: Log | None
            ) -> dict:
@@ -330,7 +324,7 @@ def _learn(model: BudgetPPO, out: Path, cfg: EnvConfig, total: int, resume: bool
         callbacks.append(ProgressBarCallback())
     remaining = max(0, total - model.num_timesteps)
     model.learn(remaining, callback=CallbackList(callbacks), reset_num_timesteps=not resume,
-                tb_log_name="ppo", progress_bar=False)
+                tb_log_name=str(run_meta["algo"]), progress_bar=False)
     wall = periodic.wall()
     final = periodic.run_eval() if eval_targets else {}
     meta = {**run_meta, "steps": int(model.num_timesteps), "wall_time_s": wall,

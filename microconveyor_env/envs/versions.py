@@ -25,6 +25,11 @@ __all__ = ["ALL_ENV_IDS", "ENTRY_POINTS", "ENV_IDS", "GOAL_ENV_IDS", "LATEST", "
 RUNTIME_FIELDS = frozenset({"num_threads", "max_steps"})
 # per-episode randomisation: the conditions a policy is tested under, not the scene it acts in
 PERTURBATION_FIELDS = frozenset({"action_noise", "friction_factor_range", "mass_factor_range"})
+# how training scores an episode: the scene, the targets, the episode's end and success (at rest
+# within the tolerance) do not depend on them, so a policy trained with another reward scale is
+# evaluated in the same scene
+REWARD_FIELDS = frozenset({"progress_scale", "progress_horizon", "time_cost", "success_bonus",
+                           "detach_penalty"})
 
 
 def check_env_id(env_id: str) -> str:
@@ -56,9 +61,10 @@ def env_config(env_id: str = LATEST, **overrides: Any) -> EnvConfig:
 
 def scene_differences(trained: EnvConfig, asked: EnvConfig) -> dict[str, tuple[Any, Any]]:
     """Fields (name -> (trained, asked)) in which two configs describe different scenes or
-    tasks; runtime knobs and per-episode randomisation are not the scene."""
+    tasks; runtime knobs, per-episode randomisation and the reward's weights are not the
+    scene."""
     a, b = dataclasses.asdict(trained), dataclasses.asdict(asked)
-    skip = RUNTIME_FIELDS | PERTURBATION_FIELDS
+    skip = RUNTIME_FIELDS | PERTURBATION_FIELDS | REWARD_FIELDS
     return {k: (a[k], b[k]) for k in a if k not in skip and a[k] != b[k]}
 
 

@@ -26,7 +26,7 @@ def test_ppo_config_is_rl_zoo_format():
     hp = hyperparams.load()
     assert hp["n_steps"] * hp["n_envs"] <= 4096  # a short rollout
     assert hp["normalize"]["norm_obs"] and hp["policy_kwargs"]["net_arch"]
-    kw = hyperparams.ppo_kwargs(hp)
+    kw = hyperparams.algo_kwargs(hp)
     assert "n_steps" in kw and "n_envs" not in kw
     if isinstance(hp["learning_rate"], str):  # rl-zoo3's lin_<value>
         assert kw["learning_rate"](1.0) == float(hp["learning_rate"][4:]) and kw["learning_rate"](0.0) == 0
@@ -67,7 +67,8 @@ def test_schedules_run_out_with_the_wall_time_budget(tmp_path):
     """With --max-minutes the lin_ learning rate decays over whichever budget ends first."""
     from stable_baselines3.common.vec_env import DummyVecEnv
 
-    from agents.rl.train import BudgetPPO
+    from agents.rl.algos import algo_class
+    BudgetPPO = algo_class("ppo")
     from microconveyor_env.envs import MicroConveyorEnv
 
     model = BudgetPPO("MlpPolicy", DummyVecEnv([MicroConveyorEnv]), n_steps=16, batch_size=16,

@@ -109,7 +109,9 @@ def test_resume_continues_the_whole_runs_budgets_and_schedule(tmp_path, monkeypa
     """Steps, wall time and the learning-rate schedule count from the run's start: a resumed run
     picks the schedule up where it stopped (no sawtooth), and one with nothing left is refused
     with a message, not stopped after one rollout."""
-    from agents.rl.train import BudgetPPO, train
+    from agents.rl.algos import algo_class
+    from agents.rl.train import train
+    BudgetPPO = algo_class("ppo")
 
     kw = dict(seed=0, overrides=SMALL, checkpoint_freq=512, eval_freq=0, eval_targets=0,
               progress_bar=False, tensorboard=False)

@@ -1,0 +1,74 @@
+"""The algorithms ``microconveyor train --algo`` runs, and what each needs from the env.
+
+``ppo`` (on-policy) trains on the compiled batch (:class:`MicroConveyorSB3VecEnv`, Box
+observations). ``sac`` and ``tqc`` (off-policy; TQC from sb3-contrib) train either on the same
+batch or, on a goal-conditioned id (``MicroConveyorGoal-v1``), on single Dict-observation envs
+with SB3's ``HerReplayBuffer`` (``replay_buffer_class: HerReplayBuffer`` in the config), which
+relabels goals through the env's ``compute_reward``. Each algorithm's hyperparameters live in
+``configs/<algo>.yml`` (rl-zoo3's format, keyed by env id).
+
+Every class is wrapped by :func:`budgeted`: its schedules (``lin_`` learning rate, clip range)
+run out with whichever budget ends first, the step count or the wall time, and its gradient
+updates run on ``update_threads`` torch threads.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+ALGO_NAMES = ("ppo", "sac", "tqc")
+ON_POLICY = frozenset({"ppo"})
+
+
+def budgeted(base: type) -> type:
+    """``base`` (an SB3 algorithm class) with the wall-time budget and update threads."""
+
+    class Budgeted(base):
+        budget_clock: Callable[[], float] | None = None  # set by train(); not saved
+        # torch threads for the gradient updates (rollouts keep one). 2 gain 15 % on an idle
+        # 2-core machine but fall to ~450 steps/s when the cores are busy
+        # (benchmarks/train_speed.py)
+        update_threads = 1
+        _current_progress_remaining: float
+
+        def _excluded_save_params(self) -> list:
+            return [*super()._excluded_save_params(), "budget_clock", "update_threads"]
+
+        def train(self, *args: Any, **kwargs: Any) -> None:
+            import torch
+
+            before = torch.get_num_threads()
+            torch.set_num_threads(self.update_threads)
+            try:
+                super().train(*args, **kwargs)
+            finally:
+                torch.set_num_threads(before)
+
+        def _update_current_progress_remaining(self, num_timesteps: int,
+                                               total_timesteps: int) -> None:
+            super()._update_current_progress_remaining(num_timesteps, total_timesteps)
+            if self.budget_clock is not None:
+                self._current_progress_remaining = max(0.0, min(
+                    self._current_progress_remaining, 1.0 - self.budget_clock()))
+
+    Budgeted.__name__ = Budgeted.__qualname__ = f"Budget{base.__name__}"
+    Budgeted.__module__ = __name__
+    return Budgeted
+
+
+_CLASSES: dict[str, type] = {}
+
+
+def algo_class(algo: str) -> type:
+    """The budgeted SB3 class of ``algo`` (one of :data:`ALGO_NAMES`)."""
+    if algo not in ALGO_NAMES:
+        raise ValueError(f"unknown algorithm {algo!r}; choose from {', '.join(ALGO_NAMES)}")
+    if algo not in _CLASSES:
+        from .sb3_files import algo_class as sb3_class
+
+        try:
+            _CLASSES[algo] = budgeted(sb3_class(algo))
+        except ImportError:  # pragma: no cover - the agents extra installs sb3-contrib
+            raise ValueError(f"--algo {algo} needs sb3-contrib: pip install "
+                             "'microconveyor-env[agents]'") from None
+    return _CLASSES[algo]
