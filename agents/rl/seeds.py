@@ -1,10 +1,11 @@
 """Aggregate over training seeds: IQM (interquartile mean, as rliable defines it: the 25 %
-trimmed mean) and a percentile-bootstrap 95 % CI over runs of the final evaluations
-(``metadata.json`` of each run folder).
+trimmed mean, ``scipy.stats.trim_mean``) and its percentile-bootstrap 95 % CI over runs
+(``scipy.stats.bootstrap``) of the final evaluations (``metadata.json`` of each run folder).
 
-rliable itself would do this, but it cannot be imported next to pandas 3 (its dependency
-``arch`` calls pandas' ``deprecate_kwarg`` with the old signature), so the same statistics are
-computed here with numpy and scipy.
+rliable's stratified bootstrap resamples the runs of each task separately; the runs here share
+one task (the fixed target set), so it is the bootstrap over runs. rliable itself cannot be
+imported next to pandas 3 (its dependency ``arch`` calls pandas' ``deprecate_kwarg`` with the
+old signature), so the same statistics come from scipy.
 """
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
-from scipy.stats import trim_mean
+from scipy.stats import bootstrap, trim_mean
 
 KEYS = ("success_rate_50um", "success_rate_100um", "success_rate_250um", "median_abs_error_m")
 
@@ -49,13 +50,17 @@ def aggregate(runs: Sequence[str | Path], reps: int = 2000, seed: int = 0) -> di
     metas = [json.loads((Path(r) / "metadata.json").read_text()) for r in runs]
     check_same_config(metas, runs)
     evs = [m["evaluation"] for m in metas]
-    rng = np.random.default_rng(seed)
     out: dict = {"runs": [str(r) for r in runs]}
     for key in KEYS:
         vals = np.array([ev[key] for ev in evs], float)
-        boots = [iqm(rng.choice(vals, len(vals))) for _ in range(reps)]
-        out[key] = {"per_seed": vals.tolist(), "iqm": iqm(vals),
-                    "ci95": [float(np.quantile(boots, 0.025)), float(np.quantile(boots, 0.975))]}
+        if len(vals) > 1:
+            ci = bootstrap((vals,), lambda x, axis: trim_mean(x, 0.25, axis=axis),
+                           n_resamples=reps, method="percentile",
+                           rng=np.random.default_rng(seed)).confidence_interval
+            lo, hi = float(ci.low), float(ci.high)
+        else:
+            lo = hi = float(vals[0])
+        out[key] = {"per_seed": vals.tolist(), "iqm": iqm(vals), "ci95": [lo, hi]}
     return out
 
 

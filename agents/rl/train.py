@@ -60,6 +60,7 @@ class Periodic(BaseCallback):
         self.eval_targets, self.eval_seed = eval_targets, eval_seed
         self.t_start, self.wall_before = t_start, wall_before
         self.next_ckpt = self.next_eval = 0
+        self.last_eval: dict = {}
 
     def _on_training_start(self) -> None:
         n = self.model.num_timesteps
@@ -104,6 +105,7 @@ class Periodic(BaseCallback):
                      f"um {res['success_rate_50um']:.2f}/{res['success_rate_100um']:.2f}/"
                      f"{res['success_rate_250um']:.2f}, median |error| "
                      f"{res['median_abs_error_m'] * 1e6:.1f} um")
+        self.last_eval = res
         return res
 
 
@@ -326,7 +328,8 @@ def _learn(model: Any, out: Path, cfg: EnvConfig, total: int, resume: bool, run_
     model.learn(remaining, callback=CallbackList(callbacks), reset_num_timesteps=not resume,
                 tb_log_name=str(run_meta["algo"]), progress_bar=False)
     wall = periodic.wall()
-    final = periodic.run_eval() if eval_targets else {}
+    done_now = periodic.last_eval.get("steps") == model.num_timesteps
+    final = (periodic.last_eval if done_now else periodic.run_eval()) if eval_targets else {}
     meta = {**run_meta, "steps": int(model.num_timesteps), "wall_time_s": wall,
             "steps_per_s": model.num_timesteps / max(wall, 1e-9),
             "target_range_m": list(cfg.target_range), "evaluation": final}
