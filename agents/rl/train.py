@@ -325,6 +325,11 @@ def _learn(model: Any, out: Path, cfg: EnvConfig, total: int, resume: bool, run_
     if progress_bar:
         callbacks.append(ProgressBarCallback())
     remaining = max(0, total - model.num_timesteps)
+    if model.tensorboard_log is None:
+        # no tensorboard: a logger without outputs (SB3's default makes an empty tmp/SB3-* folder)
+        from stable_baselines3.common.logger import Logger
+
+        model.set_logger(Logger(folder=None, output_formats=[]))
     model.learn(remaining, callback=CallbackList(callbacks), reset_num_timesteps=not resume,
                 tb_log_name=str(run_meta["algo"]), progress_bar=False)
     wall = periodic.wall()
