@@ -10,10 +10,22 @@ Three small frozen dataclasses hold what the Kogut–Etsion (KE) model needs:
 quantities of docs/physics.md §2.1 (composite modulus, K, asperity radius, critical
 interference, ...).
 Every field is checked on construction; an invalid value raises :class:`ParameterError` naming the
-field, its value and the allowed range. The ranges are those where the contact table can be built
-(scanned one field at a time around the seed material; e.g. more surface energy than 2 J/m^2 or
-heights below 10 nm leave no stable branch up to the table's load range). A combination of
-in-range values can still fall outside the model; building its table then raises a
+field, its value and the allowed range. Most ranges are those where the contact table can be built
+(scanned one field at a time around the seed material; e.g. more surface energy than 2 J/m^2
+leaves no stable branch up to the table's load range). Two bounds say why they are where they are
+(docs/physics.md §2.1, "Validity"):
+
+* ``Surface.sigma >= 1 nm`` is physical: a smoother surface is a few interatomic distances high,
+  within ~2 ``eps`` of flat, and no longer a population of continuum asperities
+  (Greenwood & Williamson 1966; Kogut & Etsion 2002-2004 build on that picture);
+* ``Surface.psi >= 0.1`` is numerical: the KE model itself tends to the elastic
+  Greenwood–Williamson model as psi -> 0, but below 0.1 the tables are not verified (asperity radii
+  of tens of um to mm on nm-rough surfaces).
+
+:class:`ContactParams` also refuses an asperity radius smaller than ``sigma`` (a psi above
+``2E/(pi K H)``): KE's single-asperity laws are finite-element results for a sphere whose
+interference stays small against its radius (Kogut & Etsion 2002). A combination of in-range
+values can still fall outside the model; building its table then raises a
 :class:`ParameterError` listing all the contact fields.
 """
 from __future__ import annotations
@@ -33,10 +45,12 @@ class ParameterError(ValueError):
 
 
 def check_range(owner: str, name: str, value: object, lo: float = -math.inf, hi: float = math.inf,
-                lo_open: bool = False, hi_open: bool = False, unit: str = "") -> float:
+                lo_open: bool = False, hi_open: bool = False, unit: str = "",
+                why_low: str = "") -> float:
     """Return ``float(value)`` or raise :class:`ParameterError` if it is not a finite real number
     in range (bools and numeric strings are refused, not converted). ``lo``, ``hi`` are in the
-    value's own unit, named by ``unit`` for the message; ``owner.name`` labels the field."""
+    value's own unit, named by ``unit`` for the message; ``owner.name`` labels the field;
+    ``why_low`` (if given) ends the message of a value below ``lo`` with the reason for that bound."""
     label = f"{owner}.{name}" if owner else name
     lb = "(" if lo_open else "["
     rb = ")" if hi_open else "]"
@@ -54,15 +68,33 @@ def check_range(owner: str, name: str, value: object, lo: float = -math.inf, hi:
     bad = (not math.isfinite(v) or v < lo or v > hi or (lo_open and v == lo)
            or (hi_open and v == hi))
     if bad:
-        raise ParameterError(f"{label} = {value!r} is invalid: must be {allowed}")
+        low = why_low if why_low and (v < lo or (lo_open and v == lo)) else ""
+        raise ParameterError(f"{label} = {value!r} is invalid: must be {allowed}"
+                             + (f": {low}" if low else ""))
     return v
 
 
-def _validate(obj: object,
-              specs: dict[str, tuple[float, float, bool, bool, str]]) -> None:
+def _validate(obj: object, specs: dict[str, tuple[float, float, bool, bool, str]],
+              why_low: dict[str, str] | None = None) -> None:
     for name, (lo, hi, lo_open, hi_open, unit) in specs.items():
-        v = check_range(type(obj).__name__, name, getattr(obj, name), lo, hi, lo_open, hi_open, unit)
+        v = check_range(type(obj).__name__, name, getattr(obj, name), lo, hi, lo_open, hi_open, unit,
+                        (why_low or {}).get(name, ""))
         object.__setattr__(obj, name, v)
+
+
+SIGMA_MIN = 1e-9
+"""Smallest roughness [m] the model describes (physical bound, docs/physics.md §2.1)."""
+PSI_MIN = 0.1
+"""Smallest plasticity index [-] with verified contact tables (numerical bound)."""
+_WHY_SIGMA = ("a surface smoother than 1 nm rms is a few interatomic distances high, within ~2 eps "
+              "(the Lennard-Jones distance, ~0.4 nm) of flat: it is no longer a Gaussian population "
+              "of continuum spherical asperities, the picture of Greenwood & Williamson (1966) on "
+              "which the Kogut–Etsion model (Kogut & Etsion 2002, 2003, 2004) is built "
+              "(docs/physics.md §2.1)")
+_WHY_PSI = ("a numerical bound, not one of the KE model (which tends to the elastic "
+            "Greenwood–Williamson model as psi -> 0): below psi = 0.1 the asperity radius is tens "
+            "of um to mm on nm-rough surfaces and the contact tables are not verified "
+            "(docs/physics.md §2.1)")
 
 
 @dataclass(frozen=True)
@@ -108,9 +140,10 @@ class Surface:
 
     Attributes
     ----------
-    sigma : standard deviation of asperity heights [m], in [1e-8, 1e-6].
-    psi : plasticity index [-], in [0.5, 1e3] (tables build from about 1 up); fixes the asperity
-        radius R.
+    sigma : standard deviation of asperity heights [m], in [1e-9, 1e-6] (smoother than 1 nm is
+        outside the asperity model; see the module docstring).
+    psi : plasticity index [-], in [0.1, 1e3] (the lower bound is numerical); fixes the asperity
+        radius R, which must not be smaller than sigma (checked by :class:`ContactParams`).
     beta : ``eta R sigma`` [-], in [1e-6, 1e3]; fixes the asperity density eta.
     dgamma : surface energy (work of adhesion per area) [J/m^2], in [1e-6, 2] (the model needs
         adhesion: without it there is no pull-off point and no stable branch to tabulate).
@@ -125,10 +158,10 @@ class Surface:
 
     def __post_init__(self) -> None:
         _validate(self, {
-            "sigma": (1e-8, 1e-6, False, False, "m"), "psi": (0.5, 1e3, False, False, "-"),
+            "sigma": (SIGMA_MIN, 1e-6, False, False, "m"), "psi": (PSI_MIN, 1e3, False, False, "-"),
             "beta": (1e-6, 1e3, False, False, "-"), "dgamma": (1e-6, 2.0, False, False, "J/m^2"),
             "eps": (1e-10, 3e-9, False, False, "m"),
-        })
+        }, why_low={"sigma": _WHY_SIGMA, "psi": _WHY_PSI})
 
 
 @dataclass(frozen=True)
@@ -174,6 +207,24 @@ class ContactParams:
                 raise ParameterError(f"ContactParams.{name} must be a {cls.__name__}, "
                                      f"got {type(getattr(self, name)).__name__}")
         _validate(self, {"friction_scale": (1e-6, 1e6, False, False, "-")})
+        self._check_asperity_radius()
+
+    def _check_asperity_radius(self) -> None:
+        """ParameterError if the asperity radius R [m] is smaller than sigma [m] (psi above
+        ``2E/(pi K H)``): outside the single-asperity laws of Kogut & Etsion (2002)."""
+        m, s = self.materials, self.surface
+        if self.asperity_radius >= s.sigma:
+            return
+        psi_max = 2 * m.E / (math.pi * m.K * m.hardness)
+        raise ParameterError(
+            f"Surface.psi = {s.psi!r} is outside the Kogut–Etsion model for these materials: with "
+            f"Surface.sigma = {s.sigma:g} m, Materials.E1 = {m.E1:g} Pa, Materials.nu1 = {m.nu1:g}, "
+            f"Materials.E2 = {m.E2:g} Pa, Materials.nu2 = {m.nu2:g} and Materials.hardness = "
+            f"{m.hardness:g} Pa it gives an asperity radius R = {self.asperity_radius:.3g} m, "
+            f"smaller than sigma. KE's single-asperity laws are finite-element results for a "
+            f"sphere pressed by small interferences compared with its radius (Kogut & Etsion 2002, "
+            f"J. Appl. Mech. 69: 657-662), while asperities here are pressed by ~sigma: psi must "
+            f"be at most 2E/(pi K H) = {psi_max:.3g} (R >= sigma; docs/physics.md §2.1)")
 
     # ---- derived quantities (docs/physics.md §2.1) ----
     @property

@@ -15,7 +15,10 @@ with ``w = (z* - d*)/omega_c*`` and ``phi`` the standard normal pdf. Physical fo
 Method: every integral is split at the fit boundaries (w = 1, 6, 110, the kinks where the adhesion
 fit meets its floor, the root of the friction polynomial). The first piece [0, 1], where the
 integrand behaves like ``w^a`` (a = 1.5 or 0.982), uses Gauss–Jacobi nodes with that weight, the other
-pieces composite Gauss–Legendre with sub-intervals no longer than ``H_MAX`` sigma. The Lennard-Jones
+pieces composite Gauss–Legendre with sub-intervals no longer than ``H_MAX`` sigma. Pieces that begin
+beyond ``w_top`` (where the Gaussian factor is below ``phi(TAIL)``) are left out, and when ``w_top < 1``
+the Gauss–Jacobi rule covers ``[0, w_top]``: at small plasticity indices (``omega_c* = psi^-2``
+large) all contacts are elastic and the node count stays bounded. The Lennard-Jones
 gap integral, whose integrand peaks over ``eps`` (~0.02 sigma) and decays like ``h^-2``, is taken in
 ``s = ln(h/eps)``, which makes it smooth. The same nodes give the first and second derivatives in
 ``d*`` (``phi' = -z phi``, ``phi'' = (z^2 - 1) phi``), which the contact table uses for Hermite
@@ -120,11 +123,13 @@ class SurfaceIntegrals:
 
         def add(a: float, b: float, fun: Callable[[np.ndarray], np.ndarray],
                 singular_alpha: float | None = None) -> None:
-            if b <= a:
+            if b <= a or a >= w_top:   # beyond w_top the Gaussian factor is below phi(TAIL)
                 return
             if singular_alpha is not None:
                 assert a == 0.0 and b == 1.0
                 x, wt = _jacobi_unit(singular_alpha)
+                if w_top < 1.0:   # the Gaussian ends inside [0, 1]: the rule on [0, w_top]
+                    x, wt = w_top * x, wt * spow(w_top, singular_alpha + 1.0)
                 val = fun(x) / power(np.maximum(x, 1e-300), singular_alpha)
             else:
                 x, wt = _gl_nodes(a, b, h_w)

@@ -27,7 +27,9 @@ from .materials import ContactParams
 from .rough_surface import Normalised, SurfaceIntegrals
 
 DEFAULT_SPACING = 0.01          # node spacing in d* = d / sigma
-DEFAULT_LOAD_RATIO = 1e4        # table covers loads up to this many pull-off forces
+DEFAULT_LOAD_RATIO = 1e4        # table covers loads up to this many pull-off forces ...
+D_STAR_MIN = -3.0               # ... or up to the load at this separation d / sigma, if less
+MIN_LOAD_RATIO = 10.0           # a table must reach at least this many pull-off forces
 
 
 @dataclass(frozen=True)
@@ -70,7 +72,13 @@ def _per_asperity(params: ContactParams, ints: SurfaceIntegrals, d: npt.ArrayLik
 def build_base_table(params: ContactParams, spacing: float = DEFAULT_SPACING,
                      load_ratio: float = DEFAULT_LOAD_RATIO) -> BaseTable:
     """Locate balance and pull-off points and tabulate the stable branch (no caching); ``spacing``
-    [-] in d / sigma, ``load_ratio`` [-] in pull-off forces."""
+    [-] in d / sigma, ``load_ratio`` [-] in pull-off forces.
+
+    The branch runs from pull-off to ``load_ratio`` pull-off forces, or to the separation
+    ``d* = D_STAR_MIN`` (3 sigma past the mean asperity height: nearly every asperity touching) if
+    that load is smaller, which happens on smooth, strongly adhesive surfaces (sigma of a few nm,
+    where the pull-off force is ~1e5-1e6 weights of the part). Such a table must still reach
+    ``MIN_LOAD_RATIO`` pull-off forces; ``ContactTable.max_load`` says where it ends."""
     t0 = time.perf_counter()
     ints = SurfaceIntegrals(Normalised.from_params(params))
 
@@ -97,10 +105,11 @@ def build_base_table(params: ContactParams, spacing: float = DEFAULT_SPACING,
         raise RuntimeError("net load has no proper minimum at the pull-off point")
     n_max = load_ratio * abs(n_min)
     d_lo = d_bal
-    while n_of(d_lo) < n_max:
-        d_lo -= 0.25
-        if d_lo < -3.0:
-            raise RuntimeError("table cannot reach the requested maximum load")
+    while n_of(d_lo) < n_max and d_lo > D_STAR_MIN:
+        d_lo = max(d_lo - 0.25, D_STAR_MIN)
+    if n_of(d_lo) < MIN_LOAD_RATIO * abs(n_min):
+        raise RuntimeError(f"the net load at d* = {D_STAR_MIN:g} (the most compressed separation "
+                           f"the table reaches) is below {MIN_LOAD_RATIO:g} pull-off forces")
     m = max(16, math.ceil((d_pull - d_lo) / spacing))
     d = np.linspace(d_pull, d_lo, m + 1)          # from pull-off towards compression
     f = _per_asperity(params, ints, d, derivatives=1)

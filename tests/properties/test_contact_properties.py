@@ -15,7 +15,7 @@ from .strategies import hostile, log_uniform
 FIELDS = {  # a little beyond the documented ranges on both sides
     "materials__E1": log_uniform(1e7, 1e14), "materials__E2": log_uniform(1e7, 1e14),
     "materials__nu1": st.floats(-0.1, 0.6), "materials__hardness": log_uniform(1e8, 1e12),
-    "surface__sigma": log_uniform(1e-9, 1e-5), "surface__psi": log_uniform(0.3, 3e3),
+    "surface__sigma": log_uniform(1e-10, 1e-5), "surface__psi": log_uniform(0.03, 3e3),
     "surface__beta": log_uniform(1e-7, 1e4), "surface__dgamma": log_uniform(1e-7, 10.0),
     "surface__eps": log_uniform(1e-11, 1e-8), "part__mass": log_uniform(1e-12, 1.0),
     "part__area": log_uniform(1e-12, 1.0), "friction_scale": log_uniform(1e-7, 1e7),
@@ -23,7 +23,7 @@ FIELDS = {  # a little beyond the documented ranges on both sides
 DOCUMENTED = {  # the validated ranges: mostly draw from these
     "materials__E1": log_uniform(1e8, 1e13), "materials__E2": log_uniform(1e8, 1e13),
     "materials__nu1": st.floats(0.0, 0.49), "materials__hardness": log_uniform(1e9, 1e11),
-    "surface__sigma": log_uniform(1e-8, 1e-6), "surface__psi": log_uniform(0.5, 1e3),
+    "surface__sigma": log_uniform(1e-9, 1e-6), "surface__psi": log_uniform(0.1, 1e3),
     "surface__beta": log_uniform(1e-6, 1e3), "surface__dgamma": log_uniform(1e-6, 2.0),
     "surface__eps": log_uniform(1e-10, 3e-9), "part__mass": log_uniform(1e-12, 1e-3),
     "part__area": log_uniform(1e-12, 1e-2), "friction_scale": log_uniform(1e-6, 1e6),
@@ -44,6 +44,9 @@ def _label(key: str) -> str:
 @example(kw={"surface__sigma": "2e-8"})     # numeric strings are not numbers
 @example(kw={"part__mass": True})
 @example(kw={"part__mass": 0.5})            # weight beyond the table
+@example(kw={"surface__sigma": 1e-9, "surface__dgamma": 0.1, "surface__psi": 0.5})  # smooth MEMS
+@example(kw={"surface__psi": 0.1, "surface__sigma": 2e-9})   # elastic: omega_c* = 100
+@example(kw={"surface__psi": 100.0})        # asperity radius below sigma: outside KE (2002)
 def test_contact_parameters_give_clear_errors_or_finite_physics(kw):
     try:
         params = ContactParams().replace(**kw)
