@@ -8,7 +8,13 @@ physics layer itself takes parameters, never names).
 The dissertation's two surfaces (docs/physics.md §8): ``feasibility`` (chapter 3, Table 3.1,
 dgamma = 1 J/m^2) and ``conveyor`` (chapter 4, Table 4.2, dgamma = 0.5 J/m^2, calibrated on
 chapter 3's surface through ``calibration.measured_with``). The former names ``dissertation``
-and ``seed`` (both the chapter-3 surface) still work with a DeprecationWarning.
+and ``seed`` (both the chapter-3 surface) still work with a DeprecationWarning. ``ke`` is chapter
+3's material with pure, uncalibrated KE; ``silicon``, ``polysilicon``, ``silicon_oxide``,
+``silicon_nitride`` and ``gold`` are common MEMS surface pairs, pure KE too, with the source of
+each value in their files (docs/physics.md §9).
+
+A file's unknown key is refused with the likely key and every valid one (:func:`unknown_keys`);
+a contact value it leaves out gets the default with a :class:`PresetWarning` naming it.
 """
 from __future__ import annotations
 
@@ -101,16 +107,20 @@ def _read(name_or_path: str) -> dict[str, Any]:
     else:
         res = resources.files("microconveyor_env.configs") / f"{name_or_path}.yaml"
         if "/" in str(name_or_path) or "\\" in str(name_or_path) or not res.is_file():
-            raise PresetError(f"unknown preset {name_or_path!r}; available: "
-                              f"{', '.join(available_presets())} (or a path to a .yaml file)")
+            import difflib
+
+            names = available_presets()
+            close = difflib.get_close_matches(str(name_or_path), names, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise PresetError(f"unknown preset {name_or_path!r}{hint}; available: "
+                              f"{', '.join(names)} (or a path to a .yaml file)")
         text = res.read_text()
     data = parse_yaml(text, f"preset {name_or_path!r}")
     if not isinstance(data, dict):
         raise PresetError(f"preset {name_or_path!r} is not a YAML mapping")
-    unknown = set(data) - _TOP_KEYS
-    if unknown:
-        raise PresetError(f"preset {name_or_path!r}: unknown keys {sorted(unknown, key=str)}; "
-                          f"allowed {sorted(_TOP_KEYS)}")
+    problem = unknown_keys(data, _TOP_KEYS)
+    if problem:
+        raise PresetError(f"preset {name_or_path!r}: {problem}")
     for key in ("name", "description"):
         if key in data and not isinstance(data[key], str):
             raise PresetError(f"preset {name_or_path!r}: {key} must be text, got "
@@ -123,17 +133,27 @@ def _read(name_or_path: str) -> dict[str, Any]:
     return data
 
 
+def unknown_keys(given: Any, valid: Any) -> str:
+    """"" if every key of ``given`` is in ``valid``, else the text naming the unknown ones, the
+    likely key for each (difflib) and every valid key: ``unknown key 'dgama' (did you mean
+    'dgamma'?); valid keys: beta, dgamma, ..."``."""
+    valid = sorted(valid, key=str)
+    unknown = sorted(set(given) - set(valid), key=str)
+    if not unknown:
+        return ""
+    import difflib
+
+    hints = [f"{u!r} (did you mean {close[0]!r}?)" if (close := difflib.get_close_matches(
+        str(u), [str(v) for v in valid], n=1)) else repr(u) for u in unknown]
+    return (f"unknown key{'s' if len(unknown) > 1 else ''} {', '.join(hints)}; "
+            f"valid keys: {', '.join(str(v) for v in valid)}")
+
+
 def _section(cls: type[Any], data: dict[str, Any], key: str) -> Any:
     raw = data.get(key) or {}
-    valid = sorted(f.name for f in dataclasses.fields(cls))
-    unknown = sorted(set(raw) - set(valid), key=str)
-    if unknown:
-        import difflib
-
-        hints = [f"{u!r} (did you mean {close[0]!r}?)" if (close := difflib.get_close_matches(
-            str(u), valid, n=1)) else repr(u) for u in unknown]
-        raise ParameterError(f"{key}: unknown key{'s' if len(unknown) > 1 else ''} "
-                             f"{', '.join(hints)}; valid keys: {', '.join(valid)}")
+    problem = unknown_keys(raw, (f.name for f in dataclasses.fields(cls)))
+    if problem:
+        raise ParameterError(f"{key}: {problem}")
     try:
         return cls(**raw)
     except TypeError as exc:
@@ -155,8 +175,8 @@ RENAMED_PRESETS = {"seed": "feasibility", "dissertation": "feasibility"}
 
 
 def load_preset(name_or_path: str = DEFAULT_PRESET) -> Preset:
-    """Load, validate and calibrate a preset by name (``feasibility``, ``conveyor``, ``ke``) or
-    YAML path."""
+    """Load, validate and calibrate a preset by name (:func:`available_presets`: ``feasibility``,
+    ``conveyor``, ``ke``, the MEMS pairs) or YAML path."""
     name = str(name_or_path)
     if name in RENAMED_PRESETS:
         warnings.warn(f"preset {name!r} is now called {RENAMED_PRESETS[name]!r}",
@@ -188,10 +208,10 @@ def _calibrate(params: ContactParams, cal: dict[str, Any]) -> tuple[ContactParam
                              "carries over")
     if cal.get("friction_load") == "weight":
         cal["friction_load"] = None
-    try:
-        target = Calibration(**cal)
-    except TypeError as exc:
-        raise ParameterError(f"calibration: {exc}") from None
+    problem = unknown_keys(cal, _CALIBRATION_KEYS)  # measured_with: taken out above
+    if problem:
+        raise ParameterError(f"calibration: {problem}")
+    target = Calibration(**cal)
     if not measured_with:
         return calibrate(params, target)
     fit_on = params.replace(**{f"surface__{k}": v for k, v in measured_with.items()})
@@ -202,23 +222,39 @@ def _calibrate(params: ContactParams, cal: dict[str, Any]) -> tuple[ContactParam
 
 
 _SURFACE_FIELDS = {f.name for f in dataclasses.fields(Surface)}
+_CALIBRATION_KEYS = {f.name for f in dataclasses.fields(Calibration)} | {"measured_with"}
 
 
 class PresetWarning(UserWarning):
     """A preset that leaves values to the package's defaults."""
 
 
-def _warn_if_incomplete(name: str, data: dict[str, Any]) -> None:
-    """A preset file that omits values gets the defaults of :mod:`.physics.materials` (the
-    dissertation's steel pair) for them: say which, rather than complete it in silence."""
+def missing_values(data: dict[str, Any]) -> list[str]:
+    """The contact values a preset mapping leaves to the defaults, as ``section.key`` (and
+    ``friction_scale``). A value its ``calibration`` block fits (``surface.beta`` from
+    ``pull_off_force``, ``friction_scale`` from ``friction_force``) is not missing: the fit does
+    not depend on its starting value."""
+    cal = data.get("calibration") or {}
+    fitted = ({"surface.beta"} if cal.get("pull_off_force") is not None else set()) | (
+        {"friction_scale"} if cal.get("friction_force") is not None else set())
     missing = []
     for key, cls in (("materials", Materials), ("surface", Surface), ("part", Part)):
         given = data.get(key) or {}
         missing += [f"{key}.{f.name}" for f in dataclasses.fields(cls) if f.name not in given]
+    if "friction_scale" not in data:
+        missing.append("friction_scale")
+    return [m for m in missing if m not in fitted]
+
+
+def _warn_if_incomplete(name: str, data: dict[str, Any]) -> None:
+    """A preset file that omits values gets the defaults of :mod:`.physics.materials` (the
+    dissertation's steel pair; ``friction_scale`` 1, pure KE) for them: say which, rather than
+    complete it in silence."""
+    missing = missing_values(data)
     if missing:
         warnings.warn(f"preset {name!r} does not give {', '.join(missing)}: the defaults (the "
-                      "dissertation's steel pair, configs/feasibility.yaml) are used for them",
-                      PresetWarning, stacklevel=4)
+                      "dissertation's steel pair, configs/feasibility.yaml; friction_scale 1) are "
+                      "used for them", PresetWarning, stacklevel=4)
 
 
 @functools.lru_cache(maxsize=32)
@@ -231,8 +267,8 @@ def _load_preset(name_or_path: str) -> Preset:
     if cal:
         params, report = _calibrate(params, dict(cal))
     dynamics = dict(data.get("dynamics") or {})
-    if set(dynamics) - _DYNAMICS_KEYS:
-        raise PresetError(f"preset {name_or_path!r}: unknown dynamics keys "
-                          f"{sorted(set(dynamics) - _DYNAMICS_KEYS)}; allowed {sorted(_DYNAMICS_KEYS)}")
+    problem = unknown_keys(dynamics, _DYNAMICS_KEYS)
+    if problem:
+        raise PresetError(f"preset {name_or_path!r}: dynamics: {problem}")
     return Preset(name=data.get("name", str(name_or_path)), description=data.get("description", ""),
                   contact=params, calibration=report, dynamics=dynamics)

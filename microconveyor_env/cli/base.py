@@ -101,7 +101,8 @@ def common_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--preset", default=DEFAULT_PRESET,
                    help="preset name (feasibility: chapter 3's surface; conveyor: chapter 4's; "
-                        "ke: uncalibrated) or YAML path")
+                        "ke: uncalibrated; silicon, polysilicon, silicon_oxide, silicon_nitride, "
+                        "gold: MEMS pairs, pure KE) or YAML path")
 
 
 

@@ -48,7 +48,7 @@ def test_calibration_targets_validated():
 
 @pytest.mark.filterwarnings("ignore::microconveyor_env.presets.PresetWarning")  # partial files
 def test_preset_errors_are_clear(tmp_path):
-    with pytest.raises(PresetError, match="available: conveyor, feasibility, ke"):
+    with pytest.raises(PresetError, match="available: conveyor, feasibility, gold, ke, "):
         load_preset("no-such-preset")
     bad = tmp_path / "bad.yaml"
     bad.write_text("surface: {sigma: -1}\n")
@@ -56,7 +56,7 @@ def test_preset_errors_are_clear(tmp_path):
         load_preset(str(bad))
     typo = tmp_path / "typo.yaml"
     typo.write_text("surfce: {}\n")
-    with pytest.raises(PresetError, match="unknown keys"):
+    with pytest.raises(PresetError, match="unknown key 'surfce'"):
         load_preset(str(typo))
     with pytest.raises(ParameterError, match="surface"):
         params_from_dict({"surface": {"sigmaa": 1e-8}})
@@ -89,7 +89,7 @@ def test_former_names_still_work_with_a_deprecation_warning():
 
 
 def test_an_incomplete_preset_says_what_it_leaves_to_the_defaults(tmp_path):
-    from microconveyor_env.presets import PresetWarning, load_preset
+    from microconveyor_env.presets import PresetWarning, available_presets, load_preset
 
     f = tmp_path / "only_e1.yaml"
     f.write_text("materials: {E1: 1.7e+11}\n")
@@ -101,5 +101,5 @@ def test_an_incomplete_preset_says_what_it_leaves_to_the_defaults(tmp_path):
 
     with warnings.catch_warnings():
         warnings.simplefilter("error")   # the shipped presets are complete
-        for name in ("feasibility", "conveyor", "ke"):
+        for name in available_presets():
             load_preset(name)
