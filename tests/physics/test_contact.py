@@ -3,38 +3,14 @@ import math
 
 import numpy as np
 import pytest
-from scipy import integrate
 
-from microconveyor_env.physics import asperity
 from microconveyor_env.physics.calibration import Calibration, calibrate
 from microconveyor_env.physics.contact_table import (ContactTable, DetachmentError,
                                                      TableRangeError, tabulation_error)
 from microconveyor_env.physics.materials import ContactParams
 from microconveyor_env.physics.rough_surface import Normalised, SurfaceIntegrals, surface_forces
-
-PHI = lambda z: math.exp(-0.5 * z * z) / math.sqrt(2 * math.pi)  # noqa: E731
-
-
-def _quad(f, a, b, points=()):
-    edges = [a] + sorted(p for p in points if a < p < b) + [b]
-    return sum(integrate.quad(f, lo, hi, epsabs=0, epsrel=1e-12, limit=400)[0]
-               for lo, hi in zip(edges[:-1], edges[1:], strict=True))
-
-
-def _reference_integrals(norm, d):
-    """Independent adaptive quadrature in z* (scipy.integrate.quad) of the four integrals."""
-    oc, e, k = norm.omega_c_star, norm.eps_star, norm.eps_over_omega_c
-    top = max(d, 0) + 14
-    kinks = [d + oc * c for c in asperity.adhesion_floor_crossings(k)]
-    brk = [d + oc, d + 6 * oc, d + 110 * oc]
-    P = _quad(lambda z: float(asperity.load((z - d) / oc, norm.K)) * PHI(z), d, top, brk)
-    C = _quad(lambda z: float(asperity.adhesion_contact((z - d) / oc, k)) * PHI(z), d, top,
-              brk + kinks)
-    Q = _quad(lambda z: float(asperity.friction((z - d) / oc)) * PHI(z), d, d + 6 * oc,
-              [d + oc, d + oc * asperity.friction_mid_root()])
-    G = _quad(lambda z: float(asperity.adhesion_gap((d - z + e) / e)) * PHI(z), min(d, 0) - 14, d,
-              [d - e * m for m in (1, 3, 10, 30, 100, 300)])
-    return {"P": P, "C": C, "Q": Q, "G": G}
+from support.ke_reference import reference_forces as _reference_forces
+from support.ke_reference import reference_integrals as _reference_integrals
 
 
 @pytest.mark.parametrize("d_star", [0.5, 2.0, 3.86, 4.35, 6.0])
@@ -100,14 +76,6 @@ def test_feasibility_preset_reference_figures(feasibility_table):
     assert r["pull_off_force_N"] == pytest.approx(6.2e-6, rel=0.05)
     assert r["friction_at_weight_N"] == pytest.approx(8e-8, rel=0.05)
     assert r["slip_acceleration_flat_m_s2"] == pytest.approx(40, rel=0.05)  # docs/physics.md §5
-
-
-def _reference_forces(params, d_star):
-    """N and Q [N] at d* from the independent adaptive quadrature (no table, no Gauss rules)."""
-    ref = _reference_integrals(Normalised.from_params(params), d_star)
-    n = params.asperity_count
-    normal = n * (params.critical_load * ref["P"] - params.adhesion_force_scale * (ref["C"] + ref["G"]))
-    return normal, n * params.critical_load * params.friction_scale * ref["Q"]
 
 
 def test_conveyor_preset_figures_against_direct_ke_evaluation():
