@@ -41,8 +41,8 @@ def _train_args(p: argparse.ArgumentParser) -> None:
                    help="a short look: --max-minutes 3 (unless given), an evaluation on 50 "
                         "targets every 250,000 steps printed as it goes (on v1 the default recipe "
                         "does not yet learn visibly in 3 minutes: docs/agents.md)")
-    add_env_args(p, what=" to train on (its entry in the conf file gives the hyperparameters)",
-                 goal=True)
+    add_env_args(p, default="MicroConveyor-v1", goal=True,
+                 what=" to train on (its entry in the conf file gives the hyperparameters)")
 
 
 @command("train", "train PPO, SAC or TQC on the conveyor (checkpoints, evaluations, resume)",

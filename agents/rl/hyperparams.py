@@ -8,7 +8,7 @@ from typing import Any
 
 import yaml
 
-ENV_ID = "MicroConveyor-v0"
+ENV_ID = "MicroConveyor-v1"  # what `train` trains on unless told (v0: --env MicroConveyor-v0)
 # keys the trainer handles itself (the rest go to PPO(...))
 RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs")
 
@@ -27,7 +27,9 @@ def load(path: str | None = None, env_id: str = ENV_ID, algo: str = "ppo") -> di
             text = fh.read()
     data = yaml.safe_load(text) or {}
     if env_id not in data:
-        raise ValueError(f"{path or f'configs/{algo}.yml'} has no entry for {env_id!r}")
+        raise ValueError(f"{path or f'configs/{algo}.yml'} has no entry for {env_id!r} (it has "
+                         f"{', '.join(map(str, data)) or 'none'}): give the env id of one of "
+                         "them (--env) or add an entry")
     hp = dict(data[env_id])
     for key in ("policy_kwargs", "normalize", "replay_buffer_kwargs"):
         if isinstance(hp.get(key), str):

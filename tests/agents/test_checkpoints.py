@@ -151,7 +151,8 @@ def test_invalid_budgets_are_refused(tmp_path, bad):
 def test_cli_refuses_bad_budgets_and_empty_resume(tmp_path):
     for args in (["--max-minutes", "nan"], ["--max-minutes", "-1"], ["--max-minutes", "0"],
                  ["--resume"]):
-        r = _cli("train", "--out", str(tmp_path / "run"), *args, "--json")
+        r = _cli("train", "--env", "MicroConveyor-v0", "--out", str(tmp_path / "run"), *args,
+                 "--json")
         assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
         assert "error" in json.loads(r.stdout)
 
@@ -163,7 +164,8 @@ def _cli(*args, **kw):
 
 
 def _train_cmd(out, conf, *extra):
-    return [sys.executable, "-m", "microconveyor_env.cli", "train", "--out", str(out),
+    return [sys.executable, "-m", "microconveyor_env.cli", "train", "--env", "MicroConveyor-v0",
+            "--out", str(out),
             "--conf-file", str(conf), "--checkpoint-freq", "512", "--eval-freq", "0",
             "--eval-targets", "0", "--no-progress", *extra]
 

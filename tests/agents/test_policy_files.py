@@ -120,8 +120,9 @@ def test_conf_file_is_parsed_as_data(tmp_path):
     conf.write_text("MicroConveyor-v0:\n  normalize: \"dict(x=__import__('os').system('touch "
                     f"{marker}'))\"\n")
     with pytest.raises(ValueError, match="nothing in them is evaluated"):
-        hyperparams.load(str(conf))
-    r = _cli("train", "--conf-file", str(conf), "--out", str(tmp_path / "run"), "--json")
+        hyperparams.load(str(conf), "MicroConveyor-v0")
+    r = _cli("train", "--env", "MicroConveyor-v0", "--conf-file", str(conf), "--out",
+             str(tmp_path / "run"), "--json")
     assert r.returncode == 2 and "nothing in them is evaluated" in r.stdout
     assert not marker.exists()
     ok = hyperparams._eval_dict("dict(net_arch=dict(pi=[64]), activation_fn=nn.ReLU, x=-1e-3)")
