@@ -52,9 +52,10 @@ class Periodic(BaseCallback):
 
     def __init__(self, out: Path, cfg: EnvConfig, checkpoint_freq: int, eval_freq: int,
                  eval_targets: int, eval_seed: int, t_start: float, wall_before: float,
-                 run_meta: dict, max_seconds: float | None = None, log: Log | None = None):
+                 run_meta: dict, max_seconds: float | None = None, log: Log | None = None,
+                 on_eval: Callable[[dict], None] | None = None):
         super().__init__()
-        self.max_seconds = max_seconds
+        self.max_seconds, self.on_eval = max_seconds, on_eval
         self.out, self.cfg, self.run_meta, self.log = out, cfg, run_meta, log
         self.checkpoint_freq, self.eval_freq = checkpoint_freq, eval_freq
         self.eval_targets, self.eval_seed = eval_targets, eval_seed
@@ -74,7 +75,9 @@ class Periodic(BaseCallback):
         n = self.model.num_timesteps
         if self.eval_freq and n >= self.next_eval:
             self.next_eval += self.eval_freq
-            self.run_eval()
+            res = self.run_eval()
+            if self.on_eval:
+                self.on_eval(res)
         if self.checkpoint_freq and n >= self.next_ckpt:
             self.next_ckpt += self.checkpoint_freq
             self.save_checkpoint({})
@@ -238,13 +241,17 @@ def train(out: str | Path, steps: int | None = None, seed: int = 0, conf_file: s
           progress_bar: bool = True, tensorboard: bool = True, overrides: dict | None = None,
           max_minutes: float | None = None, allow_config_change: bool = False,
           log: Log | None = None, env_id: str = hyperparams.ENV_ID,
-          env_kwargs: dict | None = None, algo: str = "ppo") -> dict:
+          env_kwargs: dict | None = None, algo: str = "ppo",
+          on_eval: Callable[[dict], None] | None = None) -> dict:
     """Train (or resume) ``algo`` (:data:`.algos.ALGO_NAMES`; hyperparameters from
     ``conf_file``, default ``configs/<algo>.yml``) into ``out`` for ``steps`` (or until ``max_minutes`` of wall time,
     resumed runs included); returns the metadata written there. The env: ``env_id`` (a
     registered version; its entry in the conf file gives the hyperparameters) with the conf
     file's ``env_kwargs`` updated by ``env_kwargs`` (as ``gym.make(env_id, **kwargs)``), or
-    ``config`` if given; the metadata records ``env_id`` and the merged ``env_kwargs``."""
+    ``config`` if given; the metadata records ``env_id`` and the merged ``env_kwargs``.
+    ``on_eval``: called with each periodic evaluation's result (as written to
+    ``evaluations.jsonl``); an exception it raises stops the run there and propagates (a tuner's
+    pruning), the checkpoints written so far stay."""
     import torch
 
     check_budgets(steps, max_minutes, checkpoint_freq, eval_freq, eval_targets)
@@ -289,7 +296,7 @@ def train(out: str | Path, steps: int | None = None, seed: int = 0, conf_file: s
                 log(f"resume: the replay buffer is not checkpointed; it refills for "
                     f"{model.learning_starts - model.num_timesteps} steps before updates resume")
         return _learn(model, out, cfg, total, resume, run_meta, wall_before, checkpoint_freq,
-                      eval_freq, eval_targets, eval_seed, progress_bar, max_minutes, log)
+                      eval_freq, eval_targets, eval_seed, progress_bar, max_minutes, log, on_eval)
 
 
 def _check_budget_left(done: int, total: int, wall_before: float, max_minutes: float | None,
@@ -312,12 +319,12 @@ def _check_budget_left(done: int, total: int, wall_before: float, max_minutes: f
 
 def _learn(model: Any, out: Path, cfg: EnvConfig, total: int, resume: bool, run_meta: dict,
            wall_before: float, checkpoint_freq: int, eval_freq: int, eval_targets: int,
-           eval_seed: int, progress_bar: bool, max_minutes: float | None, log: Log | None
-           ) -> dict:
+           eval_seed: int, progress_bar: bool, max_minutes: float | None, log: Log | None,
+           on_eval: Callable[[dict], None] | None = None) -> dict:
     t0 = time.perf_counter()
     periodic = Periodic(out, cfg, checkpoint_freq, eval_freq, eval_targets, eval_seed, t0,
                         wall_before, run_meta,
-                        None if max_minutes is None else 60.0 * max_minutes, log)
+                        None if max_minutes is None else 60.0 * max_minutes, log, on_eval)
     if max_minutes is not None:
         budget_s = 60.0 * max_minutes
         model.budget_clock = lambda: periodic.wall() / budget_s
