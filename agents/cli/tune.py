@@ -1,0 +1,143 @@
+"""The tuning commands: ``tune`` (an Optuna study of PPO's hyperparameters on a shared storage)
+and ``train-seeds`` (one training per seed in parallel worker processes, then aggregated)."""
+from __future__ import annotations
+
+import argparse
+
+from microconveyor_env.cli.base import command, count, emit, plot_path
+
+from .args import add_env_args, env_kwarg, env_kwargs_of, minutes
+
+
+def _budget_args(p: argparse.ArgumentParser, steps_help: str) -> None:
+    p.add_argument("--workers", type=count(1), default=1,
+                   help="local worker processes (each trains on one core)")
+    p.add_argument("--conf-file", default=None,
+                   help="rl-zoo3 style YAML giving the base hyperparameters (default: the "
+                        "shipped configs/ppo.yml)")
+    p.add_argument("--eval-freq", type=count(0), default=250_000,
+                   help="steps between periodic evaluations (0: none)")
+    p.add_argument("--eval-targets", type=count(1), default=100, help="targets per evaluation")
+    add_env_args(p, default="MicroConveyor-v1",
+                 what=" to train on (its entry in the conf file gives the base hyperparameters)")
+    p.add_argument("--steps", type=count(1), default=None, help=steps_help)
+
+
+def _tune_args(p: argparse.ArgumentParser) -> None:
+    from ..rl.tune import DEFAULT_STUDY
+    from ..rl.tune_space import SPACE
+
+    p.add_argument("--trials", type=count(1), default=20,
+                   help="trials this command runs, split over its workers (other machines add "
+                        "theirs to the same study)")
+    p.add_argument("--out", default="runs/tune",
+                   help="folder of the trials' run folders (OUT/STUDY/trial-N), the default "
+                        "SQLite storage and best.yml (default: runs/tune)")
+    p.add_argument("--storage", default=None,
+                   help="Optuna storage URL shared by all workers: sqlite:///PATH (one machine; "
+                        "default sqlite:///OUT/optuna.db) or a database for many machines, e.g. "
+                        "postgresql://USER:PASSWORD@HOST/DB")
+    p.add_argument("--study", default=DEFAULT_STUDY, help=f"study name (default: {DEFAULT_STUDY})")
+    p.add_argument("--trial-minutes", type=minutes, default=None,
+                   help="wall budget of one trial [min] (default: none, --steps only)")
+    p.add_argument("--seed", type=int, default=0, help="training seed of every trial")
+    p.add_argument("--sampler-seed", type=int, default=None,
+                   help="seed of the TPE sampler (worker i uses SEED + i; default: random)")
+    p.add_argument("--fix", type=env_kwarg, nargs="+", default=None, metavar="KEY:VALUE",
+                   help=f"do not tune KEY, use VALUE; keys: {', '.join(SPACE)}")
+    p.add_argument("--no-prune", action="store_true",
+                   help="no median pruning on the periodic evaluations")
+    p.add_argument("--best", default=None,
+                   help="where to write the best trial's config entry (rl-zoo3 YAML; default: "
+                        "OUT/STUDY/best.yml)")
+    p.add_argument("--quiet", action="store_true", help="no line per finished trial on stderr")
+    _budget_args(p, "environment steps per trial (default: 1,000,000)")
+
+
+@command("tune", "search PPO hyperparameters with Optuna: workers (here and on other machines) "
+                 "share one study in a database; writes the best as an rl-zoo3 config entry",
+         _tune_args)
+def cmd_tune(args: argparse.Namespace) -> None:
+    from ..rl.tune import tune
+
+    fixed = dict(args.fix or [])
+    res = tune(args.out, n_trials=args.trials, workers=args.workers, storage=args.storage,
+               study_name=args.study, env_id=args.env, env_kwargs=env_kwargs_of(args) or None,
+               conf_file=args.conf_file, trial_steps=args.steps or 1_000_000,
+               trial_minutes=args.trial_minutes, eval_freq=args.eval_freq,
+               eval_targets=args.eval_targets, seed=args.seed, fixed=fixed,
+               prune=not args.no_prune, sampler_seed=args.sampler_seed, best_file=args.best,
+               verbose=not args.quiet)
+    emit(args, res, tune_text(res))
+
+
+def tune_text(res: dict) -> str:
+    """The human summary of :func:`agents.rl.tune.tune`'s result."""
+    states = ", ".join(f"{n} {s}" for s, n in sorted(res["states"].items()))
+    mine: dict[str, int] = {}
+    for r in res["this_run"]:
+        mine[r["worker"]] = mine.get(r["worker"], 0) + 1
+    lines = [f"study {res['study']!r} in {res['storage']}: {res['trials']} trials ({states}) "
+             f"from {len(res['workers'])} worker(s)",
+             f"this run: {len(res['this_run'])} trials, per worker "
+             + ", ".join(f"{w} {n}" for w, n in mine.items())]
+    b = res["best"]
+    if b is None:
+        lines.append("no finished trial yet: no best.yml")
+    else:
+        lines += [f"best: trial {b['number']}, value {b['value']:.4g} (success +-50 um "
+                  f"{b['success_rate_50um']:.3f}, median |error| "
+                  f"{b['median_abs_error_m'] * 1e6:.1f} um, {b['steps']} steps) in {b['run']}",
+                  "  " + ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}"
+                                   for k, v in b["params"].items()),
+                  f"config entry: {res['best_file']} (microconveyor train --env "
+                  f"{res['env_id']} --conf-file {res['best_file']})"]
+    return "\n".join(lines)
+
+
+def _seeds_args(p: argparse.ArgumentParser) -> None:
+    from ..rl.algos import ALGO_NAMES
+
+    p.add_argument("--seeds", type=int, nargs="+", required=True, help="training seeds")
+    p.add_argument("--out", default="runs/seeds",
+                   help="folder of the runs, one OUT/seed-S per seed (default: runs/seeds)")
+    p.add_argument("--algo", choices=ALGO_NAMES, default="ppo", help="algorithm (default: ppo)")
+    p.add_argument("--max-minutes", type=minutes, default=None,
+                   help="wall budget of each run [min]")
+    p.add_argument("--checkpoint-freq", type=count(1), default=200_000,
+                   help="steps between checkpoints")
+    p.add_argument("--resume", action="store_true",
+                   help="continue each seed's newest checkpoint, if it has one (finished seeds "
+                        "are always reused as they are)")
+    p.add_argument("--plot", type=plot_path, default=None, help="write the learning curves here")
+    p.add_argument("--quiet", action="store_true", help="no checkpoint and evaluation lines")
+    _budget_args(p, "total environment steps per run (default: n_timesteps of the conf file)")
+
+
+@command("train-seeds", "train one run per seed in parallel worker processes, then aggregate "
+                        "them (IQM and bootstrap CI, as `seeds`)", _seeds_args)
+def cmd_train_seeds(args: argparse.Namespace) -> None:
+    from ..rl.parallel import train_seeds
+
+    res = train_seeds(args.out, args.seeds, workers=args.workers, verbose=not args.quiet,
+                      algo=args.algo, steps=args.steps, conf_file=args.conf_file,
+                      env_id=args.env, env_kwargs=env_kwargs_of(args) or None,
+                      max_minutes=args.max_minutes, checkpoint_freq=args.checkpoint_freq,
+                      eval_freq=args.eval_freq, eval_targets=args.eval_targets,
+                      resume=args.resume)
+    lines = [f"seed {r['seed']}: {r['status']}" + (f" ({r['error']})" if "error" in r else
+                                                  f", {r['steps']} steps, {r['wall_time_s']:.0f} s")
+             for r in res["runs"]]
+    agg = res["aggregate"]
+    if agg is not None:
+        if args.plot:
+            from ..plots.seeds import plot_curves
+            from ..rl.seeds import curves
+
+            res["plot"] = plot_curves(curves(agg["runs"]), args.plot)
+        lines += [f"{k}: IQM {v['iqm']:.4g}, 95 % CI [{v['ci95'][0]:.4g}, {v['ci95'][1]:.4g}]"
+                  for k, v in agg.items() if isinstance(v, dict) and "iqm" in v]
+    emit(args, res, "\n".join(lines))
+    if any(r["status"] == "failed" for r in res["runs"]):
+        raise ValueError(f"{sum(r['status'] == 'failed' for r in res['runs'])} seed(s) failed "
+                         "(their errors above); the others are aggregated")

@@ -1,0 +1,103 @@
+"""Tuning on a shared Optuna storage and multi-seed training in worker processes (issue 23,
+item 5): two local workers share one SQLite study and both run trials, another command joins
+the same study, the best trial comes out as a config entry that trains as the trial did, a
+periodic evaluation can stop a run (pruning), seeds train in two workers and aggregate."""
+import json
+
+import pytest
+
+pytest.importorskip("stable_baselines3")
+pytest.importorskip("optuna")
+
+from agents.rl import checkpoint, hyperparams, tune_space  # noqa: E402
+from agents.rl.parallel import train_seeds  # noqa: E402
+from agents.rl.tune import shares, summary, tune  # noqa: E402
+
+ENV = "MicroConveyor-v0"   # v0 for speed: the machinery is the same on v1
+TINY = {"n_envs": 8, "n_steps": 32, "batch_size": 64, "n_epochs": 2}
+BUDGET = {"eval_freq": 1024, "eval_targets": 5}
+
+
+def test_two_workers_share_one_sqlite_study_and_the_best_is_a_config_entry(tmp_path):
+    out = tmp_path / "tune"
+    res = tune(out, n_trials=4, workers=2, env_id=ENV, trial_steps=2048,
+               fixed={**TINY, "net_width": 64}, **BUDGET)
+    assert res["storage"] == f"sqlite:///{out / 'optuna.db'}"
+    assert res["states"] == {"complete": 4}
+    mine: dict = {}
+    for row in res["this_run"]:
+        mine[row["worker"]] = mine.get(row["worker"], 0) + 1
+    assert sorted(mine.values()) == [2, 2], mine  # two processes, two trials each
+    assert res["workers"] == mine
+
+    # another command on the same storage (another machine would do the same) adds its trial
+    again = tune(out, n_trials=1, workers=1, env_id=ENV, trial_steps=2048,
+                 fixed={**TINY, "net_width": 64}, **BUDGET)
+    assert again["trials"] == 5 and len(again["workers"]) == 3
+    assert summary(again["storage"])["trials"] == 5
+
+    best = again["best"]
+    assert best["value"] == max(r["value"] for r in res["this_run"] + again["this_run"])
+    hp = hyperparams.load(again["best_file"], ENV)          # rl-zoo3 format, loads as data
+    trained = json.loads((out / "microconveyor-ppo" / f"trial-{best['number']:04d}" /
+                          "metadata.json").read_text())["hyperparams"]
+    assert hyperparams.changed_keys(trained, hp) == []      # the entry is what the trial trained
+    assert hp["policy_kwargs"]["net_arch"] == {"pi": [64, 64], "vf": [64, 64]}
+    assert hp["normalize"]["gamma"] == hp["gamma"] == best["params"]["gamma"]
+
+
+def test_an_evaluation_hook_stops_the_run_and_frees_the_folder(tmp_path):
+    from agents.rl.train import train
+
+    class Prune(Exception):
+        pass
+
+    seen = []
+
+    def on_eval(res):
+        seen.append(res["steps"])
+        raise Prune
+
+    with pytest.raises(Prune):
+        train(tmp_path / "run", steps=4096, env_id=ENV, overrides=TINY, progress_bar=False,
+              tensorboard=False, on_eval=on_eval, **BUDGET)
+    assert seen == [1024]
+    assert len((tmp_path / "run" / "evaluations.jsonl").read_text().splitlines()) == 1
+    assert not (tmp_path / "run" / "metadata.json").exists()
+    with checkpoint.folder_lock(tmp_path / "run"):   # the lock went with the run
+        pass
+
+
+def test_train_seeds_in_two_workers_aggregate_and_finished_seeds_are_reused(tmp_path):
+    kw = {"env_id": ENV, "steps": 2048, "overrides": TINY, "tensorboard": False, **BUDGET}
+    res = train_seeds(tmp_path, [0, 1], workers=2, **kw)
+    assert [r["status"] for r in res["runs"]] == ["trained", "trained"]
+    assert [r["seed"] for r in res["runs"]] == [0, 1]
+    agg = res["aggregate"]
+    assert agg["runs"] == [str(tmp_path / "seed-0"), str(tmp_path / "seed-1")]
+    assert len(agg["success_rate_50um"]["per_seed"]) == 2
+    seeds = [json.loads((tmp_path / f"seed-{s}" / "metadata.json").read_text())["seed"]
+             for s in (0, 1)]
+    assert seeds == [0, 1]
+    # run again (a killed command, or a second machine's share): finished seeds are kept
+    res2 = train_seeds(tmp_path, [0, 1], workers=2, **kw)
+    assert [r["status"] for r in res2["runs"]] == ["done earlier", "done earlier"]
+    assert res2["aggregate"]["median_abs_error_m"] == agg["median_abs_error_m"]
+    with pytest.raises(ValueError, match="distinct"):
+        train_seeds(tmp_path, [0, 0], **kw)
+
+
+def test_search_space_fixed_keys_and_config_text(tmp_path):
+    with pytest.raises(ValueError, match="cannot fix clip_range"):
+        tune_space.check_fixed({"clip_range": 0.1})
+    assert shares(5, 2) == [3, 2] and shares(1, 3) == [1]
+    import torch.nn as nn
+
+    hp = {"n_envs": 64, "learning_rate": "lin_3e-4", "env_kwargs": {"num_threads": 1},
+          "policy_kwargs": {"net_arch": {"pi": [8], "vf": [8]}, "activation_fn": nn.Tanh,
+                            "log_std_init": -1.0},
+          "normalize": {"norm_obs": True, "gamma": 0.99}}
+    text = tune_space.config_yaml(ENV, hp, "a note\nover two lines")
+    assert text.startswith("# a note\n# over two lines\n")
+    (tmp_path / "c.yml").write_text(text)
+    assert hyperparams.load(str(tmp_path / "c.yml"), ENV) == hp
