@@ -6,11 +6,13 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from gymnasium.core import RenderFrame
 
 from ..physics import dynamics_kernel as kernel
 from . import actions, task
 from .common import OwnsConveyor, check_render_mode, check_target
 from .config import EnvConfig
+from .frames import EnvRenderer, check_frames_per_stroke
 from .state import Conveyor
 
 
@@ -104,10 +106,10 @@ class MicroConveyorEnv(OwnsConveyor, gym.Env):
       registered: its stored rollouts and shipped policies reproduce.
     """
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
+    metadata = {"render_modes": ["rgb_array", "rgb_array_list", "human"], "render_fps": 4}
 
     def __init__(self, render_mode: str | None = None, config: EnvConfig | None = None,
-                 **kwargs: Any) -> None:
+                 render_frames_per_stroke: int = 1, **kwargs: Any) -> None:
         if config is not None and kwargs:
             raise ValueError("give either config= or keyword overrides, not both")
         if config is not None and not isinstance(config, EnvConfig):
@@ -115,6 +117,10 @@ class MicroConveyorEnv(OwnsConveyor, gym.Env):
         self.config = config or EnvConfig.from_yaml(**kwargs)
         check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
+        n_frames = check_frames_per_stroke(render_frames_per_stroke, render_mode)
+        self.render_frames_per_stroke = n_frames
+        if n_frames > 1:  # each phase of a firing (n frames) lasts 1/4 s, as a firing at n = 1
+            self.metadata = {**self.metadata, "render_fps": 4 * n_frames}
         # the part's state, randomisation and compiled step (state.py), N = 1, always serial
         self.conveyor = Conveyor(self.config, 1, num_threads=1)
         self.conveyor.parts.target[0] = np.nan  # no target before the first reset
@@ -123,6 +129,7 @@ class MicroConveyorEnv(OwnsConveyor, gym.Env):
                                             np.float32)
         self._done = True
         self._last_firing: tuple[float, float, float, float] | None = None
+        self._renderer = EnvRenderer(self, render_mode, n_frames)
 
     # state accessors (SI units)
     x = property(lambda self: float(self.conveyor.parts.x[0]), doc="part position [m]")
@@ -143,14 +150,20 @@ class MicroConveyorEnv(OwnsConveyor, gym.Env):
         self.conveyor.reset_part(0, self.np_random, given)
         self._done = False
         self._last_firing = None
-        return self.conveyor.observe()[0].copy(), self._info("moving", False)
+        obs = self.conveyor.observe()[0].copy()
+        self._renderer.reset()
+        if self.render_mode == "human":
+            self.render()
+        return obs, self._info("moving", False)
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         if self._done:
             raise RuntimeError("step() called on a finished episode: call reset() first")
         c = self.conveyor
         a = actions.check_actions(action, None, out=c.action_input)
-        xa = float(c.positions[c.parts.fired[0]])
+        k = int(c.parts.fired[0])
+        xa = float(c.positions[k])
+        before = (self.x, self.v, self.t)
         out = c.step(a)
         outcome = kernel.OUTCOMES[int(out.outcome[0])]
         terminated = outcome in ("rest", "detached")
@@ -160,15 +173,31 @@ class MicroConveyorEnv(OwnsConveyor, gym.Env):
         self._last_firing = (xa, f, h, d)
         info = self._info(outcome, bool(out.success[0]))
         info["frequency_hz"], info["stroke_m"], info["delay_s"] = f, h, d
-        return (out.obs[0].copy(), float(out.reward[0]), terminated, truncated, info)
+        result = (out.obs[0].copy(), float(out.reward[0]), terminated, truncated, info)
+        self._renderer.fired(k, before, f, h, d, outcome)  # after the step: never changes it
+        if self.render_mode == "human":
+            self.render()
+        return result
 
-    def render(self) -> np.ndarray | None:
-        if self.render_mode != "rgb_array":
-            return None
-        from .render import render_frame
+    def render(self) -> RenderFrame | list[RenderFrame] | None:
+        """``rgb_array``: the frame of the state now; ``rgb_array_list``: the frames since the
+        last ``render()`` or ``reset()``; ``human``: shows those in the window (called by
+        ``reset`` and ``step``), returns None."""
+        if self.render_mode == "rgb_array":
+            from .render import render_frame
 
-        return render_frame(self.config, self.x, self.target, self.fired, self._last_firing,
-                            self.t)
+            return render_frame(self.config, self.x, self.target, self.fired, self._last_firing,
+                                self.t)
+        if self.render_mode == "rgb_array_list":
+            frames: list[RenderFrame] = list(self._renderer.frames())
+            return frames
+        if self.render_mode == "human":
+            self._renderer.show(self.metadata["render_fps"])
+        return None
+
+    def close(self) -> None:
+        self._renderer.close()
+        super().close()
 
     # ------------------------------------------------------------------ helpers
     def _info(self, outcome: str, success: bool) -> dict[str, Any]:

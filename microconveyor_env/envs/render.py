@@ -1,7 +1,9 @@
-"""rgb_array frames of the conveyor (matplotlib Agg, imported lazily)."""
+"""rgb_array frames of the conveyor (matplotlib Agg, imported lazily): one frame of a state after a
+step (:func:`render_frame`) and the frames during a firing (:class:`FrameDrawer`, states from
+:mod:`.frames`)."""
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from .config import EnvConfig
@@ -49,3 +51,72 @@ def render_frame(cfg: EnvConfig, x: float, target: float, fired: int,
     fig.tight_layout()
     canvas.draw()
     return np.asarray(canvas.buffer_rgba())[:, :, :3].copy()
+
+
+class FrameDrawer:
+    """Frames of :class:`~.frames.FrameState` s (uint8 (H, W, 3)): one matplotlib figure kept and
+    updated (~4x faster than a new figure per frame). The view spans the actuators, the target
+    and the part, and widens (never narrows) within an episode when the part leaves it."""
+
+    def __init__(self, cfg: EnvConfig, size: tuple = (8.0, 3.0), dpi: int = 80) -> None:
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+
+        self.cfg = cfg
+        self.pos = np.asarray(cfg.actuator_positions)
+        self.fig = Figure(figsize=size, dpi=dpi)
+        self.canvas = FigureCanvasAgg(self.fig)
+        ax = self.ax = self.fig.add_subplot(111)
+        self.view = (np.nan, np.nan, np.nan)  # (target, lo, hi) [m]
+        ax.axhline(0.0, color="0.75", lw=1)
+        (self.surface,) = ax.plot([], [], color="0.3", lw=2, label="surface")
+        self.actuators = ax.scatter(self.pos * 1e3, np.full(self.pos.size, -25.0), marker="^",
+                                    s=80)
+        self.band = ax.axvspan(0.0, 0.0, color="tab:green", alpha=0.25,
+                               label="target ± tolerance")
+        self.target_line = ax.axvline(0.0, color="tab:green", lw=1)
+        (self.part,) = ax.plot([], [], "s", ms=9, color="tab:red", label="part")
+        ax.set_ylim(-60, max(260.0, cfg.stroke_range[1] * 1e6 + 60.0))
+        ax.set_xlabel("x [mm]")
+        ax.set_ylabel("height [µm]")
+        self.title = ax.set_title(" ", fontsize=9)
+        ax.legend(fontsize=7, loc="upper right")
+        self.fig.tight_layout()
+
+    def _set_view(self, x: float, target: float) -> None:
+        t0, lo, hi = self.view
+        if target != t0:  # a new episode: the view of its scene
+            lo = min(self.pos[0], target, x) - 1.0e-3
+            hi = max(self.pos[-1], target, x) + 1.0e-3
+        elif lo + 0.2e-3 <= x <= hi - 0.2e-3:
+            return
+        else:
+            lo, hi = min(lo, x - 1.0e-3), max(hi, x + 1.0e-3)
+        self.view = (target, lo, hi)
+        self.xs = np.linspace(lo, hi, 800)
+        self.ax.set_xlim(lo * 1e3, hi * 1e3)
+        tol = self.cfg.tolerance
+        self.band.set_x((target - tol) * 1e3)
+        self.band.set_width(2 * tol * 1e3)
+        self.target_line.set_xdata([target * 1e3, target * 1e3])
+
+    def draw(self, s: Any) -> np.ndarray:
+        """The frame of state ``s`` (a :class:`~.frames.FrameState`)."""
+        cfg = self.cfg
+        self._set_view(s.x, s.target)
+        ys = np.zeros_like(self.xs)
+        y_part = 0.0
+        if s.amplitude != 0.0:
+            ys = surface_profile(self.xs, s.amplitude, cfg.shape, cfg.wavelength, s.xa)
+            y_part = float(surface_profile(np.array([s.x]), s.amplitude, cfg.shape,
+                                           cfg.wavelength, s.xa)[0])
+        self.surface.set_data(self.xs * 1e3, ys * 1e6)
+        self.surface.set_color("tab:orange" if s.amplitude != 0.0 else "0.3")
+        self.part.set_data([s.x * 1e3], [y_part * 1e6 + 25.0])  # the part rests on the surface
+        colors = ["tab:orange" if i == s.firing else ("0.6" if i < s.fired else "tab:blue")
+                  for i in range(self.pos.size)]
+        self.actuators.set_color(colors)
+        self.title.set_text(f"t = {s.t * 1e3:.3f} ms, {s.label}, error "
+                            f"{abs(s.x - s.target) * 1e6:.0f} µm")
+        self.canvas.draw()
+        return np.asarray(self.canvas.buffer_rgba())[:, :, :3].copy()

@@ -91,9 +91,9 @@ def test_yaml_text_number_hint():
         Surface(sigma="2e-8")
 
 
-def test_batched_env_refuses_human_render_mode_like_the_single_env():
-    with pytest.raises(ValueError, match="render_mode 'human'"):
-        MicroConveyorEnv(render_mode="human")  # (gym.make wraps rgb_array in HumanRendering)
+def test_batched_env_refuses_human_render_mode_and_the_single_env_unknown_ones():
+    with pytest.raises(ValueError, match="render_mode 'ansi'"):
+        MicroConveyorEnv(render_mode="ansi")  # (human: a pygame window, tests/envs/test_render.py)
     with pytest.raises(ValueError, match="render_mode 'human'"):
         MicroConveyorVectorEnv(2, render_mode="human")
     for bad in (0, 2.5, True, "3"):

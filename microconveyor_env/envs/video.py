@@ -1,0 +1,103 @@
+"""Videos of episodes: one episode's frames (:func:`episode_frames`), written as GIF or MP4 by
+imageio (:func:`write_video`; the ``render`` extra), and :class:`RecordStrokeVideo`, gymnasium's
+``RecordVideo`` keeping every frame of a firing.
+
+Gymnasium's ``RecordVideo`` calls ``env.render()`` after every step; given a list (the
+``rgb_array_list`` mode), gymnasium 1.x records only its last frame (the others are handed back
+by a later ``render()``). :class:`RecordStrokeVideo` records them all. Without it, save the
+frames of ``rgb_array_list`` with ``gymnasium.utils.save_video.save_video`` (moviepy) or
+:func:`write_video`.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from gymnasium.wrappers import RecordVideo
+
+EXTRA = 'pip install "microconveyor-env[render]"'
+FORMATS = (".gif", ".mp4")
+
+
+class RecordStrokeVideo(RecordVideo):
+    """``gymnasium.wrappers.RecordVideo`` that records every frame ``render()`` returns: for an
+    env made with ``render_mode="rgb_array_list"`` and ``render_frames_per_stroke`` > 1, the
+    frames during each firing (gymnasium's records only the last of each list). Same arguments
+    and files as ``RecordVideo`` (it needs moviepy); ``fps`` defaults to the env's
+    ``metadata["render_fps"]``."""
+
+    def _capture_frame(self) -> None:
+        if not str(self.env.render_mode).endswith("_list"):
+            super()._capture_frame()
+            return
+        frames = self.env.render()
+        if not isinstance(frames, list):
+            raise TypeError(f"render() returned {type(frames).__name__} in a list render mode")
+        self.render_history += frames  # as RecordVideo: a later render() still returns them
+        self.recorded_frames += frames
+
+
+def episode_frames(env: Any, act: Callable[[np.ndarray], np.ndarray], target: float,
+                   seed: int = 0) -> tuple[list[np.ndarray], dict[str, Any]]:
+    """One episode of ``env`` (``render_mode="rgb_array_list"``) to ``target`` [m] with actions
+    ``act(observation)``: its frames and a summary (SI units)."""
+    obs, _ = env.reset(seed=seed, options={"target": float(target)})
+    frames: list[np.ndarray] = list(env.render())
+    total, firings, info = 0.0, 0, {}
+    while True:
+        obs, reward, terminated, truncated, info = env.step(act(obs))
+        frames += env.render()
+        total += float(reward)
+        firings += 1
+        if terminated or truncated:
+            break
+    u = env.unwrapped
+    return frames, {"target_m": float(target), "outcome": info["outcome"],
+                    "is_success": bool(info["is_success"]),
+                    "position_error_m": float(info["position_error_m"]),
+                    "final_position_m": u.x, "sim_time_s": float(info["sim_time_s"]),
+                    "firings": firings, "return": total}
+
+
+def check_video_path(path: str | Path) -> Path:
+    """A ``.gif`` or ``.mp4`` file name (the format follows the suffix)."""
+    p = Path(path)
+    if p.suffix.lower() not in FORMATS:
+        raise ValueError(f"{str(path)!r}: the video's name must end in .gif or .mp4 (the format "
+                         "follows the suffix)")
+    if p.is_dir():
+        raise ValueError(f"{str(path)!r} is a folder; give a file name ending in .gif or .mp4")
+    return p
+
+
+def write_video(frames: Sequence[np.ndarray], path: str | Path, fps: float) -> Path:
+    """Write ``frames`` (uint8 (H, W, 3)) to ``path``: GIF (looping) or MP4 (H.264, yuv420p)
+    by its suffix, ``fps`` frames per second. Needs imageio (+ imageio-ffmpeg for MP4)."""
+    p = check_video_path(path)
+    if not frames:
+        raise ValueError("no frames to write")
+    try:
+        import imageio.v3 as iio
+    except ImportError as exc:
+        raise ModuleNotFoundError(f"writing a video needs imageio: {EXTRA}",
+                                  name="imageio") from exc
+    p.parent.mkdir(parents=True, exist_ok=True)
+    stack = np.stack(frames)
+    if p.suffix.lower() == ".gif":
+        iio.imwrite(p, stack, extension=".gif", duration=1000.0 / fps, loop=0)
+        return p
+    try:
+        import imageio_ffmpeg  # noqa: F401
+    except ImportError as exc:
+        raise ModuleNotFoundError(f"writing an MP4 needs imageio-ffmpeg: {EXTRA}",
+                                  name="imageio_ffmpeg") from exc
+    import imageio.v2 as iio2
+
+    stack = stack[:, : stack.shape[1] // 2 * 2, : stack.shape[2] // 2 * 2]  # H.264: even sizes
+    with iio2.get_writer(p, format="FFMPEG", mode="I", fps=fps, codec="libx264",
+                         pixelformat="yuv420p", macro_block_size=1) as writer:
+        for frame in stack:
+            writer.append_data(frame)  # type: ignore[attr-defined]
+    return p
