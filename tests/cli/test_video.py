@@ -1,0 +1,66 @@
+"""``microconveyor video``: a GIF or MP4 of one episode of a fixed schedule or of a policy."""
+import argparse
+import json
+import subprocess
+import sys
+
+import pytest
+
+iio = pytest.importorskip("imageio.v3", reason="videos need imageio (the render extra)")
+
+
+def run(*args):
+    return subprocess.run([sys.executable, "-m", "microconveyor_env.cli", "video", *args],
+                          capture_output=True, text=True, timeout=300)
+
+
+def _frames(path):
+    return iio.imread(path, index=None).shape[0]
+
+
+def test_schedule_gif_env_only_command(tmp_path, capsys):
+    """The env package's own command (without the agents' --policy), called in process."""
+    from microconveyor_env.cli import video
+
+    p = argparse.ArgumentParser()
+    video._video_args(p)
+    p.add_argument("--json", action="store_true")
+    gif = tmp_path / "s.gif"
+    args = p.parse_args(["--out", str(gif), "--frames-per-stroke", "2", "--env",
+                         "MicroConveyor-v0", "--delay", "0.002", "--target", "0.6e-3", "--json"])
+    video.cmd_video(args)
+    out = json.loads(capsys.readouterr().out)
+    assert out["video"] == str(gif) and out["format"] == "gif" and out["actor"] == "fixed schedule"
+    assert out["frames"] > out["firings"] + 1 and out["fps"] == 8.0
+    assert gif.read_bytes()[:4] == b"GIF8" and _frames(gif) == out["frames"]
+    assert out["bytes"] == gif.stat().st_size and out["schedule"]["delay_s"][0] == 0.002
+
+
+def test_policy_gif_and_human_text(tmp_path):
+    pytest.importorskip("stable_baselines3")
+    gif = tmp_path / "p.gif"
+    r = run("--policy", "shipped", "--target", "1e-3", "--frames-per-stroke", "2", "--out",
+            str(gif), "--fps", "5")
+    assert r.returncode == 0, r.stderr
+    assert "MicroConveyor-v0, policy " in r.stdout and " µm)" in r.stdout and " ms simulated" \
+        in r.stdout and "at 5 fps" in r.stdout
+    n = _frames(gif)
+    firings = int(r.stdout.split(" after ")[1].split(" firing")[0])
+    assert n > firings + 1
+
+
+def test_schedule_mp4_json_and_errors(tmp_path):
+    pytest.importorskip("imageio_ffmpeg")
+    mp4 = tmp_path / "s.mp4"
+    r = run("--out", str(mp4), "--frames-per-stroke", "1", "--env-kwargs", "n_actuators:2",
+            "--json")
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["format"] == "mp4" and out["frames"] == out["firings"] + 1  # one per firing
+    assert out["env_id"] == "MicroConveyor-v1" and out["env_kwargs"] == {"n_actuators": 2}
+    assert mp4.stat().st_size > 1000 and _frames(mp4) == out["frames"]
+    for bad, msg in ((["--out", str(tmp_path / "x.avi")], ".gif or .mp4"),
+                     (["--freq", "50", "--out", str(mp4)], "outside the env's range"),
+                     (["--policy", str(tmp_path), "--freq", "900"], "not with --policy")):
+        r = run(*bad, "--json")
+        assert r.returncode == 2 and msg in json.loads(r.stdout)["error"], r.stdout
