@@ -85,6 +85,7 @@ def _objective(job: dict, worker: str) -> Callable[[Any], float]:
                 return
             trial.report(score(res), res["steps"])
             if trial.should_prune():
+                trial.set_user_attr("pruned_at", res["steps"])
                 raise optuna.TrialPruned(f"pruned at step {res['steps']}")
 
         try:
@@ -124,10 +125,14 @@ def _worker(task: dict) -> list[dict]:
         rows.append({"number": t.number, "state": t.state.name, "value": t.value,
                      "worker": worker})
         if log:
-            what = (f"value {t.value:.4g} (success +-50 um "
-                    f"{t.user_attrs.get('success_rate_50um', float('nan')):.2f}, median |error| "
-                    f"{t.user_attrs.get('median_abs_error_m', float('nan')) * 1e6:.0f} um)"
-                    if t.value is not None else t.user_attrs.get("error", ""))
+            a = t.user_attrs
+            if "success_rate_50um" in a:
+                what = (f"value {t.value:.4g} (success +-50 um {a['success_rate_50um']:.2f}, "
+                        f"median |error| {a['median_abs_error_m'] * 1e6:.0f} um)")
+            elif "pruned_at" in a:
+                what = f"at step {a['pruned_at']} (value {t.value:.4g})"
+            else:
+                what = a.get("error", "")
             log(f"trial {t.number} {t.state.name.lower()} {what}".rstrip())
 
     study.optimize(_objective(job, worker), n_trials=int(task["n_trials"]),

@@ -68,6 +68,36 @@ def test_an_evaluation_hook_stops_the_run_and_frees_the_folder(tmp_path):
         pass
 
 
+def test_a_trial_below_the_median_is_pruned_at_its_periodic_evaluation(tmp_path):
+    import optuna
+
+    from agents.rl.tune import _objective
+
+    class Trial:  # what the objective uses of optuna.Trial; the pruner says "prune"
+        number, attrs, reports = 7, {}, []
+
+        def set_user_attr(self, k, v):
+            self.attrs[k] = v
+
+        def report(self, value, step):
+            self.reports.append((step, value))
+
+        def should_prune(self):
+            return True
+
+    job = {"out": str(tmp_path), "study_name": "s", "env_id": ENV, "env_kwargs": None,
+           "conf_file": None, "trial_steps": 4096, "trial_minutes": None, "eval_seed": 1,
+           "seed": 0, "fixed": {**TINY, "net_width": 64, "learning_rate": 3e-4,
+                                "log_std_init": -1.0, "gamma": 0.99}, **BUDGET}
+    trial = Trial()
+    with pytest.raises(optuna.TrialPruned):
+        _objective(job, "here")(trial)
+    assert [step for step, _ in trial.reports] == [1024] and trial.attrs["pruned_at"] == 1024
+    run = tmp_path / "s" / "trial-0007"
+    assert len((run / "evaluations.jsonl").read_text().splitlines()) == 1
+    assert trial.attrs["worker"] == "here" and trial.attrs["run"] == str(run)
+
+
 def test_train_seeds_in_two_workers_aggregate_and_finished_seeds_are_reused(tmp_path):
     kw = {"env_id": ENV, "steps": 2048, "overrides": TINY, "tensorboard": False, **BUDGET}
     res = train_seeds(tmp_path, [0, 1], workers=2, **kw)
