@@ -84,9 +84,19 @@ class MicroConveyorEnv(OwnsConveyor, gym.Env):
     ## Arguments
     Any field of :class:`EnvConfig` (defaults in ``configs/envs/MicroConveyor-v0.yaml``; v1's
     changes in ``configs/envs/MicroConveyor-v1.yaml``, its ``gym.spec`` kwargs), e.g.
-    ``gym.make("MicroConveyor-v1", n_actuators=3, tolerance=100e-6)``; ``render_mode`` ``"rgb_array"``
-    (for a window, wrap with ``gymnasium.wrappers.HumanRendering``, which needs pygame).
+    ``gym.make("MicroConveyor-v1", n_actuators=3, tolerance=100e-6)``.
     ``reset(options={"target": d})`` sets the target distance d [m] beyond actuator 1.
+
+    ## Rendering (never changes a step: tests/envs/test_render.py)
+    ``render_mode``: ``"rgb_array"`` (``render()`` gives the frame of the state now),
+    ``"rgb_array_list"`` (the frames since the last ``render()`` or ``reset()``) or ``"human"``
+    (a pygame window showing them at ``metadata["render_fps"]``; the ``render`` extra).
+    ``render_frames_per_stroke`` (default 1: one frame per reset and per step, the state after
+    it) n > 1, with ``rgb_array_list`` or ``human``: up to n frames of each phase of a firing
+    (the slide through the delay, the stroke, the slide to rest), the part on the surface as it
+    deforms, picked from the firing's real trajectory (:mod:`.frames`), and ``render_fps`` =
+    4 n. Gymnasium's ``RecordVideo`` keeps only the last frame of each list;
+    :class:`~.video.RecordStrokeVideo` keeps them all.
     ``spec.max_episode_steps`` (v1) is 1000, the most actuators a config allows: an upper bound
     that never cuts an episode short, whatever ``n_actuators`` is (an episode ends by itself
     after at most ``n_actuators`` steps).

@@ -173,3 +173,16 @@ class EnvRenderer:
         if self.window is not None:
             self.window.close()
         self.drawer = None
+
+    def __getstate__(self) -> dict[str, Any]:  # the figure and the window are made anew
+        state = self.__dict__.copy()
+        state["drawer"] = None
+        state["window"] = None if self.window is None else self.window.title
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        if self.window is not None:
+            from .window import Window
+
+            self.window = Window(state["window"])

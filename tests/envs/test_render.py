@@ -185,3 +185,17 @@ def test_first_frame_state_is_the_start():
     env.reset(seed=0)
     (s,) = env._renderer.pending
     assert (s.t, s.x, s.amplitude, s.fired) == (0.0, env.x, 0.0, 0) and math.isnan(s.xa)
+
+
+def test_pickles_mid_episode_with_frames_pending():
+    import pickle
+
+    env = MicroConveyorEnv(render_mode="rgb_array_list", render_frames_per_stroke=3)
+    env.reset(seed=0, options={"target": 2.8e-3})
+    a = actions.encode_actions(*SCHEDULE, env.config)
+    env.step(a)
+    env.render()  # the figure exists
+    env.step(a)
+    clone = pickle.loads(pickle.dumps(env))
+    assert len(clone.render()) == len(env.render()) > 1
+    _same([clone.step(a)], [env.step(a)])
