@@ -139,7 +139,8 @@ USER_ERRORS = (ParameterError, ValueError, RuntimeError, OSError, OverflowError,
 EXTRAS = {"pandas": "studies", "pyarrow": "studies", "statsmodels": "studies", "SALib": "studies",
           "dask": "studies", "distributed": "studies", "stable_baselines3": "train",
           "torch": "train", "tensorboard": "train", "rich": "train", "cma": "agents",
-          "rl_zoo3": "agents"}
+          "rl_zoo3": "agents", "imageio": "render", "imageio_ffmpeg": "render",
+          "pygame": "render"}
 
 
 def missing_extra(exc: BaseException) -> str | None:

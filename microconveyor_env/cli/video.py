@@ -111,8 +111,9 @@ def make_video(args: argparse.Namespace, config: Any, act: Callable[[Any], Any],
     from pathlib import Path
 
     from ..envs import MicroConveyorEnv
-    from ..envs.video import episode_frames, write_video
+    from ..envs.video import check_writer, episode_frames, write_video
 
+    check_writer(args.out)  # a missing writer fails before the episode is drawn
     env = MicroConveyorEnv(config=config, render_mode="rgb_array_list",
                            render_frames_per_stroke=args.frames_per_stroke)
     try:

@@ -173,7 +173,8 @@ class MicroConveyorEnv(OwnsConveyor, gym.Env):
         a = actions.check_actions(action, None, out=c.action_input)
         k = int(c.parts.fired[0])
         xa = float(c.positions[k])
-        before = (self.x, self.v, self.t)
+        # the state before the firing, kept only to draw it (rgb_array_list, human)
+        before = (self.x, self.v, self.t) if self._renderer.collecting else None
         out = c.step(a)
         outcome = kernel.OUTCOMES[int(out.outcome[0])]
         terminated = outcome in ("rest", "detached")
@@ -184,9 +185,10 @@ class MicroConveyorEnv(OwnsConveyor, gym.Env):
         info = self._info(outcome, bool(out.success[0]))
         info["frequency_hz"], info["stroke_m"], info["delay_s"] = f, h, d
         result = (out.obs[0].copy(), float(out.reward[0]), terminated, truncated, info)
-        self._renderer.fired(k, before, f, h, d, outcome)  # after the step: never changes it
-        if self.render_mode == "human":
-            self.render()
+        if before is not None:  # the frames of this firing: after the step, never changing it
+            self._renderer.fired(k, before, f, h, d, outcome)
+            if self.render_mode == "human":
+                self.render()
         return result
 
     def render(self) -> RenderFrame | list[RenderFrame] | None:

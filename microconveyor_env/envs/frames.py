@@ -134,8 +134,6 @@ class EnvRenderer:
     def fired(self, k: int, before: tuple[float, float, float], f: float, h: float, d: float,
               outcome: str) -> None:
         """Firing ``k`` (``f`` [Hz], ``h`` [m], delay ``d`` [s]) ran from ``before`` = (x, v, t)."""
-        if not self.collecting:
-            return
         if self.n == 1:
             self.pending.append(self._now(""))
             return

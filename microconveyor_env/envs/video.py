@@ -72,29 +72,37 @@ def check_video_path(path: str | Path) -> Path:
     return p
 
 
+def check_writer(path: str | Path) -> Path:
+    """The video path (:func:`check_video_path`), once its writer is known to be installed:
+    imageio, and for MP4 imageio-ffmpeg (else ``ModuleNotFoundError`` naming the extra)."""
+    p = check_video_path(path)
+    needs = ["imageio"] + (["imageio_ffmpeg"] if p.suffix.lower() == ".mp4" else [])
+    for name in needs:
+        try:
+            __import__(name)
+        except ImportError as exc:
+            raise ModuleNotFoundError(f"writing a {p.suffix[1:].upper()} needs "
+                                      f"{name.replace('_', '-')}: {EXTRA}", name=name) from exc
+    return p
+
+
 def write_video(frames: Sequence[np.ndarray], path: str | Path, fps: float) -> Path:
     """Write ``frames`` (uint8 (H, W, 3)) to ``path``: GIF (looping) or MP4 (H.264, yuv420p)
-    by its suffix, ``fps`` frames per second. Needs imageio (+ imageio-ffmpeg for MP4)."""
-    p = check_video_path(path)
+    by its suffix, ``fps`` frames per second. Needs imageio (+ imageio-ffmpeg for MP4: the
+    ``render`` extra)."""
+    p = check_writer(path)
     if not frames:
         raise ValueError("no frames to write")
-    try:
-        import imageio.v3 as iio
-    except ImportError as exc:
-        raise ModuleNotFoundError(f"writing a video needs imageio: {EXTRA}",
-                                  name="imageio") from exc
+    if not (np.isfinite(fps) and fps > 0):
+        raise ValueError(f"fps = {fps!r} is invalid: must be a positive number")
+    import imageio.v2 as iio2
+    import imageio.v3 as iio
+
     p.parent.mkdir(parents=True, exist_ok=True)
     stack = np.stack(frames)
     if p.suffix.lower() == ".gif":
         iio.imwrite(p, stack, extension=".gif", duration=1000.0 / fps, loop=0)
         return p
-    try:
-        import imageio_ffmpeg  # noqa: F401
-    except ImportError as exc:
-        raise ModuleNotFoundError(f"writing an MP4 needs imageio-ffmpeg: {EXTRA}",
-                                  name="imageio_ffmpeg") from exc
-    import imageio.v2 as iio2
-
     stack = stack[:, : stack.shape[1] // 2 * 2, : stack.shape[2] // 2 * 2]  # H.264: even sizes
     with iio2.get_writer(p, format="FFMPEG", mode="I", fps=fps, codec="libx264",
                          pixelformat="yuv420p", macro_block_size=1) as writer:

@@ -64,3 +64,14 @@ def test_schedule_mp4_json_and_errors(tmp_path):
                      (["--policy", str(tmp_path), "--freq", "900"], "not with --policy")):
         r = run(*bad, "--json")
         assert r.returncode == 2 and msg in json.loads(r.stdout)["error"], r.stdout
+
+
+def test_missing_writer_names_the_extra(monkeypatch):
+    from microconveyor_env.cli.base import missing_extra
+    from microconveyor_env.envs.video import check_writer
+
+    monkeypatch.setitem(sys.modules, "imageio_ffmpeg", None)  # import imageio_ffmpeg fails
+    with pytest.raises(ModuleNotFoundError, match=r"microconveyor-env\[render\]") as err:
+        check_writer("x.mp4")
+    assert "microconveyor-env[render]" in missing_extra(err.value)
+    assert check_writer("x.gif").suffix == ".gif"  # a GIF needs no ffmpeg
