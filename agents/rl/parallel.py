@@ -21,10 +21,27 @@ T = TypeVar("T")
 R = TypeVar("R")
 
 
+_interrupted = False  # in a worker process: a Ctrl-C reached it
+
+
+def _guarded(func: Callable[[T], R], task: T) -> R:
+    """``func(task)`` in a worker, unless a Ctrl-C already reached this worker: the pool hands
+    out tasks queued before the interrupt, which must not start."""
+    global _interrupted
+    if _interrupted:
+        raise KeyboardInterrupt
+    try:
+        return func(task)
+    except KeyboardInterrupt:
+        _interrupted = True
+        raise
+
+
 def run_local(func: Callable[[T], R], tasks: Sequence[T], workers: int = 1) -> list[R]:
     """``func`` over ``tasks`` in ``workers`` spawned processes (<= 1: in this process), results
     in task order. ``func`` must be a module-level function and the tasks picklable. An error
-    stops the tasks not yet started and propagates."""
+    stops the tasks not yet started and propagates; so does a Ctrl-C (which reaches the workers
+    too: none starts another task)."""
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers!r}")
     if workers == 1 or len(tasks) <= 1:
@@ -34,7 +51,7 @@ def run_local(func: Callable[[T], R], tasks: Sequence[T], workers: int = 1) -> l
                                mp_context=multiprocessing.get_context("spawn"))
     futures: list[Future[R]] = []
     try:
-        futures = [pool.submit(func, t) for t in tasks]
+        futures = [pool.submit(_guarded, func, t) for t in tasks]
         return [f.result() for f in futures]
     finally:
         pool.shutdown(wait=True, cancel_futures=True)

@@ -113,12 +113,16 @@ def _objective(job: dict, worker: str) -> Callable[[Any], float]:
 def _worker(task: dict) -> list[dict]:
     """One worker (in its own process): ``task["n_trials"]`` trials of the study; rows of the
     trials it ran (number, state, value)."""
+    import optuna
+
     job, i = task["job"], int(task["index"])
     worker = f"{socket.gethostname()}:{os.getpid()}"
     log = (lambda line: print(f"worker {i}: {line}", file=sys.stderr, flush=True)) \
         if task.get("verbose") else None
     seed = None if job["sampler_seed"] is None else int(job["sampler_seed"]) + i
     study = _study(job, seed)
+    if not os.environ.get("MICROCONVEYOR_DEBUG"):  # failures get one line below, not a traceback
+        optuna.logging.set_verbosity(optuna.logging.ERROR)
     rows: list[dict] = []
 
     def done(_study: Any, t: Any) -> None:
