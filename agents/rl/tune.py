@@ -83,10 +83,13 @@ def _objective(job: dict, worker: str) -> Callable[[Any], float]:
         def on_eval(res: dict) -> None:
             if res["steps"] >= steps:
                 return
-            trial.report(score(res), res["steps"])
+            # at the evaluation's nominal step (a multiple of eval_freq; the run passes it by
+            # less than n_envs steps): the median pruner compares trials at equal steps
+            at = res["steps"] // job["eval_freq"] * job["eval_freq"]
+            trial.report(score(res), at)
             if trial.should_prune():
-                trial.set_user_attr("pruned_at", res["steps"])
-                raise optuna.TrialPruned(f"pruned at step {res['steps']}")
+                trial.set_user_attr("pruned_at", at)
+                raise optuna.TrialPruned(f"pruned at step {at}")
 
         try:
             meta = train(run, steps=steps, seed=job["seed"], conf_file=job["conf_file"],

@@ -87,14 +87,17 @@ def test_a_trial_below_the_median_is_pruned_at_its_periodic_evaluation(tmp_path)
 
     job = {"out": str(tmp_path), "study_name": "s", "env_id": ENV, "env_kwargs": None,
            "conf_file": None, "trial_steps": 4096, "trial_minutes": None, "eval_seed": 1,
-           "seed": 0, "fixed": {**TINY, "net_width": 64, "learning_rate": 3e-4,
+           "seed": 0, "fixed": {**TINY, "n_envs": 24, "net_width": 64, "learning_rate": 3e-4,
                                 "log_std_init": -1.0, "gamma": 0.99}, **BUDGET}
     trial = Trial()
     with pytest.raises(optuna.TrialPruned):
         _objective(job, "here")(trial)
+    # reported at the nominal step, though the run evaluated at 1,032 (43 x 24 envs): trials of
+    # other rollout sizes are compared with it at equal steps
     assert [step for step, _ in trial.reports] == [1024] and trial.attrs["pruned_at"] == 1024
     run = tmp_path / "s" / "trial-0007"
-    assert len((run / "evaluations.jsonl").read_text().splitlines()) == 1
+    evals = [json.loads(line) for line in (run / "evaluations.jsonl").read_text().splitlines()]
+    assert [e["steps"] for e in evals] == [1032]
     assert trial.attrs["worker"] == "here" and trial.attrs["run"] == str(run)
 
 
