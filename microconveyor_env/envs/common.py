@@ -57,9 +57,10 @@ def check_target(target: object) -> float:
 
 def check_render_mode(render_mode: str | None, supported: Sequence[str]) -> None:
     if render_mode is not None and render_mode not in supported:
+        hint = "" if "human" in supported else (" (a window: the single env's render_mode "
+                                                 "'human', with the render extra)")
         raise ValueError(f"render_mode {render_mode!r} not supported; use None or one of "
-                         f"{list(supported)} (for a window, wrap an rgb_array env in "
-                         "gymnasium.wrappers.HumanRendering)")
+                         f"{list(supported)}{hint}")
 
 
 def raise_if_beyond_table(outcome: str, sim: Simulator) -> None:

@@ -61,6 +61,7 @@ class FrameDrawer:
     def __init__(self, cfg: EnvConfig, size: tuple = (8.0, 3.0), dpi: int = 80) -> None:
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
+        from matplotlib.patches import Rectangle
 
         self.cfg = cfg
         self.pos = np.asarray(cfg.actuator_positions)
@@ -72,8 +73,11 @@ class FrameDrawer:
         (self.surface,) = ax.plot([], [], color="0.3", lw=2, label="surface")
         self.actuators = ax.scatter(self.pos * 1e3, np.full(self.pos.size, -25.0), marker="^",
                                     s=80)
-        self.band = ax.axvspan(0.0, 0.0, color="tab:green", alpha=0.25,
-                               label="target ± tolerance")
+        # the tolerance band: x in data units, y over the whole axes (a Rectangle whatever the
+        # matplotlib version; axvspan returns a Polygon before 3.9)
+        self.band = Rectangle((0.0, 0.0), 0.0, 1.0, transform=ax.get_xaxis_transform(),
+                              color="tab:green", alpha=0.25, label="target ± tolerance")
+        ax.add_patch(self.band)
         self.target_line = ax.axvline(0.0, color="tab:green", lw=1)
         (self.part,) = ax.plot([], [], "s", ms=9, color="tab:red", label="part")
         ax.set_ylim(-60, max(260.0, cfg.stroke_range[1] * 1e6 + 60.0))
