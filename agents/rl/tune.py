@@ -181,7 +181,7 @@ def tune(out: str | Path = "runs/tune", n_trials: int = 20, workers: int = 1,
            "trial_steps": trial_steps, "trial_minutes": trial_minutes, "eval_freq": eval_freq,
            "eval_targets": eval_targets, "eval_seed": eval_seed, "seed": seed,
            "fixed": dict(fixed or {}), "prune": prune, "sampler_seed": sampler_seed}
-    _study(job)  # created once here: workers only load it
+    _check_protocol(_study(job), job)  # created once here: workers only load it
     tasks = [{"job": job, "index": i, "n_trials": n, "verbose": verbose}
              for i, n in enumerate(shares(n_trials, workers))]
     rows = [r for rs in run_local(_worker, tasks, workers) for r in rs]
@@ -192,6 +192,35 @@ def tune(out: str | Path = "runs/tune", n_trials: int = 20, workers: int = 1,
         write_best(res["best"], path, env_id, conf_file, env_kwargs, study_name)
         res["best_file"] = str(path)
     return res
+
+
+# what every trial of a study must share for their values to be comparable
+PROTOCOL = ("env_id", "env_kwargs", "trial_steps", "trial_minutes", "eval_freq", "eval_targets",
+            "eval_seed", "seed")
+
+
+def _check_protocol(study: Any, job: dict) -> None:
+    """Record the trial protocol (:data:`PROTOCOL` and a hash of the base config entry) in a new
+    study; refuse a command whose protocol differs from the study's (ValueError naming the keys):
+    its values would not compare with the others'."""
+    import hashlib
+    import json
+
+    base = hyperparams.load(job["conf_file"], job["env_id"])
+    mine = json.loads(json.dumps({**{k: job[k] for k in PROTOCOL}, "base_config": hashlib.sha256(
+        json.dumps(base, sort_keys=True, default=str).encode()).hexdigest()[:16]}))
+    theirs = study.user_attrs.get("protocol")
+    if theirs is None:
+        study.set_user_attr("protocol", mine)
+        return
+    diff = hyperparams.changed_keys(theirs, mine)
+    if diff:
+        was = ", ".join(f"{k}={theirs.get(k)!r}" for k in diff)
+        now = ", ".join(f"{k}={mine.get(k)!r}" for k in diff)
+        raise ValueError(f"study {job['study_name']!r} in {job['storage']} runs its trials with "
+                         f"{was}, this command with {now}: their values would not compare; give "
+                         "the study's settings (--env, --env-kwargs, --conf-file, --steps, "
+                         "--trial-minutes, --eval-freq, --eval-targets, --seed) or another --study")
 
 
 def summary(storage: str, study_name: str = DEFAULT_STUDY) -> dict:
