@@ -34,9 +34,9 @@ def _tune_args(p: argparse.ArgumentParser) -> None:
                    help="folder of the trials' run folders (OUT/STUDY/trial-N), the default "
                         "SQLite storage and best.yml (default: runs/tune)")
     p.add_argument("--storage", default=None,
-                   help="Optuna storage URL shared by all workers: sqlite:///PATH (one machine; "
-                        "default sqlite:///OUT/optuna.db) or a database for many machines, e.g. "
-                        "postgresql://USER:PASSWORD@HOST/DB")
+                   help="Optuna storage URL shared by all workers: sqlite:///PATH (one machine) "
+                        "or a database for many machines, e.g. postgresql://USER@HOST/DB "
+                        "(default: $MICROCONVEYOR_TUNE_STORAGE, else sqlite:///OUT/optuna.db)")
     p.add_argument("--study", default=DEFAULT_STUDY, help=f"study name (default: {DEFAULT_STUDY})")
     p.add_argument("--trial-minutes", type=minutes, default=None,
                    help="wall budget of one trial [min] (default: none, --steps only)")

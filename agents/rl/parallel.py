@@ -40,8 +40,8 @@ def _guarded(func: Callable[[T], R], task: T) -> R:
 def run_local(func: Callable[[T], R], tasks: Sequence[T], workers: int = 1) -> list[R]:
     """``func`` over ``tasks`` in ``workers`` spawned processes (<= 1: in this process), results
     in task order. ``func`` must be a module-level function and the tasks picklable. An error
-    stops the tasks not yet started and propagates; so does a Ctrl-C (which reaches the workers
-    too: none starts another task)."""
+    cancels the tasks still waiting and propagates once the running ones end; a Ctrl-C reaches
+    the workers too, and none of them starts another task."""
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers!r}")
     if workers == 1 or len(tasks) <= 1:
@@ -49,9 +49,8 @@ def run_local(func: Callable[[T], R], tasks: Sequence[T], workers: int = 1) -> l
     # spawn, not fork: the parent may hold numba and torch threads
     pool = ProcessPoolExecutor(max_workers=min(workers, len(tasks)),
                                mp_context=multiprocessing.get_context("spawn"))
-    futures: list[Future[R]] = []
     try:
-        futures = [pool.submit(_guarded, func, t) for t in tasks]
+        futures: list[Future[R]] = [pool.submit(_guarded, func, t) for t in tasks]
         return [f.result() for f in futures]
     finally:
         pool.shutdown(wait=True, cancel_futures=True)

@@ -35,8 +35,23 @@ def score(ev: dict) -> float:
     return float(ev["success_rate_50um"]) - 0.01 * min(float(ev["median_abs_error_m"]), 0.01)
 
 
+STORAGE_ENV = "MICROCONVEYOR_TUNE_STORAGE"  # the storage URL when none is given (keeps a
+                                           # database password out of the command line)
+
+
 def default_storage(out: str | Path) -> str:
-    return f"sqlite:///{Path(out) / 'optuna.db'}"
+    """``$MICROCONVEYOR_TUNE_STORAGE`` if set, else SQLite in ``out``."""
+    return os.environ.get(STORAGE_ENV) or f"sqlite:///{Path(out) / 'optuna.db'}"
+
+
+def shown(url: str) -> str:
+    """``url`` as printed: its password masked."""
+    from sqlalchemy.engine import make_url
+
+    try:
+        return make_url(url).render_as_string(hide_password=True)
+    except Exception:  # noqa: BLE001 - not a URL sqlalchemy parses: Optuna will say so
+        return url
 
 
 def open_storage(url: str) -> Any:
@@ -63,6 +78,23 @@ def _study(job: dict, sampler_seed: int | None = None) -> Any:
         sampler=optuna.samplers.TPESampler(seed=sampler_seed, constant_liar=True),
         pruner=(optuna.pruners.MedianPruner(n_startup_trials=5) if job["prune"]
                 else optuna.pruners.NopPruner()))
+
+
+def _open_study(job: dict) -> Any:
+    """:func:`_study`, its failures to reach the storage as one ValueError naming it (password
+    masked) and, for a missing database driver, what to install."""
+    url = shown(job["storage"])
+    try:
+        return _study(job)
+    except ImportError:  # Optuna's "Failed to import DB access module"
+        raise ValueError(f"the storage {url} needs a database driver that is not installed "
+                         "(PostgreSQL: pip install psycopg2-binary; MySQL: pip install pymysql "
+                         "and a mysql+pymysql:// URL)") from None
+    except ValueError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - sqlalchemy's errors: a wrong URL, no server, ...
+        raise ValueError(f"cannot open the Optuna storage {url}: {type(exc).__name__}: "
+                         f"{exc}") from None
 
 
 def _objective(job: dict, worker: str) -> Callable[[Any], float]:
@@ -181,12 +213,12 @@ def tune(out: str | Path = "runs/tune", n_trials: int = 20, workers: int = 1,
            "trial_steps": trial_steps, "trial_minutes": trial_minutes, "eval_freq": eval_freq,
            "eval_targets": eval_targets, "eval_seed": eval_seed, "seed": seed,
            "fixed": dict(fixed or {}), "prune": prune, "sampler_seed": sampler_seed}
-    _check_protocol(_study(job), job)  # created once here: workers only load it
+    _check_protocol(_open_study(job), job)  # created once here: workers only load it
     tasks = [{"job": job, "index": i, "n_trials": n, "verbose": verbose}
              for i, n in enumerate(shares(n_trials, workers))]
     rows = [r for rs in run_local(_worker, tasks, workers) for r in rs]
     res = summary(url, study_name)
-    res.update(this_run=rows, storage=url, env_id=env_id)
+    res.update(this_run=rows, storage=shown(url), env_id=env_id)
     if res["best"] is not None:
         path = Path(best_file) if best_file else Path(out) / study_name / "best.yml"
         write_best(res["best"], path, env_id, conf_file, env_kwargs, study_name)
@@ -217,7 +249,7 @@ def _check_protocol(study: Any, job: dict) -> None:
     if diff:
         was = ", ".join(f"{k}={theirs.get(k)!r}" for k in diff)
         now = ", ".join(f"{k}={mine.get(k)!r}" for k in diff)
-        raise ValueError(f"study {job['study_name']!r} in {job['storage']} runs its trials with "
+        raise ValueError(f"study {job['study_name']!r} in {shown(job['storage'])} runs its trials with "
                          f"{was}, this command with {now}: their values would not compare; give "
                          "the study's settings (--env, --env-kwargs, --conf-file, --steps, "
                          "--trial-minutes, --eval-freq, --eval-targets, --seed) or another --study")

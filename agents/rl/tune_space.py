@@ -35,13 +35,39 @@ def sample(trial: Any, fixed: dict | None = None) -> dict:
     return flat
 
 
+# what a fixed value must be (by key; the rest are whole numbers >= 1)
+MUST = {"learning_rate": "a rate > 0 or lin_<rate>", "log_std_init": "a finite number",
+        "gamma": "in (0, 1]"}
+
+
+def _fixed_ok(key: str, v: Any) -> bool:
+    import math
+
+    if key == "learning_rate" and isinstance(v, str) and v.startswith("lin_"):
+        try:
+            v = float(v[4:])
+        except ValueError:
+            return False
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        return False
+    if key == "learning_rate":
+        return v > 0
+    if key == "gamma":
+        return 0 < v <= 1
+    return key == "log_std_init" or (isinstance(v, int) and v >= 1)
+
+
 def check_fixed(fixed: dict | None) -> dict:
-    """``fixed`` as a dict; ValueError for a key that is not a tuned parameter."""
+    """``fixed`` as a dict; ValueError for a key that is not a tuned parameter or a value that
+    cannot be one (saying what it must be)."""
     fixed = dict(fixed or {})
     unknown = sorted(set(fixed) - set(SPACE))
     if unknown:
         raise ValueError(f"cannot fix {', '.join(unknown)}: the tuned parameters are "
                          f"{', '.join(SPACE)} (others come from the conf file)")
+    for k, v in fixed.items():
+        if not _fixed_ok(k, v):
+            raise ValueError(f"{k} must be {MUST.get(k, 'a whole number >= 1')}, got {v!r}")
     return fixed
 
 

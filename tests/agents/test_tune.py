@@ -126,6 +126,11 @@ def test_train_seeds_in_two_workers_aggregate_and_finished_seeds_are_reused(tmp_
 def test_search_space_fixed_keys_and_config_text(tmp_path):
     with pytest.raises(ValueError, match="cannot fix clip_range"):
         tune_space.check_fixed({"clip_range": 0.1})
+    for key, bad in (("n_envs", 0), ("n_steps", 8.0), ("gamma", 1.5), ("learning_rate", "lin_x"),
+                     ("learning_rate", -1e-3), ("log_std_init", float("nan")), ("n_epochs", True)):
+        with pytest.raises(ValueError, match=f"{key} must be"):
+            tune_space.check_fixed({key: bad})
+    assert tune_space.check_fixed({"learning_rate": "lin_3e-4", "gamma": 1, "n_envs": 8})
     assert shares(5, 2) == [3, 2] and shares(1, 3) == [1]
     import torch.nn as nn
 
@@ -137,3 +142,20 @@ def test_search_space_fixed_keys_and_config_text(tmp_path):
     assert text.startswith("# a note\n# over two lines\n")
     (tmp_path / "c.yml").write_text(text)
     assert hyperparams.load(str(tmp_path / "c.yml"), ENV) == hp
+
+
+def test_a_storage_that_cannot_be_opened_is_one_error_without_its_password(tmp_path):
+    urls = ("postgresql://tuner:s3cret@127.0.0.1:1/optuna", "nodb://x",
+            "sqlite:////no/such/dir/x.db")
+    for url in urls:
+        with pytest.raises(ValueError) as err:
+            tune(tmp_path, n_trials=1, env_id=ENV, storage=url)
+        msg = str(err.value)
+        assert msg.startswith(("the storage ", "cannot open the Optuna storage ")), msg
+        assert "s3cret" not in msg
+        if url.startswith("postgresql"):
+            assert "postgresql://tuner:***@127.0.0.1:1/optuna" in msg
+            try:
+                import psycopg2  # noqa: F401
+            except ImportError:
+                assert "pip install psycopg2-binary" in msg
