@@ -249,10 +249,11 @@ def _check_protocol(study: Any, job: dict) -> None:
     if diff:
         was = ", ".join(f"{k}={theirs.get(k)!r}" for k in diff)
         now = ", ".join(f"{k}={mine.get(k)!r}" for k in diff)
-        raise ValueError(f"study {job['study_name']!r} in {shown(job['storage'])} runs its trials with "
-                         f"{was}, this command with {now}: their values would not compare; give "
-                         "the study's settings (--env, --env-kwargs, --conf-file, --steps, "
-                         "--trial-minutes, --eval-freq, --eval-targets, --seed) or another --study")
+        raise ValueError(f"study {job['study_name']!r} in {shown(job['storage'])} runs its "
+                         f"trials with {was}, this command with {now}: their values would not "
+                         "compare; give the study's settings (--env, --env-kwargs, --conf-file, "
+                         "--steps, --trial-minutes, --eval-freq, --eval-targets, --seed) or "
+                         "another --study")
 
 
 def summary(storage: str, study_name: str = DEFAULT_STUDY) -> dict:

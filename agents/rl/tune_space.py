@@ -25,7 +25,8 @@ def sample(trial: Any, fixed: dict | None = None) -> dict:
         "n_steps": lambda: 2 ** trial.suggest_int("n_steps_pow", 3, 6),         # 8-64
         "batch_size": lambda: 2 ** trial.suggest_int("batch_size_pow", 8, 11),  # 256-2048
         "n_epochs": lambda: trial.suggest_categorical("n_epochs", [5, 10, 20]),
-        "learning_rate": lambda: f"lin_{trial.suggest_float('learning_rate', 5e-5, 2e-3, log=True):.3g}",
+        "learning_rate": lambda: "lin_{:.3g}".format(
+            trial.suggest_float("learning_rate", 5e-5, 2e-3, log=True)),
         "net_width": lambda: trial.suggest_categorical("net_width", [64, 128, 256]),
         "log_std_init": lambda: trial.suggest_float("log_std_init", -2.0, 0.0),
         "gamma": lambda: 1.0 - trial.suggest_float("one_minus_gamma", 1e-3, 0.05, log=True),

@@ -36,7 +36,8 @@ def test_two_workers_share_one_sqlite_study_and_the_best_is_a_config_entry(tmp_p
     assert again["trials"] == 5 and len(again["workers"]) == 3
     assert summary(again["storage"])["trials"] == 5
 
-    with pytest.raises(ValueError, match="with eval_targets=5, trial_steps=2048, this command with eval_targets=6"):  # not comparable
+    not_comparable = "with eval_targets=5, trial_steps=2048, this command with eval_targets=6"
+    with pytest.raises(ValueError, match=not_comparable):
         tune(out, n_trials=1, env_id=ENV, trial_steps=4096, eval_freq=1024, eval_targets=6)
 
     best = again["best"]
