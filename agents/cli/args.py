@@ -4,7 +4,6 @@ from __future__ import annotations
 import argparse
 import ast
 import math
-from pathlib import Path
 from typing import Any
 
 
@@ -44,16 +43,6 @@ def budgets(text: str) -> list[int]:
     if not vals or min(vals) < 10:
         raise argparse.ArgumentTypeError(f"{text!r}: budgets must be integers >= 10 episodes")
     return sorted(set(vals))
-
-
-def folder(text: str) -> str:
-    """A folder for output files (created later if missing); not an existing file."""
-    p = Path(text)
-    if not text.strip():
-        raise argparse.ArgumentTypeError("empty folder name")
-    if p.exists() and not p.is_dir():
-        raise argparse.ArgumentTypeError(f"{text!r} is a file; give a folder for the charts")
-    return str(p)
 
 
 def minutes(text: str) -> float:

@@ -7,9 +7,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from microconveyor_env.cli.base import command, count, emit
+from microconveyor_env.cli.base import command, companion, count, emit, plot_path
 
-from .args import add_env_args, budgets, env_config_of, env_kwargs_of, folder, levels
+from .args import add_env_args, budgets, env_config_of, env_kwargs_of, levels
 
 
 def add_args(p: argparse.ArgumentParser) -> None:
@@ -32,8 +32,10 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    help="perturbed replays per target and level")
     p.add_argument("--amortise-over", type=count(1), default=100,
                    help="targets over which PPO's training is amortised in the chart")
-    p.add_argument("--plot", type=folder, default=None,
-                   help="folder for compare_{compute,tolerance,perturbation}.png and compare.json")
+    p.add_argument("--plot", type=plot_path, default=None,
+                   help="chart file (success against tolerance); the compute and perturbation "
+                        "charts go beside it as STEM_compute and STEM_perturbation, the result "
+                        "as STEM.json")
     add_env_args(p, what=" (the policies must have been trained on its scene)")
 
 
@@ -56,8 +58,9 @@ def run(args: Any) -> None:
                   env_id=args.env)
     res.update(env_id=args.env, env_kwargs=env_kwargs_of(args))
     if args.plot:
-        res["charts"] = plot_all(res, args.plot)
-        out = Path(args.plot) / "compare.json"
+        res["charts"] = plot_all(res, args.plot, companion(args.plot, "compute"),
+                                 companion(args.plot, "perturbation"))
+        out = Path(args.plot).with_suffix(".json")
         out.write_text(json.dumps(res, indent=1, default=json_default))
         res["charts"].append(str(out))
     text = summary_table(res)

@@ -6,9 +6,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from microconveyor_env.cli.base import command, count, emit
+from microconveyor_env.cli.base import command, companion, count, emit, plot_path
 
-from .args import add_env_args, env_config_of, env_kwargs_of, folder
+from .args import add_env_args, env_config_of, env_kwargs_of
 
 PROBLEMS = ("target", "dissertation")
 
@@ -28,7 +28,9 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    help="population per generation (default: 15 for DE on target, 50 for DE on "
                         "dissertation, pycma's for CMA-ES)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--plot", type=folder, default=None, help="folder for the PNG charts")
+    p.add_argument("--plot", type=plot_path, default=None,
+                   help="chart file (the best plan's trajectory); the search's history goes "
+                        "beside it as STEM_history")
     p.add_argument("--explain", action="store_true",
                    help="dissertation: also replay Table 4.3's schedule under one-at-a-time model "
                         "changes and re-run the DE under each, for 10 seeds from --seed (~30 s "
@@ -45,7 +47,7 @@ def run(args: argparse.Namespace) -> None:
     if args.popsize is not None and args.budget is not None and args.popsize > args.budget:
         raise ValueError(f"--popsize {args.popsize} is larger than --budget {args.budget}")
     if args.plot:
-        Path(args.plot).mkdir(parents=True, exist_ok=True)
+        Path(args.plot).parent.mkdir(parents=True, exist_ok=True)
     if args.problem == "dissertation":
         if args.env or args.env_kwargs:
             raise ValueError("--env/--env-kwargs belong to --problem target; the dissertation "
@@ -71,14 +73,13 @@ def _target(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     out: dict[str, Any] = {"problem": "target", "env_id": env_id, "env_kwargs": env_kw,
                            **res.to_dict()}
     if args.plot:
-        d = Path(args.plot)
         out["plots"] = [
             plot_error_history(res.history_episodes, res.history_best_abs_error_m,
-                               res.tolerance_m, str(d / "error_history.png"),
+                               res.tolerance_m, companion(args.plot, "history"),
                                f"{args.method}: target {target * 1e3:g} mm, seed {args.seed}"),
             plot_plan_trajectories({f"{args.method} best plan": plan_trajectory(res.plan, target,
                                                                                 cfg)},
-                              str(d / "trajectory.png"), target,
+                              args.plot, target,
                               title=f"Best open-loop plan for {target * 1e3:g} mm")]
     text = (f"target {target * 1e3:g} mm, {args.method}, {res.episodes} episodes in "
             f"{res.wall_time_s:.2f} s: rests at {res.final_position_m * 1e3:.4f} mm "
@@ -102,18 +103,17 @@ def _dissertation(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
                           "exponent_C": prob.exponent, "detach_penalty_P": prob.penalty},
         "table_4_3": {"dissertation": TABLE_4_3, "this_model": ours}}
     if args.plot:
-        d = Path(args.plot)
         label = (f"optimum ({res.parameters['frequency_hz']:.0f} Hz, "
                  f"{res.parameters['spacing_m'] * 1e6:.0f} µm, "
                  f"{res.parameters['delay_s'] * 1e3:.2f} ms, "
                  f"{res.parameters['stroke_m'] * 1e6:.0f} µm)")
         out["plots"] = [
             plot_cost_history({args.method: (res.history_episodes, res.history_best_cost)},
-                              str(d / "cost_history.png")),
+                              companion(args.plot, "history")),
             plot_plan_trajectories({label: trajectory(res.parameters, prob),
                                "Table 4.3 (719 Hz, 500 µm, 1 ms, 178 µm)":
                                trajectory(TABLE_4_3, prob)},
-                              str(d / "trajectory.png"), prob.target_m)]
+                              args.plot, prob.target_m)]
     if args.explain:
         from ..openloop.table43 import explain
 

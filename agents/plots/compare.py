@@ -116,9 +116,10 @@ def success_vs_perturbation(result: dict, path: str | Path) -> str:
     return str(path)
 
 
-def plot_all(result: dict, out_dir: str | Path) -> list[str]:
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    return [accuracy_vs_compute(result, out / "compare_compute.png"),
-            success_vs_tolerance(result, out / "compare_tolerance.png"),
-            success_vs_perturbation(result, out / "compare_perturbation.png")]
+def plot_all(result: dict, tolerance: str | Path, compute: str | Path,
+             perturbation: str | Path) -> list[str]:
+    """The three charts, at the three paths given."""
+    Path(tolerance).parent.mkdir(parents=True, exist_ok=True)
+    return [success_vs_tolerance(result, Path(tolerance)),
+            accuracy_vs_compute(result, Path(compute)),
+            success_vs_perturbation(result, Path(perturbation))]

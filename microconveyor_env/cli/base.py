@@ -54,6 +54,16 @@ def json_default(o: object) -> Any:
 
 
 # ----------------------------------------------------------------------------- value parsing
+def companion(plot: str, name: str) -> str:
+    """The file beside ``--plot FILE`` for a command's further chart ``name``: ``DIR/STEM.png``
+    -> ``DIR/STEM_name.png`` (every command takes a file; one with several charts writes the
+    others beside it)."""
+    from pathlib import Path
+
+    path = Path(plot)
+    return str(path.with_name(f"{path.stem}_{name}{path.suffix}"))
+
+
 def plot_path(text: str) -> str:
     """``--plot`` value: a non-empty file name; without an extension ``.png`` is added (the
     reported path is the one written); the extension must be a format matplotlib writes."""

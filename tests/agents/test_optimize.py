@@ -131,20 +131,23 @@ def test_dissertation_small_run_deterministic():
 
 def test_optimize_cli_json_and_charts(tmp_path):
     r = run("optimize", "--problem", "dissertation", "--budget", "20", "--popsize", "5",
-            "--json", "--plot", str(tmp_path / "d"))
+            "--json", "--plot", str(tmp_path / "d" / "plan.png"))
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     assert out["episodes"] == 20 and len(out["history_best_cost"]) == 4
     assert out["table_4_3"]["dissertation"]["frequency_hz"] == 719.0
     assert set(out["parameters"]) == {"frequency_hz", "spacing_m", "delay_s", "stroke_m"}
-    for name in ("cost_history.png", "trajectory.png"):
+    for name in ("plan_history.png", "plan.png"):  # one --plot FILE, companions beside it
         assert (tmp_path / "d" / name).read_bytes()[:4] == b"\x89PNG"
     r = run("optimize", "--problem", "target", "--target", "2e-3", "--budget", "30",
-            "--method", "cmaes", "--seed", "0", "--json", "--plot", str(tmp_path / "t"))
+            "--method", "cmaes", "--seed", "0", "--json", "--plot", str(tmp_path / "t" / "p"))
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     assert out["episodes"] <= 30 and len(out["plan"]) == 5 and out["method"] == "cmaes"
-    assert (tmp_path / "t" / "error_history.png").read_bytes()[:4] == b"\x89PNG"
+    assert (tmp_path / "t" / "p_history.png").read_bytes()[:4] == b"\x89PNG"
+    assert (tmp_path / "t" / "p.png").read_bytes()[:4] == b"\x89PNG"
+    r = run("optimize", "--budget", "30", "--plot", str(tmp_path), "--json")
+    assert r.returncode == 2 and "is a folder; give a file name" in json.loads(r.stdout)["error"]
     r = run("optimize", "--budget", "5", "--json")
     assert r.returncode == 2 and "budget" in json.loads(r.stdout)["error"]
 
