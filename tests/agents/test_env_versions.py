@@ -99,8 +99,11 @@ def test_commands_take_env_and_refuse_what_does_not_fit(tmp_path):
     assert out["env_id"] == "MicroConveyor-v1" and len(out["plan"]) == 3
     r = _cli("optimize", "--problem", "dissertation", "--env", "MicroConveyor-v1", "--json")
     assert r.returncode == 2 and "belong to --problem target" in json.loads(r.stdout)["error"]
-    r = _cli("evaluate", "--env", "MicroConveyor-v1", "--json")
-    assert r.returncode == 2 and "no shipped 'ppo' policy for MicroConveyor-v1" in r.stdout
+    r = _cli("evaluate", "--env", "MicroConveyor-v1", "--targets", "5", "--json")
+    assert r.returncode == 0, r.stderr  # the shipped v1 policy, in its own scene
+    assert json.loads(r.stdout)["env_id"] == "MicroConveyor-v1"
+    r = _cli("evaluate", "--env", "MicroConveyor-v1", "--env-kwargs", "n_actuators:3", "--json")
+    assert r.returncode == 2 and "n_actuators" in r.stdout
     r = _cli("reach", "--env", "MicroConveyor-v1", "--targets", "1e-3", "--budget", "30",
              "--robust-budget", "0", "--noisy", "4", "--json")
     assert r.returncode == 0, r.stderr
@@ -110,11 +113,12 @@ def test_commands_take_env_and_refuse_what_does_not_fit(tmp_path):
     assert r.returncode == 2 and "MicroConveyor-v9" in r.stdout
 
 
-def test_demo_on_v1_shows_v1s_surface_and_says_no_policy_is_shipped(tmp_path):
+def test_demo_on_v1_shows_v1s_surface_and_its_shipped_policy(tmp_path):
     r = _cli("demo", "--env", "MicroConveyor-v1", "--out", str(tmp_path), "--json")
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
-    assert out["preset"] == "conveyor" and out["policy_demo"] is None
+    assert out["preset"] == "conveyor"
+    assert "MicroConveyor-v1" in out["policy_demo"]["policy"] and out["policy_demo"]["rows"]
     assert out["episode"]["env_id"] == "MicroConveyor-v1"
     assert (tmp_path / "episode.png").stat().st_size > 1000
     # chapter 4's surface conveys over a narrower window than chapter 3's (225-1250 Hz)
