@@ -47,9 +47,10 @@ def _sim_kw(args: argparse.Namespace) -> dict[str, Any]:
 
 def _simulate_args(p: argparse.ArgumentParser) -> None:
     _scene_args(p)
-    p.add_argument("--trajectory", metavar="FILE.csv", default=None,
-                   help="write the recorded trajectory as CSV: t_s, x_m, v_m_s (SI; every RK4 "
-                        "step of the stroke, 32 exact points per coast)")
+    p.add_argument("--trajectory", metavar="FILE.csv|FILE.parquet", default=None,
+                   help="write the recorded trajectory, CSV or Parquet by the suffix: t_s, x_m, "
+                        "v_m_s (SI; every RK4 step of the stroke, 32 exact points per coast; "
+                        "Parquet needs pyarrow, in the studies extra)")
 
 
 @command("simulate", "one firing of one actuator: travel, outcome, timing")
@@ -61,6 +62,8 @@ def cmd_simulate(args: argparse.Namespace) -> None:
                   wavelength=args.wavelength, profile=args.profile, sim_kw=_sim_kw(args))
     sim = scene.simulator()
     scene.run()  # load the compiled kernel first, so wall_time_s is the steady-state figure
+    if args.trajectory:
+        _trajectory_format(args.trajectory)  # refuse a bad name before simulating
     res = scene.run(record=bool(args.plot or args.trajectory))
     out: dict[str, Any] = {
            "preset": args.preset, "freq_hz": args.freq, "stroke_m": args.stroke, "x0_m": args.x0,
@@ -72,20 +75,43 @@ def cmd_simulate(args: argparse.Namespace) -> None:
 
         out["plot"] = str(plot_firing(res, args.freq, args.plot, stroke=args.stroke))
     if args.trajectory:
-        out["trajectory_csv"] = _write_trajectory(res.trajectory, args.trajectory)
+        fmt = _trajectory_format(args.trajectory)
+        out[f"trajectory_{fmt}"] = _write_trajectory(res.trajectory, args.trajectory, fmt)
     emit(args, out)
 
 
-def _write_trajectory(traj: Any, path: str) -> str:
-    """The recorded ``t_s, x_m, v_m_s`` as CSV (SI, full precision); written whole or not at all."""
+def _trajectory_format(path: str) -> str:
+    """``csv`` or ``parquet`` from the file's suffix; ValueError otherwise or without pyarrow."""
+    fmt = path.rsplit(".", 1)[-1].lower() if "." in path else ""
+    if fmt not in ("csv", "parquet"):
+        raise ValueError(f"--trajectory {path!r}: give a .csv or .parquet file name")
+    if fmt == "parquet":
+        try:
+            import pyarrow  # noqa: F401
+        except ImportError:
+            raise ValueError("--trajectory FILE.parquet needs pyarrow: pip install "
+                             "'microconveyor-env[studies]'") from None
+    return fmt
+
+
+def _write_trajectory(traj: Any, path: str, fmt: str = "csv") -> str:
+    """The recorded ``t_s, x_m, v_m_s`` as CSV (full precision) or Parquet (float64 columns),
+    SI; written whole or not at all."""
     import os
 
     import numpy as np
 
     cols = ("t_s", "x_m", "v_m_s")
-    rows = np.column_stack([np.asarray(traj[c], float) for c in cols])
+    data = {c: np.asarray(traj[c], float) for c in cols}
     tmp = f"{path}.tmp"
-    np.savetxt(tmp, rows, delimiter=",", header=",".join(cols), comments="", fmt="%.17g")
+    if fmt == "parquet":
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        pq.write_table(pa.table(data), tmp)
+    else:
+        np.savetxt(tmp, np.column_stack([data[c] for c in cols]), delimiter=",",
+                   header=",".join(cols), comments="", fmt="%.17g")
     os.replace(tmp, path)
     return path
 

@@ -148,3 +148,13 @@ def test_simulate_exports_its_trajectory(tmp_path):
     assert csv.read_text().splitlines()[0] == "t_s,x_m,v_m_s"
     assert data[0, 1] == out["x0_m"] and np.all(np.diff(data[:, 0]) >= 0)
     assert data[-1, 1] == pytest.approx(out["x0_m"] + out["displacement_m"], abs=1e-12)
+    pq = pytest.importorskip("pyarrow.parquet")
+    par = tmp_path / "firing.parquet"
+    r = run("simulate", "--freq", "950", "--stroke", "200e-6", "--trajectory", str(par), "--json")
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["trajectory_parquet"] == str(par)
+    table = pq.read_table(par)
+    assert table.column_names == ["t_s", "x_m", "v_m_s"]
+    np.testing.assert_array_equal(table.column("x_m").to_numpy(), data[:, 1])  # same float64s
+    r = run("simulate", "--trajectory", str(tmp_path / "firing.txt"), "--json")
+    assert r.returncode == 2 and ".csv or .parquet" in json.loads(r.stdout)["error"]
