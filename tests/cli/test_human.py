@@ -27,3 +27,32 @@ def test_nested_and_long_values_stay_readable():
     assert lines[1] == "sub:" and lines[2].split() == ["b", "1", "µN"]
     assert "20 values: 1 µm ... 1 µm" in lines[3]
     assert "20 entries (--json for all)" in lines[4]
+
+
+# commands as a user types them without --json (small budgets); their printed output must not be
+# a Python dict dump or a raw SI float (issue 23: "0.00015000000000000001", "{'a': ...}")
+HUMAN_COMMANDS = [
+    ("contact", "--preset", "conveyor"),
+    ("simulate", "--freq", "950", "--stroke", "200e-6", "--x0", "-0.125e-3"),
+    ("sweep", "--freq", "600:800:100", "--stroke", "200e-6"),
+    ("optimize", "--problem", "target", "--target", "2e-3", "--budget", "30"),
+    ("evaluate", "--targets", "3"),
+    ("evaluate", "--env", "MicroConveyor-v1", "--targets", "3"),
+]
+
+
+def test_every_command_prints_readable_human_output():
+    import re
+    import subprocess
+    import sys
+
+    raw_float = re.compile(r"(?<![\w.])-?\d\.\d{9,}(e-?\d+)?|(?<![\w.])\d\.\d+e-\d\d(?!\s*/)")
+    for args in HUMAN_COMMANDS:
+        r = subprocess.run([sys.executable, "-m", "microconveyor_env.cli", *args],
+                           capture_output=True, text=True, timeout=300)
+        assert r.returncode == 0, (args, r.stderr)
+        out = r.stdout
+        assert out.strip(), args
+        assert "{'" not in out and "': " not in out, (args, out)      # no dict dumps
+        assert not raw_float.search(out), (args, raw_float.search(out), out)
+        assert re.search(r"µm|mm|nm|µN|nN|ms|Hz|%", out), (args, out)  # units people read
