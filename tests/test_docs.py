@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from support.snippets import assert_snippet_runs
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE_PAGES = ("examples.md", "getting-started.md")
@@ -88,9 +89,4 @@ def test_examples_are_there():
 
 @pytest.mark.parametrize("page, code", BLOCKS, ids=[f"{p}-{i}" for i, (p, _) in enumerate(BLOCKS)])
 def test_example_runs(page, code, tmp_path):
-    if "agents." in code:
-        pytest.importorskip("stable_baselines3")
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
-                       cwd=tmp_path)
-    assert r.returncode == 0, r.stderr[-3000:]
-    assert r.stdout.strip(), "each example prints what it shows"
+    assert_snippet_runs(code, tmp_path, timeout=300)
