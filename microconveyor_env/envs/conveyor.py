@@ -11,6 +11,7 @@ from gymnasium.core import RenderFrame
 from ..physics import dynamics_kernel as kernel
 from . import actions, task
 from .common import OwnsConveyor, check_render_mode, check_target
+from .part_state import PartState, reset_state
 from .config import EnvConfig
 from .frames import EnvRenderer, check_frames_per_stroke
 from .state import Conveyor
@@ -85,7 +86,10 @@ class MicroConveyorEnv(OwnsConveyor, gym.Env):
     Any field of :class:`EnvConfig` (defaults in ``configs/envs/MicroConveyor-v0.yaml``; v1's
     changes in ``configs/envs/MicroConveyor-v1.yaml``, its ``gym.spec`` kwargs), e.g.
     ``gym.make("MicroConveyor-v1", n_actuators=3, tolerance=100e-6)``.
-    ``reset(options={"target": d})`` sets the target distance d [m] beyond actuator 1.
+    ``reset(options={"target": d})`` sets the target distance d [m] beyond actuator 1;
+    ``reset(options={"state": s})`` starts from a saved part state ``s`` (:meth:`get_state`, a
+    :class:`~.part_state.PartState` or its dict): the episode continues exactly as the one it was
+    saved from (model-predictive control plans from it).
 
     ## Rendering (never changes a step: tests/envs/test_render.py)
     ``render_mode``: ``"rgb_array"`` (``render()`` gives the frame of the state now),
@@ -156,8 +160,11 @@ class MicroConveyorEnv(OwnsConveyor, gym.Env):
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
+        state = reset_state(options)
         given = check_target(options["target"]) if options and "target" in options else None
         self.conveyor.reset_part(0, self.np_random, given)
+        if state is not None:
+            self.conveyor.set_state(0, state)
         self._done = False
         self._last_firing = None
         obs = self.conveyor.observe()[0].copy()
@@ -165,6 +172,11 @@ class MicroConveyorEnv(OwnsConveyor, gym.Env):
         if self.render_mode == "human":
             self.render()
         return obs, self._info("moving", False)
+
+    def get_state(self) -> PartState:
+        """The part's state now (:class:`~.part_state.PartState`, SI units): ``reset(options=
+        {"state": s})`` continues the episode from it exactly."""
+        return self.conveyor.get_state(0)
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         if self._done:

@@ -68,10 +68,16 @@ def draw(cfg: EnvConfig, rngs: tuple[np.random.Generator, np.random.Generator],
     (f_lo, f_hi), (m_lo, m_hi) = cfg.friction_factor_range, cfg.mass_factor_range
     ff = f_lo + (f_hi - f_lo) * float(u_f)
     mf = m_lo + (m_hi - m_lo) * float(u_m)
-    P_row[:] = base_P
-    P_row[forces.I_MASS] = base_P[forces.I_MASS] * mf
-    P_row[forces.I_FSCALE] = base_P[forces.I_FSCALE] * ff
+    apply_factors(base_P, P_row, ff, mf)
     if cfg.action_noise > 0.0:
         assert noise_row is not None
         noise_row[:] = rngs[NOISE].standard_normal((cfg.n_actuators, 3))
     return ff, mf
+
+
+def apply_factors(base_P: np.ndarray, P_row: np.ndarray, friction_factor: float,
+                  mass_factor: float) -> None:
+    """Fill ``P_row`` with ``base_P`` whose friction and mass are multiplied by the factors [-]."""
+    P_row[:] = base_P
+    P_row[forces.I_MASS] = base_P[forces.I_MASS] * mass_factor
+    P_row[forces.I_FSCALE] = base_P[forces.I_FSCALE] * friction_factor

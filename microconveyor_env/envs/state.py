@@ -28,6 +28,7 @@ from ..physics import dynamics_kernel as kernel
 from . import actions, randomisation, task
 from .common import make_simulator, raise_if_beyond_table
 from .config import EnvConfig
+from .part_state import PartState, check_state
 from .step import (NO_NOISE, NO_RECORD, Constants, Outputs, Parts, observe_all, step_parallel,
                    step_serial)
 from .threads import ThreadChooser, threads
@@ -142,6 +143,34 @@ class Conveyor:
         p.x[i], p.v[i], p.t[i] = x0, 0.0, 0.0
         p.fired[i] = 0
         p.target[i] = tgt
+
+    def get_state(self, i: int) -> PartState:
+        """Part ``i``'s state now (with randomisation on, its factors and noise too)."""
+        p = self.parts
+        ff = mf = None
+        noise = None
+        if self.randomised:
+            ff, mf = float(self.friction_factor[i]), float(self.mass_factor[i])
+            if self.consts.noise.size:
+                noise = tuple(map(tuple, self.consts.noise[i].tolist()))
+        return PartState(float(p.x[i]), float(p.v[i]), float(p.t[i]), int(p.fired[i]),
+                         float(p.target[i]), ff, mf, noise)
+
+    def set_state(self, i: int, state: PartState | dict) -> None:
+        """Put part ``i`` in ``state`` (checked by :func:`.part_state.check_state`): after its
+        reset, so the fields a state leaves None keep this episode's draws."""
+        s = check_state(state, self.config)
+        p = self.parts
+        p.x[i], p.v[i], p.t[i] = s.position_m, s.velocity_m_s, s.time_s
+        p.fired[i] = s.fired
+        p.target[i] = s.target_m
+        if s.friction_factor is not None or s.mass_factor is not None:
+            ff = self.friction_factor[i] if s.friction_factor is None else s.friction_factor
+            mf = self.mass_factor[i] if s.mass_factor is None else s.mass_factor
+            self.friction_factor[i], self.mass_factor[i] = ff, mf
+            randomisation.apply_factors(self.sim.params, self.consts.P[i], ff, mf)
+        if s.noise is not None:
+            self.consts.noise[i] = np.asarray(s.noise)
 
     # ------------------------------------------------------------------ step
     def observe(self) -> np.ndarray:

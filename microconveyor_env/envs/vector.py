@@ -14,6 +14,7 @@ from ..physics import dynamics_kernel as kernel
 from . import actions as act, task
 from .common import OwnsConveyor, check_render_mode, check_target, conveyor_field
 from .config import EnvConfig
+from .part_state import PartState, reset_state
 from .state import Conveyor
 
 MAX_ENVS = 1_000_000  # parts in one batch (each costs ~1 kB of state)
@@ -31,6 +32,8 @@ class MicroConveyorVectorEnv(OwnsConveyor, VectorEnv):
     loop, k > 1 numba's parallel loop with k threads, ``None`` (default) picks between the two by
     measuring them as it runs (:mod:`.threads`). Results are bit-identical in every case.
     ``max_episode_steps`` (``make_vec`` passes the spec's): checked to be >= ``n_actuators``.
+    ``reset(options={"state": s})``: every sub-env starts from the part state ``s`` (a list:
+    one per sub-env); see the single env and :mod:`.part_state`.
     Per-episode randomisation (``action_noise``, ``friction_factor_range``, ``mass_factor_range``;
     :mod:`.randomisation`): each part has its own row of constants and draws from streams derived
     from its own generator, so sub-env ``i`` seeded ``seed + i`` draws what the single env seeded
@@ -91,11 +94,22 @@ class MicroConveyorVectorEnv(OwnsConveyor, VectorEnv):
     # ------------------------------------------------------------------ resets
     def _reset_one(self, i: int, options: dict | None) -> None:
         given = None
+        state = reset_state(options)
         if options and "target" in options:
             tv = np.broadcast_to(np.asarray(options["target"], dtype=float), (self.num_envs,))
             given = check_target(tv[i])
         self.conveyor.reset_part(i, self.rngs[i], given)
+        if state is not None:
+            if isinstance(state, (list, tuple)):
+                if len(state) != self.num_envs:
+                    raise ValueError(f"{len(state)} part states for {self.num_envs} envs")
+                state = state[i]
+            self.conveyor.set_state(i, state)
         self.done[i] = False
+
+    def get_state(self, i: int) -> PartState:
+        """Sub-env ``i``'s part state now (:class:`~.part_state.PartState`)."""
+        return self.conveyor.get_state(int(i))
 
     def reset(self, *, seed: int | list | None = None,
               options: dict | None = None) -> tuple[np.ndarray, dict]:
