@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from microconveyor_env.envs import EnvConfig, MicroConveyorVectorEnv
+from microconveyor_env.envs import EnvConfig, MicroConveyorVectorEnv, PartState
 from microconveyor_env.envs.actions import constants as action_constants, decode
 
 from .search import SearchResult, minimize
@@ -63,14 +63,16 @@ class Rollouts:
         self.episodes = 0
 
     def run(self, plans: np.ndarray, target: float | np.ndarray, seed: int = 0,
-            same_episode: bool = True) -> Replay:
+            same_episode: bool = True, start: PartState | None = None) -> Replay:
         """Play ``plans`` ``(B, n_actuators, 3)`` towards ``target`` [m] (scalar or per plan).
         Resets with ``seed`` [-]: ``same_episode`` gives every plan the episode of that seed
         (the same start, the same randomisation: common random numbers for a fair comparison);
         otherwise plan ``i`` gets seed ``seed + i`` (independent episodes, as for replays under
-        perturbation)."""
+        perturbation). ``start``: every episode starts from this part state instead (its target
+        is the one played; ``target`` is ignored) and the plans hold the remaining firings,
+        ``(B, n_actuators - start.fired, 3)``."""
         plans = np.asarray(plans, dtype=float)
-        n = self.config.n_actuators
+        n = self.config.n_actuators - (0 if start is None else start.fired)
         if plans.ndim != 3 or plans.shape[1:] != (n, 3):
             raise ValueError(f"plans must have shape (batch, {n}, 3), got {plans.shape}")
         b = plans.shape[0]
@@ -79,7 +81,7 @@ class Rollouts:
             env = self._envs[b] = MicroConveyorVectorEnv(b, config=self.config,
                                                          autoreset_mode="SameStep")
         env.reset(seed=[int(seed)] * b if same_episode else int(seed),
-                  options={"target": target})
+                  options={"target": target} if start is None else {"state": start})
         targets = env.target.copy()
         done = np.zeros(b, bool)
         err, t = np.full(b, np.nan), np.full(b, np.nan)
@@ -155,7 +157,8 @@ class TargetResult:
 
 def solve_target(target_m: float, method: str = "de", budget: int = 2000, seed: int = 0,
                  config: EnvConfig | None = None, rollouts: Rollouts | None = None,
-                 episode_seed: int = 0, **search_kw: Any) -> TargetResult:
+                 episode_seed: int = 0, start: PartState | None = None,
+                 **search_kw: Any) -> TargetResult:
     """Search the open-loop plan that brings the part to rest closest to ``target_m`` [m,
     measured from actuator 1] within ``budget`` episodes (used <= budget: see :mod:`.search`).
 
@@ -165,16 +168,19 @@ def solve_target(target_m: float, method: str = "de", budget: int = 2000, seed: 
     ``search_kw``: passed to the minimiser (e.g. ``popsize``). Every candidate plays the
     episode of seed ``episode_seed`` [-] (:meth:`Rollouts.run`, ``same_episode``): with the env's
     per-episode randomisation on (docs/randomisation.md) that is one draw of the factors and of
-    the action noise, the same for all candidates."""
+    the action noise, the same for all candidates. ``start``: plan only the remaining firings
+    of an episode from this part state (:meth:`Rollouts.run`; model-predictive control,
+    :mod:`agents.mpc`); the plan then has ``n_actuators - start.fired`` rows and the target is
+    the state's."""
     roll = rollouts or Rollouts(config)
     cfg = roll.config
-    n = cfg.n_actuators
-    target = float(target_m)
+    n = cfg.n_actuators - (0 if start is None else start.fired)
+    target = float(target_m if start is None else start.target_m)
     best: dict[str, Any] = {"cost": np.inf}
 
     def cost(X: np.ndarray) -> np.ndarray:
         plans = X.reshape(-1, n, 3).astype(np.float32).astype(float)
-        r = roll.run(plans, target, seed=episode_seed)
+        r = roll.run(plans, target, seed=episode_seed, start=start)
         err = r.abs_error_m
         c = np.where(r.rest, err, MISS + np.minimum(np.nan_to_num(err, nan=MISS), MISS))
         i = int(np.argmin(c))

@@ -1,0 +1,214 @@
+"""Model-predictive control (MPC) with the simulator as the model.
+
+Before every firing the controller observes the part (position, velocity, simulated time, how
+many actuators have fired: :class:`~microconveyor_env.envs.PartState`), searches the remaining
+firings on the **nominal** model from that state (DE or CMA-ES, :func:`..openloop.target.
+solve_target` with ``start=``), fires the first of them on the real part, and repeats. The real
+part may differ from the model (friction, mass, execution noise: the env's per-episode
+randomisation); each re-plan starts from where the part really is, so errors of earlier firings
+are corrected by later ones. The last firing can only be planned, not corrected.
+
+Budgets are in episodes of the model: ``first_budget`` for the plan before the first firing,
+``replan_budget`` for each later one. A re-plan is warm-started from the remainder of the
+previous plan (DE: one member of the start population; CMA-ES: the start mean), so with an exact
+model it keeps that plan unless it finds a better one. Everything is seeded: an MPC episode is
+deterministic given its seeds (``tests/agents/test_mpc.py``).
+"""
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from microconveyor_env.envs import EnvConfig, MicroConveyorEnv, PartState
+
+from ..openloop.search import METHODS, check_budget
+from ..openloop.target import Rollouts, solve_target
+
+
+@dataclass(frozen=True)
+class MPCSettings:
+    """``method`` (``"de"`` or ``"cmaes"``); ``first_budget`` / ``replan_budget`` [episodes of
+    the model] for the first plan and each re-plan; ``seed`` [-] of the searches (re-plan ``k``
+    of target ``i`` uses ``seed + 1000 i + k``); ``warm_start``: start each re-plan from the
+    previous plan's remainder."""
+
+    method: str = "de"
+    first_budget: int = 1000
+    replan_budget: int = 300
+    seed: int = 0
+    warm_start: bool = True
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise ValueError(f"MPC method = {self.method!r} is invalid: must be one of {METHODS}")
+        check_budget(self.first_budget, 5)
+        check_budget(self.replan_budget, 5)
+
+
+@dataclass
+class MPCEpisode:
+    """One controlled episode (SI units): the outcome as the env reports it, the firings as
+    fired (execution noise included), and the compute: model ``episodes`` searched and
+    ``wall_time_s`` [s] of planning."""
+
+    target_m: float
+    error_m: float
+    outcome: str
+    success: bool
+    time_s: float
+    firings: int
+    episodes: int
+    wall_time_s: float
+    friction_factor: float = 1.0
+    mass_factor: float = 1.0
+    frequency_hz: list[float] = field(default_factory=list)
+    stroke_m: list[float] = field(default_factory=list)
+    delay_s: list[float] = field(default_factory=list)
+
+
+def nominal_config(config: EnvConfig) -> EnvConfig:
+    """``config`` with its per-episode randomisation off: the model a controller plans on."""
+    return dataclasses.replace(config, action_noise=0.0, friction_factor_range=(1.0, 1.0),
+                               mass_factor_range=(1.0, 1.0))
+
+
+def observed(state: PartState) -> PartState:
+    """What the controller sees of a part: its kinematic state, never the episode's hidden
+    randomisation (friction and mass factors, noise)."""
+    return PartState(state.position_m, state.velocity_m_s, state.time_s, state.fired,
+                     state.target_m)
+
+
+class MPC:
+    """The controller: plans on ``model`` (an :class:`EnvConfig`, randomisation off: the nominal
+    model) with ``settings``. :meth:`run` controls one episode of a real env."""
+
+    def __init__(self, model: EnvConfig, settings: MPCSettings | None = None) -> None:
+        if model.randomised:
+            raise ValueError("the MPC's model must be nominal (randomisation off); perturb the "
+                             "real env instead")
+        self.model = model
+        self.settings = settings or MPCSettings()
+        self.rollouts = Rollouts(model)
+
+    def plan(self, state: PartState, budget: int, seed: int,
+             warm: np.ndarray | None = None) -> tuple[np.ndarray, int]:
+        """The best remaining plan ``(n_actuators - fired, 3)`` from ``state`` within ``budget``
+        model episodes, and the episodes used."""
+        kw: dict[str, Any] = {}
+        if warm is not None and len(warm):
+            kw["x0"] = np.clip(np.asarray(warm, float).ravel(), -1.0, 1.0)
+        r = solve_target(state.target_m, self.settings.method, budget, seed,
+                         rollouts=self.rollouts, start=state, **kw)
+        return r.plan, r.episodes
+
+    def run(self, env: MicroConveyorEnv, target_m: float, seed: int,
+            search_seed: int | None = None) -> MPCEpisode:
+        """Control one episode of ``env`` (reset with ``seed`` towards ``target_m`` [m]); the
+        searches are seeded from ``search_seed`` (default: the settings' seed)."""
+        s = self.settings
+        base = s.seed if search_seed is None else int(search_seed)
+        env.reset(seed=int(seed), options={"target": float(target_m)})
+        ff, mf = env.friction_factor, env.mass_factor
+        plan: np.ndarray | None = None
+        episodes, wall, k = 0, 0.0, 0
+        fired: dict[str, list[float]] = {"frequency_hz": [], "stroke_m": [], "delay_s": []}
+        while True:
+            state = observed(env.get_state())
+            warm = plan[1:] if (plan is not None and s.warm_start) else None
+            t0 = time.perf_counter()
+            plan, used = self.plan(state, s.first_budget if k == 0 else s.replan_budget,
+                                   base + k, warm)
+            wall += time.perf_counter() - t0
+            episodes += used
+            _, _, term, trunc, info = env.step(plan[0].astype(np.float32))
+            for key in fired:
+                fired[key].append(float(info[key]))
+            k += 1
+            if term or trunc:
+                break
+        return MPCEpisode(
+            target_m=float(target_m), error_m=float(info["position_error_m"]),
+            outcome=str(info["outcome"]), success=bool(info["is_success"]),
+            time_s=float(info["sim_time_s"]), firings=k, episodes=episodes, wall_time_s=wall,
+            friction_factor=ff, mass_factor=mf, frequency_hz=fired["frequency_hz"],
+            stroke_m=fired["stroke_m"], delay_s=fired["delay_s"])
+
+
+def _episodes(config: EnvConfig, model: EnvConfig | None, settings: MPCSettings | None,
+              targets: np.ndarray, seeds: np.ndarray, index: np.ndarray) -> list[MPCEpisode]:
+    """Episodes ``index`` (global numbers, for the search seeds) of :func:`mpc_rollout`."""
+    ctl = MPC(model or nominal_config(config), settings)
+    env = MicroConveyorEnv(config=config)
+    return [ctl.run(env, float(tg), int(sd), search_seed=ctl.settings.seed + 1000 * int(i))
+            for tg, sd, i in zip(targets, seeds, index, strict=True)]
+
+
+class MPCRollout:
+    """A rollout function ``(config, targets, seed) -> dict`` as :mod:`agents.experiments.perturb`
+    runs them: episode ``i`` is the single env of ``config`` seeded ``seed + i`` (the same episode
+    as sub-env ``i`` of the batched env), controlled by an :class:`MPC` planning on ``model``
+    (default: ``config`` with randomisation off), its searches seeded ``settings.seed + 1000 i``.
+    ``workers`` [-] processes share the targets (started once, on the first call, with
+    ``spawn``: numba's thread pool does not survive a fork; the results do not depend on the
+    number of workers); :meth:`close` (or ``with``) stops them. The dict also holds the compute
+    per target: ``episodes`` (of the model) and ``wall_time_s`` (planning)."""
+
+    def __init__(self, settings: MPCSettings | None = None, model: EnvConfig | None = None,
+                 workers: int = 1) -> None:
+        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+            raise ValueError(f"workers = {workers!r} is invalid: must be an integer >= 1")
+        self.settings, self.model, self.workers = settings, model, workers
+        self._pool: Any = None
+
+    def __call__(self, config: EnvConfig, targets: np.ndarray, seed: int) -> dict:
+        tg = np.asarray(targets, float)
+        index = np.arange(tg.size)
+        seeds = seed + index
+        k = min(self.workers, tg.size)
+        if k <= 1:
+            eps = _episodes(config, self.model, self.settings, tg, seeds, index)
+        else:
+            if self._pool is None:
+                import multiprocessing as mp
+                from concurrent.futures import ProcessPoolExecutor
+
+                self._pool = ProcessPoolExecutor(self.workers,
+                                                 mp_context=mp.get_context("spawn"))
+            parts = np.array_split(index, k)
+            futures = [self._pool.submit(_episodes, config, self.model, self.settings, tg[p],
+                                         seeds[p], p) for p in parts]
+            eps = [e for f in futures for e in f.result()]
+        out: dict[str, Any] = {
+            "targets_m": tg,
+            "error_m": np.array([e.error_m for e in eps]),
+            "outcome": np.array([e.outcome for e in eps], dtype=object),
+            "time_s": np.array([e.time_s for e in eps]),
+            "firings": np.array([e.firings for e in eps]),
+            "episodes": np.array([e.episodes for e in eps]),
+            "wall_time_s": np.array([e.wall_time_s for e in eps])}
+        if config.randomised:  # what the env drew for episode i (seed + i), as rollout() reports
+            out["friction_factor"] = np.array([e.friction_factor for e in eps])
+            out["mass_factor"] = np.array([e.mass_factor for e in eps])
+        return out
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
+
+    def __enter__(self) -> MPCRollout:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def mpc_rollout(settings: MPCSettings | None = None, model: EnvConfig | None = None,
+                workers: int = 1) -> MPCRollout:
+    """:class:`MPCRollout` (``settings``, ``model``, ``workers``)."""
+    return MPCRollout(settings, model, workers)

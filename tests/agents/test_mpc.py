@@ -1,0 +1,71 @@
+"""Model-predictive control: deterministic given its seeds, within its budgets, no worse than its
+own first plan on an exact model, the same with one worker or two, and clear errors."""
+import dataclasses
+
+import numpy as np
+import pytest
+
+from agents.mpc.controller import MPC, MPCSettings, mpc_rollout, nominal_config, observed
+from agents.openloop.target import solve_target
+from microconveyor_env.envs import MicroConveyorEnv, env_config
+
+pytest.importorskip("cma")
+
+TINY = MPCSettings(first_budget=40, replan_budget=20)
+
+
+def test_mpc_is_deterministic_and_respects_its_budgets():
+    cfg = env_config("MicroConveyor-v1")
+    a = MPC(cfg, TINY).run(MicroConveyorEnv(config=cfg), 3e-3, seed=1)
+    b = MPC(cfg, TINY).run(MicroConveyorEnv(config=cfg), 3e-3, seed=1)
+    assert dataclasses.replace(a, wall_time_s=0.0) == dataclasses.replace(b, wall_time_s=0.0)
+    assert 1 <= a.firings <= cfg.n_actuators
+    # the first plan gets its budget, each re-plan its own; DE uses whole generations only
+    assert a.episodes <= TINY.first_budget + (a.firings - 1) * TINY.replan_budget
+    assert a.episodes >= 20 and a.wall_time_s > 0
+
+
+@pytest.mark.parametrize("method", ["de", "cmaes"])
+def test_mpc_on_an_exact_model_is_no_worse_than_its_first_plan(method):
+    """Re-plans start from the previous plan's remainder (warm start) on the very model the part
+    follows, and a restart from a state is exact: the final error can only improve."""
+    cfg = env_config("MicroConveyor-v1")
+    s = MPCSettings(method=method, first_budget=60, replan_budget=30, seed=4)
+    for target in (1.2e-3, 6e-3):
+        env = MicroConveyorEnv(config=cfg)
+        ep = MPC(cfg, s).run(env, target, seed=0)
+        first = solve_target(target, method, 60, seed=4, config=cfg)
+        assert abs(ep.error_m) <= first.abs_error_m + 1e-12
+
+
+def test_one_worker_or_two_give_the_same_episodes():
+    cfg = env_config("MicroConveyor-v1", action_noise=3e-3, friction_factor_range=(0.95, 1.05),
+                     mass_factor_range=(0.95, 1.05))
+    targets = np.array([1e-3, 4e-3, 8e-3])
+    one = mpc_rollout(TINY)(cfg, targets, 7)
+    with mpc_rollout(TINY, workers=2) as run:
+        two = run(cfg, targets, 7)
+    for key in ("error_m", "episodes", "friction_factor", "mass_factor", "firings"):
+        assert np.array_equal(one[key], two[key]), key
+    assert list(one["outcome"]) == list(two["outcome"])
+    # the factors reported are the episode's: as the env seeded seed + i draws them
+    env = MicroConveyorEnv(config=cfg)
+    env.reset(seed=8)
+    assert one["friction_factor"][1] == env.friction_factor
+
+
+def test_the_controller_sees_no_hidden_randomisation_and_plans_nominally():
+    cfg = env_config("MicroConveyor-v1", action_noise=3e-3, friction_factor_range=(0.9, 1.1))
+    env = MicroConveyorEnv(config=cfg)
+    env.reset(seed=0)
+    seen = observed(env.get_state())
+    assert seen.friction_factor is None and seen.noise is None
+    assert not nominal_config(cfg).randomised
+    with pytest.raises(ValueError, match="nominal"):
+        MPC(cfg)
+    with pytest.raises(ValueError, match="method"):
+        MPCSettings(method="pso")
+    with pytest.raises(ValueError, match="budget"):
+        MPCSettings(first_budget=2)
+    with pytest.raises(ValueError, match="workers"):
+        mpc_rollout(workers=0)
