@@ -11,55 +11,121 @@ from microconveyor_env.cli.base import command, companion, count, emit, plot_pat
 
 from .args import add_env_args, budgets, env_config_of, env_kwargs_of, levels
 
+# --quick: a short look (README, tests): fewer targets, one small budget, a cheap MPC
+QUICK: dict[str, Any] = {"targets": 20, "budgets": [300], "mpc_budgets": (300, 100)}
+
+
+def pairs(text: str) -> list[tuple[float, float]]:
+    """``σ:r`` pairs, comma-separated (e.g. ``1e-3:0.01,3e-3:0.05``), each value >= 0."""
+    out = []
+    for item in (t.strip() for t in text.split(",") if t.strip()):
+        a, sep, b = item.partition(":")
+        try:
+            pair = (float(a), float(b))
+        except ValueError:
+            pair = (-1.0, -1.0)
+        if not sep or min(pair) < 0 or not all(map(lambda v: v < float("inf"), pair)):
+            raise argparse.ArgumentTypeError(f"{item!r}: give SIGMA:R with numbers >= 0, "
+                                             "e.g. 3e-3:0.05")
+        out.append(pair)
+    return out
+
+
+def mpc_budgets(text: str) -> tuple[int, int]:
+    """``FIRST,REPLAN`` episodes of the model (each >= 10), or 0 for no MPC (``(0, 0)``)."""
+    if text.strip() == "0":
+        return 0, 0
+    vals = text.split(",")
+    try:
+        first, replan = (int(float(v)) for v in vals)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: give FIRST,REPLAN (e.g. 1000,300) or 0"
+                                         ) from None
+    if min(first, replan) < 10:
+        raise argparse.ArgumentTypeError(f"{text!r}: MPC budgets must be >= 10 episodes")
+    return first, replan
+
 
 def add_args(p: argparse.ArgumentParser) -> None:
-    from ..experiments.compare import NOISE_LADDER, SPREAD_LADDER
+    from ..experiments.compare import DIAGONAL, MPC_SETTINGS, NOISE_LADDER, SPREAD_LADDER
 
-    p.add_argument("--targets", type=count(1, 10_000), default=20,
-                   help="number of fixed targets (drawn with --seed from the default range)")
+    p.add_argument("--targets", type=count(1, 10_000), default=None,
+                   help="number of fixed targets (drawn with --seed from the default range; "
+                        "default 100, --quick 20)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--budgets", type=budgets, default=[100, 300, 1000, 2000, 5000],
-                   help="episodes per target for DE and CMA-ES (comma list)")
+    p.add_argument("--budgets", type=budgets, default=None,
+                   help="episodes per target for DE and CMA-ES (comma list; default 1000, "
+                        "--quick 300)")
     p.add_argument("--methods", default="de,cmaes", help="open-loop methods: de, cmaes or both")
+    p.add_argument("--mpc-budgets", type=mpc_budgets, default=None, metavar="FIRST,REPLAN",
+                   help="MPC: episodes of the model before the first firing and per re-plan "
+                        f"(default {MPC_SETTINGS.first_budget},{MPC_SETTINGS.replan_budget}, "
+                        "--quick 300,100; 0: no MPC)")
+    p.add_argument("--mpc-method", choices=("de", "cmaes"), default="de",
+                   help="the MPC's planner")
+    p.add_argument("--workers", type=count(1, 64), default=2,
+                   help="processes for the MPC's episodes (results do not depend on it)")
     p.add_argument("--policy", default=None, help="PPO policy folder (default: the shipped one)")
     p.add_argument("--randomised-policy", default=None,
                    help="PPO trained with randomisation (default: the shipped one; '' to skip)")
+    p.add_argument("--policy-seeds", nargs="+", default=(), metavar="DIR",
+                   help="policy folders of PPO trained with other seeds: their IQM and 95 %% "
+                        "bootstrap interval, nominal and perturbed")
     p.add_argument("--noise", type=levels, default=list(NOISE_LADDER),
-                   help="execution-noise ladder σ [action units]")
+                   help="execution-noise axis σ [action units] (comma list)")
     p.add_argument("--spread", type=levels, default=list(SPREAD_LADDER),
-                   help="model-error ladder r [-]: friction and mass factors in [1-r, 1+r]")
-    p.add_argument("--repeats", type=count(1, 1000), default=5,
+                   help="model-error axis r [-]: friction and mass factors in [1-r, 1+r]")
+    p.add_argument("--diagonal", type=pairs, default=list(DIAGONAL), metavar="SIGMA:R,...",
+                   help="noise and model error together (default "
+                        + ",".join(f"{a:g}:{b:g}" for a, b in DIAGONAL) + ")")
+    p.add_argument("--full", action="store_true",
+                   help="also every (σ, r) combination of the two axes (the full grid; ~20 "
+                        "levels: long)")
+    p.add_argument("--quick", action="store_true",
+                   help="a short look: 20 targets, budget 300, MPC 300,100 (explicit options win)")
+    p.add_argument("--repeats", type=count(1, 1000), default=1,
                    help="perturbed replays per target and level")
     p.add_argument("--amortise-over", type=count(1), default=100,
                    help="targets over which PPO's training is amortised in the chart")
     p.add_argument("--plot", type=plot_path, default=None,
-                   help="chart file (success against tolerance); the compute and perturbation "
-                        "charts go beside it as STEM_compute and STEM_perturbation, the result "
-                        "as STEM.json")
-    add_env_args(p, what=" (the policies must have been trained on its scene)")
+                   help="chart file (success against tolerance); the compute, perturbation, "
+                        "episodes-to-tolerance (and with --full grid) charts go beside it as "
+                        "STEM_compute, STEM_perturbation, STEM_ecdf (STEM_grid), the result as "
+                        "STEM.json")
+    add_env_args(p, default="MicroConveyor-v1",
+                 what=" (the policies must have been trained on its scene)")
 
 
 def run(args: Any) -> None:
     from microconveyor_env.cli.base import json_default
 
-    from ..experiments.compare import compare, summary_table
+    from ..experiments.compare import MPC_SETTINGS, compare, summary_table
+    from ..mpc.controller import MPCSettings
     from ..plots.compare import plot_all
 
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     bad = sorted(set(methods) - {"de", "cmaes"})
     if bad or not methods:
         raise ValueError(f"--methods {args.methods!r}: choose from de, cmaes")
-    res = compare(n_targets=args.targets, seed=args.seed, budgets=args.budgets, methods=methods,
-                  policy=args.policy,
-                  randomised_policy=args.randomised_policy,
+    quick: dict[str, Any] = QUICK if args.quick else {}
+    n_targets = args.targets or quick.get("targets", 100)
+    budget_list = args.budgets or quick.get("budgets", [1000])
+    mb = args.mpc_budgets or quick.get("mpc_budgets") or (MPC_SETTINGS.first_budget,
+                                                          MPC_SETTINGS.replan_budget)
+    mpc = None if mb == (0, 0) else MPCSettings(method=args.mpc_method, first_budget=mb[0],
+                                                 replan_budget=mb[1], seed=args.seed)
+    res = compare(n_targets=n_targets, seed=args.seed, budgets=budget_list, methods=methods,
+                  policy=args.policy, randomised_policy=args.randomised_policy,
                   amortise_over=args.amortise_over, noise_ladder=args.noise,
-                  spread_ladder=args.spread, perturb_repeats=args.repeats,
-                  config=env_config_of(args),
+                  spread_ladder=args.spread, diagonal=args.diagonal, full_grid=args.full,
+                  perturb_repeats=args.repeats, mpc=mpc, mpc_workers=args.workers,
+                  policy_seeds=args.policy_seeds, config=env_config_of(args, args.env),
                   env_id=args.env)
     res.update(env_id=args.env, env_kwargs=env_kwargs_of(args))
     if args.plot:
         res["charts"] = plot_all(res, args.plot, companion(args.plot, "compute"),
-                                 companion(args.plot, "perturbation"))
+                                 companion(args.plot, "perturbation"),
+                                 companion(args.plot, "ecdf"), companion(args.plot, "grid"))
         out = Path(args.plot).with_suffix(".json")
         out.write_text(json.dumps(res, indent=1, default=json_default))
         res["charts"].append(str(out))
@@ -74,8 +140,9 @@ def _compare_args(p: argparse.ArgumentParser) -> None:
 
 
 @command("compare", "closed loop vs open loop on fixed targets: PPO (shipped and trained with "
-                    "randomisation), DE and CMA-ES at several budgets, a random policy and a fixed "
-                    "schedule; accuracy vs compute, success vs tolerance and vs perturbation",
+                    "randomisation), model-predictive control, DE and CMA-ES, a random policy "
+                    "and a fixed schedule; accuracy vs compute, success vs tolerance, episodes "
+                    "to the tolerance, success vs perturbation (noise, model error, both)",
          _compare_args)
 def cmd_compare(args: Any) -> None:
     run(args)

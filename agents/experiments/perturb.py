@@ -101,14 +101,14 @@ def plan_rollout(plans: np.ndarray) -> RolloutFn:
     return run
 
 
-def _wilson(k: int, n: int, z: float = 1.96) -> list[float]:
-    """95 % Wilson score interval of a success rate k / n."""
+def wilson(k: int, n: int) -> list[float]:
+    """95 % Wilson score interval of a success rate k / n (statsmodels' ``proportion_confint``)."""
     if n == 0:
         return [math.nan, math.nan]
-    p = k / n
-    c = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    mid = (p + z * z / (2 * n)) / (1 + z * z / n)
-    return [max(0.0, mid - c), min(1.0, mid + c)]
+    from statsmodels.stats.proportion import proportion_confint
+
+    lo, hi = proportion_confint(k, n, alpha=0.05, method="wilson")
+    return [float(lo), float(hi)]
 
 
 def perturbation_table(run: RolloutFn, config: EnvConfig, targets: Sequence[float] | np.ndarray,
@@ -160,7 +160,7 @@ def perturbation_table(run: RolloutFn, config: EnvConfig, targets: Sequence[floa
                      "friction_factor_range": list(cfg.friction_factor_range),
                      "mass_factor_range": list(cfg.mass_factor_range),
                      "n_episodes": int(err.size), "tolerance_m": tolerance,
-                     "success_rate": ok / err.size, "success_ci95": _wilson(ok, err.size),
+                     "success_rate": ok / err.size, "success_ci95": wilson(ok, err.size),
                      "median_abs_error_m": float(np.median(np.abs(err))),
                      "rest_rate": float(np.mean(rest)),
                      "detach_rate": float(np.mean(out == "detached"))})

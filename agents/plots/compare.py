@@ -10,13 +10,14 @@ import numpy as np
 from .common import pyplot
 
 LABELS = {"ppo": "PPO (shipped)", "ppo_randomised": "PPO trained with randomisation",
+          "mpc": "MPC (re-plans after each firing)",
           "random": "random policy", "fixed_schedule": "fixed schedule (950 Hz, 200 µm)",
           "de": "DE (open loop)", "cmaes": "CMA-ES (open loop)"}
-COLORS = {"ppo": "C0", "ppo_randomised": "C4", "random": "C7", "fixed_schedule": "C5",
+COLORS = {"ppo": "C0", "ppo_randomised": "C4", "mpc": "C3", "random": "C7", "fixed_schedule": "C5",
           "de": "C1", "cmaes": "C2"}
 # one marker shape per method, so points that coincide (e.g. several methods at 0 %) stay
 # distinguishable
-MARKERS = {"ppo": "s", "ppo_randomised": "P", "random": "X", "fixed_schedule": "^",
+MARKERS = {"ppo": "s", "ppo_randomised": "P", "mpc": "*", "random": "X", "fixed_schedule": "^",
            "de": "o", "cmaes": "D"}
 
 
@@ -113,41 +114,137 @@ def success_vs_tolerance(result: dict, path: str | Path) -> str:
     return str(path)
 
 
+def _level_label(row: dict) -> str:
+    parts = []
+    if row["action_noise"]:
+        parts.append(f"σ={row['action_noise']:g}")
+    if row["spread"]:
+        parts.append(f"r={100 * row['spread']:g}%")
+    return ", ".join(parts) or "none"
+
+
 def success_vs_perturbation(result: dict, path: str | Path) -> str:
+    """Success against each perturbation axis (noise, model error, both on the diagonal), 95 %
+    Wilson bands; methods side by side at each level so markers do not overlap."""
     plt = pyplot()
-    fig, axes = plt.subplots(1, 2, figsize=(12.5, 3.8), layout="constrained")
-    titles = {"action_noise": ("execution noise σ [action units]", "actions executed with noise"),
-              "spread": ("friction and mass factors in [1 − r, 1 + r]: r [-]",
-                         "model error (friction, mass)")}
-    for ax, axis in zip(axes, ("action_noise", "spread"), strict=True):
-        names = list(result["perturbation"])
-        for k, (name, tables) in enumerate(result["perturbation"].items()):
-            rows = tables[axis]
-            # methods side by side at each level (a few % in log x) so markers do not overlap
-            x = np.array([r[axis] for r in rows], float) * 1.06 ** (k - (len(names) - 1) / 2)
+    axes_names = [a for a in ("action_noise", "spread", "combined")
+                  if a in next(iter(result["perturbation"].values()))]
+    fig, axes = plt.subplots(1, len(axes_names), figsize=(5.2 * len(axes_names), 3.9),
+                             layout="constrained", squeeze=False)
+    titles = {"action_noise": "execution noise σ [action units]",
+              "spread": "model error: friction, mass in [1 − r, 1 + r]",
+              "combined": "both (the diagonal of the grid)"}
+    names = list(result["perturbation"])
+    for ax, axis in zip(axes[0], axes_names, strict=True):
+        for k, name in enumerate(names):
+            rows = result["perturbation"][name][axis]
+            x = np.arange(len(rows)) + 0.6 * (k - (len(names) - 1) / 2) / max(len(names), 1)
             y = 100 * np.array([r["success_rate"] for r in rows])
             lo = 100 * np.array([r["success_ci95"][0] for r in rows])
             hi = 100 * np.array([r["success_ci95"][1] for r in rows])
-            xp = np.where(x > 0, x, np.nan)
-            ax.semilogx(xp, y, "-", marker=_marker(name), color=_color(name), label=_label(name))
-            ax.fill_between(xp, lo, hi, color=_color(name), alpha=0.15, lw=0)
-            ax.axhline(y[0], color=_color(name), ls=":", lw=0.8)  # unperturbed level
-        xlabel, title = titles[axis]
-        from matplotlib.ticker import NullFormatter
+            ax.errorbar(x, y, yerr=[y - lo, hi - y], fmt=_marker(name) + "-", color=_color(name),
+                        label=_label(name), ms=5, lw=1, capsize=2, alpha=0.9)
+        seeds = result.get("seeds")
+        if seeds:
+            rows = seeds["perturbation"][axis]
+            x = np.arange(len(rows)) + 0.34
+            y = 100 * np.array([r["iqm"] for r in rows])
+            ci = 100 * np.array([r["ci95"] for r in rows])
+            ax.errorbar(x, y, yerr=[y - ci[:, 0], ci[:, 1] - y], fmt="s--", mfc="none",
+                        color=_color("ppo"), ms=5, lw=1, capsize=2,
+                        label=f"PPO, IQM of {len(seeds['policies'])} seeds")
+        labels = [_level_label(r) for r in result["perturbation"][names[0]][axis]]
+        ax.set_xticks(range(len(labels)), labels, rotation=30, ha="right", fontsize=7)
+        ax.set(xlabel=titles[axis], ylabel=f"success within ±{1e6 * result['tolerance_m']:.0f} µm [%]",
+               ylim=(-2, 102))
+    n = result["rows"][0]["n_targets"]
+    fig.suptitle(f"success against perturbation ({n} targets; bars: 95 % Wilson intervals)",
+                 fontsize=10)
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, fontsize=7, loc="outside right upper")
+    fig.savefig(path, dpi=150)
+    plt.close(fig)
+    return str(path)
 
-        ax.xaxis.set_minor_formatter(NullFormatter())  # labels at the decades only
-        ax.set(xlabel=xlabel, ylabel="success within ±50 µm [%]", ylim=(-2, 102),
-               title=f"{title} (dotted: unperturbed)")
-    fig.legend(*axes[0].get_legend_handles_labels(), fontsize=7, loc="outside right upper")
+
+def perturbation_grid(result: dict, path: str | Path) -> str | None:
+    """With the full grid: success [%] of each method at every (σ, r), as heat maps."""
+    names = [n for n, t in result["perturbation"].items() if "grid" in t]
+    if not names:
+        return None
+    plt = pyplot()
+    cols = min(4, len(names))
+    rows_n = -(-len(names) // cols)
+    fig, axes = plt.subplots(rows_n, cols, figsize=(3.4 * cols, 3.0 * rows_n),
+                             layout="constrained", squeeze=False)
+    for ax in axes.ravel()[len(names):]:
+        ax.set_visible(False)
+    im = None
+    for ax, name in zip(axes.ravel(), names, strict=False):
+        grid = result["perturbation"][name]["grid"]
+        sig = sorted({r["action_noise"] for r in grid})
+        rr = sorted({r["spread"] for r in grid})
+        z = np.full((len(sig), len(rr)), np.nan)
+        for r in grid:
+            z[sig.index(r["action_noise"]), rr.index(r["spread"])] = 100 * r["success_rate"]
+        im = ax.imshow(z, origin="lower", vmin=0, vmax=100, cmap="viridis", aspect="auto")
+        for (i, j), v in np.ndenumerate(z):
+            ax.text(j, i, f"{v:.0f}", ha="center", va="center", fontsize=7,
+                    color="w" if v < 60 else "k")
+        ax.set_xticks(range(len(rr)), [f"{100 * r:g}" for r in rr], fontsize=7)
+        ax.set_yticks(range(len(sig)), [f"{x:g}" for x in sig], fontsize=7)
+        ax.set(xlabel="model error r [%]", ylabel="noise σ", title=_label(name))
+        ax.title.set_fontsize(8)
+    if im is not None:
+        fig.colorbar(im, ax=axes, label="success [%]", shrink=0.8)
+    fig.savefig(path, dpi=150)
+    plt.close(fig)
+    return str(path)
+
+
+def episodes_ecdf(result: dict, path: str | Path) -> str:
+    """For the optimisers: the fraction of targets reached within the tolerance against the
+    episodes spent (the ECDF of each search's episodes to the tolerance, as COCO's runtime
+    distributions); MPC as a point at its mean episodes per target."""
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(8.4, 4), layout="constrained")
+    tol = 1e6 * result["tolerance_m"]
+    for r in result["rows"]:
+        if "episodes_to_tolerance" not in r:
+            continue
+        hits = np.sort([e for e in r["episodes_to_tolerance"] if e is not None])
+        n = r["n_targets"]
+        x = np.concatenate([[1], hits, [r["budget"]]])
+        y = 100 * np.concatenate([[0], np.arange(1, hits.size + 1) / n, [hits.size / n]])
+        ax.step(x, y, where="post", color=_color(r["method"]),
+                label=f"{_label(r['method'])}, budget {r['budget']}")
+    for r in result["rows"]:
+        if r["method"] == "mpc":
+            ax.semilogx(r["episodes_per_target"], 100 * r["success_rate"], _marker("mpc"),
+                        ms=12, color=_color("mpc"), label=f"{_label('mpc')} (mean episodes)")
+    ax.set_xscale("log")
+    ax.set(xlabel="episodes of the model per target", ylim=(-2, 102),
+           ylabel=f"targets reached within ±{tol:.0f} µm [%]",
+           title="episodes needed to reach the tolerance (ECDF over targets)")
+    fig.legend(*ax.get_legend_handles_labels(), fontsize=7, loc="outside right upper")
     fig.savefig(path, dpi=150)
     plt.close(fig)
     return str(path)
 
 
 def plot_all(result: dict, tolerance: str | Path, compute: str | Path,
-             perturbation: str | Path) -> list[str]:
-    """The three charts, at the three paths given."""
+             perturbation: str | Path, ecdf: str | Path | None = None,
+             grid: str | Path | None = None) -> list[str]:
+    """The charts, at the paths given (``ecdf``: episodes to the tolerance; ``grid``: the full
+    perturbation grid, drawn when the result has one)."""
     Path(tolerance).parent.mkdir(parents=True, exist_ok=True)
-    return [success_vs_tolerance(result, Path(tolerance)),
-            accuracy_vs_compute(result, Path(compute)),
-            success_vs_perturbation(result, Path(perturbation))]
+    out = [success_vs_tolerance(result, Path(tolerance)),
+           accuracy_vs_compute(result, Path(compute)),
+           success_vs_perturbation(result, Path(perturbation))]
+    if ecdf is not None:
+        out.append(episodes_ecdf(result, Path(ecdf)))
+    if grid is not None:
+        g = perturbation_grid(result, Path(grid))
+        if g:
+            out.append(g)
+    return out

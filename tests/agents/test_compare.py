@@ -20,33 +20,85 @@ def test_crossover():
 def test_compare_tiny_budget_writes_its_charts(tmp_path):
     out = tmp_path / "cmp"
     r = subprocess.run([sys.executable, "-m", "microconveyor_env.cli", "compare", "--targets", "2",
-                        "--budgets", "20,40", "--noise", "0,0.01", "--spread", "0,0.02",
-                        "--repeats", "1", "--randomised-policy", "", "--plot",
+                        "--env", "MicroConveyor-v0", "--budgets", "20,40", "--noise", "0,0.01",
+                        "--spread", "0,0.02", "--diagonal", "0.01:0.02", "--mpc-budgets",
+                        "20,10", "--repeats", "1", "--randomised-policy", "", "--plot",
                         str(out / "compare.png"), "--json"],
                        capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     res = json.loads(r.stdout)
     methods = [(row["method"], row.get("budget")) for row in res["rows"]]
-    assert methods == [("ppo", None), ("random", None), ("fixed_schedule", None), ("de", 20),
-                       ("de", 40), ("cmaes", 20), ("cmaes", 40)]
+    assert methods == [("ppo", None), ("mpc", None), ("random", None), ("fixed_schedule", None),
+                       ("de", 20), ("de", 40), ("cmaes", 20), ("cmaes", 40)]
     for row in res["rows"]:
         assert row["n_targets"] == 2 and 0 <= row["success_rate"] <= 1
         assert row["wall_s_per_target"] > 0
         if "budget" in row:
             assert row["episodes_per_target"] <= row["budget"]
+            reached = [e for e in row["episodes_to_tolerance"] if e is not None]
+            assert all(0 < e <= row["budget"] for e in reached)
+    mpc = res["rows"][1]
+    # one first plan of 20 and at most 4 re-plans of 10 per target
+    assert 10 <= mpc["episodes_per_target"] <= 20 + 4 * 10
     assert res["rows"][0]["train_wall_s"] > 0 and res["rows"][0]["train_steps"] > 0
     pert = res["perturbation"]
-    assert set(pert) == {"ppo", "de_40_plan", "cmaes_40_plan"}
+    assert set(pert) == {"ppo", "mpc", "random", "fixed_schedule", "de_40_plan", "cmaes_40_plan"}
     assert [lvl["action_noise"] for lvl in pert["ppo"]["action_noise"]] == [0.0, 0.01]
     assert [lvl["spread"] for lvl in pert["ppo"]["spread"]] == [0.0, 0.02]
-    # the unperturbed level replays what the table reports for the same policy and targets
-    assert pert["ppo"]["action_noise"][0]["success_rate"] == res["rows"][0]["success_rate"]
-    for name in ("compare_compute.png", "compare.png", "compare_perturbation.png"):
+    assert [(lvl["action_noise"], lvl["spread"]) for lvl in pert["ppo"]["combined"]] == [
+        (0.0, 0.0), (0.01, 0.02)]
+    # the unperturbed level replays what the table reports for the same method and targets
+    for name, row in (("ppo", res["rows"][0]), ("mpc", mpc)):
+        assert pert[name]["action_noise"][0]["success_rate"] == row["success_rate"]
+        assert pert[name]["spread"][0] == pert[name]["action_noise"][0]
+    for name in ("compare_compute.png", "compare.png", "compare_perturbation.png",
+                 "compare_ecdf.png"):
         assert (out / name).stat().st_size > 20_000
+    assert not (out / "compare_grid.png").exists()  # only with --full
     assert json.loads((out / "compare.json").read_text())["targets_m"] == res["targets_m"]
 
 
-def test_compare_rejects_bad_arguments():
-    r = subprocess.run([sys.executable, "-m", "microconveyor_env.cli", "compare", "--methods",
-                        "pso", "--json"], capture_output=True, text=True, timeout=300)
-    assert r.returncode == 2 and "de, cmaes" in json.loads(r.stdout)["error"]
+def test_compare_full_grid_and_seed_iqm(tmp_path):
+    """v1 (the default env), --quick shrunk further, the full grid and two 'seeds' (the shipped
+    policy twice: their IQM is its own success, with a zero-width interval)."""
+    from agents.rl.shipped import require_shipped
+
+    shipped = str(require_shipped("MicroConveyor-v1"))
+    out = tmp_path / "cmp"
+    r = subprocess.run([sys.executable, "-m", "microconveyor_env.cli", "compare", "--quick",
+                        "--targets", "2", "--budgets", "20", "--mpc-budgets", "0", "--noise",
+                        "0.01", "--spread", "0.02", "--diagonal", "0.01:0.02", "--full",
+                        "--policy-seeds", shipped, shipped, "--plot", str(out / "c.png"),
+                        "--json"], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    res = json.loads(r.stdout)
+    assert res["env_id"] == "MicroConveyor-v1"
+    assert "mpc" not in [row["method"] for row in res["rows"]]
+    grid = res["perturbation"]["ppo"]["grid"]
+    assert sorted((g["action_noise"], g["spread"]) for g in grid) == [
+        (0.0, 0.0), (0.0, 0.02), (0.01, 0.0), (0.01, 0.02)]
+    nominal = res["seeds"]["nominal"]
+    assert nominal["iqm"] == res["rows"][0]["success_rate"]
+    assert nominal["ci95"] == [nominal["iqm"]] * 2
+    assert (out / "c_grid.png").stat().st_size > 20_000
+    assert "full grid" in r.stderr
+
+
+def test_iqm_and_episodes_to_tolerance():
+    from agents.experiments.compare import episodes_to, iqm
+
+    res = iqm([0.1, 0.5, 0.6, 0.7, 1.0])
+    assert res["iqm"] == pytest.approx((0.5 + 0.6 + 0.7) / 3)  # trims 1 of 5 at each end
+    assert res["ci95"][0] <= res["iqm"] <= res["ci95"][1]
+    assert episodes_to([10, 20, 30], [None, 60e-6, 40e-6], 50e-6) == 30
+    assert episodes_to([10, 20], [None, 1e-3], 50e-6) is None
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--methods", "pso"], "de, cmaes"), (["--diagonal", "0.01"], "SIGMA:R"),
+    (["--diagonal=-1:0.1"], "SIGMA:R"), (["--mpc-budgets", "100"], "FIRST,REPLAN"),
+    (["--mpc-budgets", "5,5"], ">= 10"), (["--workers", "0"], "workers")])
+def test_compare_rejects_bad_arguments(argv, message):
+    r = subprocess.run([sys.executable, "-m", "microconveyor_env.cli", "compare", *argv,
+                        "--json"], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2 and message in json.loads(r.stdout)["error"]
