@@ -7,7 +7,9 @@ actuator is active at a time.
 """
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy.typing as npt
 
@@ -64,6 +66,21 @@ class Firing:
                                                       unit="s"))
 
 
+def checked_firings(firings: Iterable[Any], n_actuators: int, owner: str,
+                    holder: str) -> tuple[Firing, ...]:
+    """``firings`` as a tuple, each a :class:`Firing` of one of ``n_actuators`` [-] actuators;
+    ParameterError naming ``owner`` (the schedule class) and ``holder`` (what holds the
+    actuators) otherwise."""
+    out = tuple(firings)
+    for f in out:
+        if not isinstance(f, Firing):
+            raise ParameterError(f"{owner}.firings must hold Firing objects, got {f!r}")
+        if f.actuator >= n_actuators:
+            raise ParameterError(f"Firing.actuator = {f.actuator} is invalid: the {holder} has "
+                                 f"{n_actuators} actuators")
+    return out
+
+
 @dataclass(frozen=True)
 class Schedule:
     """Firings on an actuator array."""
@@ -72,14 +89,8 @@ class Schedule:
     firings: tuple[Firing, ...]
 
     def __post_init__(self) -> None:
-        firings = tuple(self.firings)
-        for f in firings:
-            if not isinstance(f, Firing):
-                raise ParameterError(f"Schedule.firings must hold Firing objects, got {f!r}")
-            if f.actuator >= len(self.array):
-                raise ParameterError(f"Firing.actuator = {f.actuator} is invalid: the array has "
-                                     f"{len(self.array)} actuators")
-        object.__setattr__(self, "firings", firings)
+        object.__setattr__(self, "firings",
+                           checked_firings(self.firings, len(self.array), "Schedule", "array"))
 
     @classmethod
     def single(cls, frequency: float, stroke: float, delay: float = 0.0,

@@ -1,5 +1,6 @@
 """Helpers the tests share (on ``sys.path`` through pytest's ``pythonpath = ["tests"]``):
-``support.dynamics`` (simulators and constants of the dynamics tests), ``support.lockstep``
+``support.dynamics`` (simulators and constants of the dynamics tests), ``support.plane``
+(the plane's simulators and scenes), ``support.lockstep``
 (batched env against SyncVectorEnv), ``support.fingerprint_child`` (table and rollout hashes in a
 child process). ``DATA`` is the folder of stored test data."""
 from pathlib import Path
