@@ -231,12 +231,17 @@ def _accuracy_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="--episode: seed of the episode set")
 
 
-@command("bench", "kernel speed on the reference firing, against the dissertation-style loop")
+@command("bench", "kernel speed on the reference firing, against the dissertation-style loop "
+                  "(--plane: and in the plane)")
 def cmd_bench(args: argparse.Namespace) -> None:
     """Kernel wall times [s] per mode, against the plain-Python reference loop."""
     from ..studies.bench import bench_modes
 
     out: dict[str, Any] = {"modes": bench_modes(args.preset, repeats=args.repeats)}
+    if args.plane:
+        from ..studies.bench import bench_plane
+
+        out["plane"] = bench_plane(args.preset, repeats=args.repeats)
     if args.skip_reference:
         out["reference"] = None
         out["reference_note"] = "skipped"
@@ -257,6 +262,9 @@ def _bench_args(p: argparse.ArgumentParser) -> None:
                    help="timed repeats per mode")
     p.add_argument("--skip-reference", action="store_true",
                    help="do not run the (slow) plain-Python reference")
+    p.add_argument("--plane", action="store_true",
+                   help="also time one firing in the plane (docs/physics.md §10) against the same "
+                        "firing on the line: the 2-D/1-D cost ratio")
 
 
 ARGS.update({"simulate": _simulate_args, "sweep": _sweep_args, "accuracy": _accuracy_args,

@@ -37,24 +37,25 @@ from .kinematics import CLAMPED_BEAM, GAUSSIAN, SHAPES, SINUSOIDAL, shape_eval, 
 
 
 @njit(cache=True)
-def radial_slope_over_r(kind, r, wl):
-    """``g'(r) / r`` [1/m^2] of shape ``kind`` at radial distance ``r >= 0`` [m], exact at r = 0.
+def radial_slope_over_r(kind, r, wl, g, g_r):
+    """``g'(r) / r`` [1/m^2] of shape ``kind`` at radial distance ``r >= 0`` [m], exact at r = 0,
+    from ``g`` [-] and ``g_r = g'(r)`` [1/m] there (:func:`.kinematics.shape_eval`).
 
-    Gaussian ``-g / s^2``; sinusoid ``-(k/2) sin(k r) / r`` (``-k^2/2`` at 0); clamped beam
-    ``-48 v / wl^3`` with ``v = wl/2 - r`` (the beam's ``g'`` is ``-48 v r / wl^3``); 0 outside the
-    compact shapes' support ``r > wl/2``.
+    Gaussian ``-g / s^2``; sinusoid ``g_r / r`` (``-k^2/2`` at 0, ``k = 2 pi / wl``); clamped beam
+    ``-48 v / wl^3`` with ``v = wl/2 - r`` (its ``g_r = -48 v r / wl^3``, whose form in
+    :func:`.kinematics.shape_eval` cancels near the centre); 0 outside the compact shapes'
+    support ``r > wl/2``.
     """
     if kind == GAUSSIAN:
         s = wl / 6.0
-        inv_s2 = 1.0 / (s * s)
-        return -inv_s2 * math.exp(-0.5 * r * r * inv_s2)
+        return -g / (s * s)
     if kind == SINUSOIDAL:
         if r > 0.5 * wl:
             return 0.0
-        k = 2.0 * math.pi / wl
         if r == 0.0:
+            k = 2.0 * math.pi / wl
             return -0.5 * k * k
-        return -0.5 * k * math.sin(k * r) / r
+        return g_r / r
     if kind == CLAMPED_BEAM:
         if r > 0.5 * wl:
             return 0.0
@@ -81,7 +82,7 @@ def plane_surface_eval(x, y, t, xa, ya, f, h, kind, wl):
     else:            # the centre: grad Z = 0 and the Hessian is isotropic, e is moot
         ex = 0.0
         ey = 0.0
-    k = radial_slope_over_r(kind, r, wl)
+    k = radial_slope_over_r(kind, r, wl, g, g_r)
     pg = p * g_r
     ptg = p_t * g_r
     return (p * g, pg * ex, pg * ey, p_tt * g, ptg * ex, ptg * ey,

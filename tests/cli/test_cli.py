@@ -75,6 +75,16 @@ def test_bench_without_reference_runs():
         assert out["modes"][mode]["median_wall_time_s"] > 0 and out["modes"][mode]["kernel_steps_per_s"] > 0
 
 
+def test_bench_plane_reports_the_2d_cost_ratio():
+    """``bench --plane``: the plane's firing on the line takes the 1-D firing's steps; the cost
+    ratios are positive numbers (their size is a measurement: docs/validation.md)."""
+    r = run("bench", "--json", "--repeats", "5", "--skip-reference", "--plane")
+    assert r.returncode == 0, r.stderr
+    plane = json.loads(r.stdout)["plane"]
+    assert plane["plane_on_line"]["steps"] == plane["line"]["steps"]
+    assert plane["plane_on_line_cost_ratio"] > 0 and plane["plane_off_axis_cost_ratio"] > 0
+
+
 def test_demo_writes_charts_and_summary(tmp_path):
     r = run("demo", "--out", str(tmp_path), "--json")
     assert r.returncode == 0, r.stderr
