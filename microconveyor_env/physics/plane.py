@@ -157,7 +157,7 @@ class PlaneSimulator:
                     for n, v in (("vx0", vx0), ("vy0", vy0)))
         xa, ya, f, h, d = schedule.arrays()
         if f.size:
-            self.line.check_firings(f, h)
+            self.check_firings(f, h)
         cap = 0
         if record:
             cap = (int(stroke_steps(f, self.dt, self.min_steps).sum()) * 2
@@ -197,6 +197,17 @@ class PlaneSimulator:
             if detached else None,
             steps=int(out[kernel.O_STEPS]), events=int(out[kernel.O_EVENTS]), wall_time_s=wall,
             trajectory=traj)
+
+    def check_firings(self, f: np.ndarray, h: np.ndarray, mass_factor: float = 1.0) -> None:
+        """The 1-D checks of firings at frequencies ``f`` [Hz] with strokes ``h`` [m] (the step
+        budget, under-resolved strokes, loads beyond the contact table for a part ``mass_factor``
+        [-] times heavier): :meth:`.simulator.Simulator.check_firings`."""
+        self.line.check_firings(np.asarray(f, dtype=float), np.asarray(h, dtype=float),
+                                mass_factor)
+
+    def steps_per_stroke(self, frequency: float) -> int:
+        """RK4 steps [-] of one stroke at ``frequency`` [Hz] (as on the line)."""
+        return self.line.steps_per_stroke(frequency)
 
     def flat_deceleration(self) -> float:
         """Deceleration of a part sliding on the still plane, Q(m g0)/m [m/s^2]."""

@@ -270,6 +270,19 @@ def test_bad_inputs_raise_parameter_error(build, match):
         build()
 
 
+def test_firing_checks_are_the_lines():
+    """The plane refuses what the line refuses (loads beyond the table, step budgets) and counts
+    the same steps per stroke."""
+    from microconveyor_env.physics.contact_table import TableRangeError
+
+    with pytest.raises(TableRangeError, match="beyond the contact table"):
+        plane_sim().check_firings(np.array([2e5]), np.array([1e-2]))
+    with pytest.raises(ParameterError, match="max_steps"):
+        plane_sim(max_steps=10).simulate(
+            PlaneSchedule(ActuatorGrid(((0.0, 0.0),)), (Firing(0, 10.0, 1e-4),)), 0.0, 0.0)
+    assert plane_sim().steps_per_stroke(950.0) == sim().steps_per_stroke(950.0) == 22
+
+
 def test_regular_grid_indexing():
     g = ActuatorGrid.regular(5, 3, 0.5e-3, origin=(1e-3, -1e-3))
     assert len(g) == 15 and g.positions[0] == (1e-3, -1e-3)
