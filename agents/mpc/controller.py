@@ -24,9 +24,10 @@ from typing import Any
 import numpy as np
 
 from microconveyor_env.envs import EnvConfig, MicroConveyorEnv, PartState
+from microconveyor_env.envs.versions import nominal
 
-from ..openloop.search import METHODS, check_budget
-from ..openloop.target import Rollouts, solve_target
+from ..openloop.search import METHODS, check_budget, minimize
+from ..openloop.target import MISS, Rollouts, solve_target
 
 
 @dataclass(frozen=True)
@@ -34,19 +35,51 @@ class MPCSettings:
     """``method`` (``"de"`` or ``"cmaes"``); ``first_budget`` / ``replan_budget`` [episodes of
     the model] for the first plan and each re-plan; ``seed`` [-] of the searches (re-plan ``k``
     of target ``i`` uses ``seed + 1000 i + k``); ``warm_start``: start each re-plan from the
-    previous plan's remainder."""
+    previous plan's remainder.
+
+    Robustness (both off by default): ``noise_copies`` K [-] and ``assumed_noise`` σ [action
+    units]: each candidate plan is scored by the mean of its capped error over K copies
+    executed with noise σ (the same K draws for every candidate of a search: common random
+    numbers), so the search prefers plans that hold under noise (a budget buys budget / K
+    candidates); ``identify``: before each re-plan, estimate this episode's friction and mass
+    factors from the firings seen so far (the commanded action and the observed states before
+    and after each), over factors in [1 − ``factor_range``, 1 + ``factor_range``], and plan on
+    the model with those factors."""
 
     method: str = "de"
     first_budget: int = 1000
     replan_budget: int = 300
     seed: int = 0
     warm_start: bool = True
+    noise_copies: int = 1
+    assumed_noise: float = 0.0
+    identify: bool = False
+    factor_range: float = 0.1
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
             raise ValueError(f"MPC method = {self.method!r} is invalid: must be one of {METHODS}")
-        check_budget(self.first_budget, 5)
-        check_budget(self.replan_budget, 5)
+        k = self.noise_copies
+        if isinstance(k, bool) or not isinstance(k, int) or not 1 <= k <= 1000:
+            raise ValueError(f"MPC noise_copies = {k!r} is invalid: must be an integer in "
+                             "[1, 1000]")
+        check_budget(self.first_budget, 5 * k)
+        check_budget(self.replan_budget, 5 * k)
+        if not (isinstance(self.assumed_noise, (int, float)) and 0.0 <= self.assumed_noise <= 1.0):
+            raise ValueError(f"MPC assumed_noise = {self.assumed_noise!r} is invalid: must be a "
+                             "sigma in [0, 1] action units")
+        if (k > 1) != (self.assumed_noise > 0):
+            raise ValueError("MPC noise_copies > 1 and assumed_noise > 0 go together (a robust "
+                             "plan averages its cost over noisy copies)")
+        if not (isinstance(self.factor_range, (int, float)) and 0.0 < self.factor_range <= 0.9):
+            raise ValueError(f"MPC factor_range = {self.factor_range!r} is invalid: must be in "
+                             "(0, 0.9]")
+
+    @property
+    def robust(self) -> bool:
+        """Plans are scored over noisy copies (:attr:`noise_copies` draws of
+        :attr:`assumed_noise`)."""
+        return self.noise_copies > 1
 
 
 @dataclass
@@ -65,15 +98,10 @@ class MPCEpisode:
     wall_time_s: float
     friction_factor: float = 1.0
     mass_factor: float = 1.0
+    estimated_factors: tuple[float, float] = (1.0, 1.0)
     frequency_hz: list[float] = field(default_factory=list)
     stroke_m: list[float] = field(default_factory=list)
     delay_s: list[float] = field(default_factory=list)
-
-
-def nominal_config(config: EnvConfig) -> EnvConfig:
-    """``config`` with its per-episode randomisation off: the model a controller plans on."""
-    return dataclasses.replace(config, action_noise=0.0, friction_factor_range=(1.0, 1.0),
-                               mass_factor_range=(1.0, 1.0))
 
 
 def observed(state: PartState) -> PartState:
@@ -81,6 +109,13 @@ def observed(state: PartState) -> PartState:
     randomisation (friction and mass factors, noise)."""
     return PartState(state.position_m, state.velocity_m_s, state.time_s, state.fired,
                      state.target_m)
+
+
+Transition = tuple[PartState, np.ndarray, PartState]  # observed before, commanded, observed after
+ID_GRID = 9          # identification: candidates per factor and pass
+ID_PASSES = 2        # a coarse grid over the prior range, then a finer one around its best
+ID_SCALES = (10e-6, 1e-3)  # m, m/s: position and velocity residuals are counted in these units
+TIE_BREAK = 0.1      # robust cost: weight of the smooth term beyond the cap (agents.experiments.reach)
 
 
 class MPC:
@@ -92,19 +127,89 @@ class MPC:
             raise ValueError("the MPC's model must be nominal (randomisation off); perturb the "
                              "real env instead")
         self.model = model
-        self.settings = settings or MPCSettings()
-        self.rollouts = Rollouts(model)
+        self.settings = s = settings or MPCSettings()
+        # the planning model: nominal, or (identify / robust) the same scene whose factors a
+        # start state may set and whose copies draw execution noise of the assumed sigma
+        r = s.factor_range
+        planning = dataclasses.replace(
+            model, action_noise=float(s.assumed_noise),
+            friction_factor_range=(1.0 - r, 1.0 + r) if s.identify else (1.0, 1.0),
+            mass_factor_range=(1.0 - r, 1.0 + r) if s.identify else (1.0, 1.0))
+        self.rollouts = Rollouts(planning)
+        self._id_env: Any = None
+        self.factors: tuple[float, float] = (1.0, 1.0)  # friction, mass: the current estimate
 
     def plan(self, state: PartState, budget: int, seed: int,
              warm: np.ndarray | None = None) -> tuple[np.ndarray, int]:
         """The best remaining plan ``(n_actuators - fired, 3)`` from ``state`` within ``budget``
         model episodes, and the episodes used."""
+        s = self.settings
         kw: dict[str, Any] = {}
         if warm is not None and len(warm):
             kw["x0"] = np.clip(np.asarray(warm, float).ravel(), -1.0, 1.0)
-        r = solve_target(state.target_m, self.settings.method, budget, seed,
-                         rollouts=self.rollouts, start=state, **kw)
-        return r.plan, r.episodes
+        if s.identify:
+            state = dataclasses.replace(state, friction_factor=self.factors[0],
+                                        mass_factor=self.factors[1])
+        if not s.robust:
+            r = solve_target(state.target_m, s.method, budget, seed, rollouts=self.rollouts,
+                             start=state, **kw)
+            return r.plan, r.episodes
+        return self._robust_plan(state, budget, seed, kw)
+
+    def _robust_plan(self, state: PartState, budget: int, seed: int,
+                     kw: dict[str, Any]) -> tuple[np.ndarray, int]:
+        k = self.settings.noise_copies
+        n = self.model.n_actuators - state.fired
+        tol = self.model.tolerance
+        copies = (np.random.default_rng(seed).integers(0, 2**31 - 1, k)).tolist()
+
+        def cost(X: np.ndarray) -> np.ndarray:
+            plans = np.repeat(X.reshape(-1, n, 3).astype(np.float32).astype(float), k, axis=0)
+            r = self.rollouts.run(plans, state.target_m, seed=copies * (len(plans) // k),
+                                  start=state)
+            e = np.where(r.rest, np.nan_to_num(r.abs_error_m, nan=MISS), MISS)
+            c = np.minimum(e, 10 * tol) + TIE_BREAK * tol * np.log1p(e / tol)
+            return c.reshape(-1, k).mean(axis=1)
+
+        res = minimize(self.settings.method, cost, [(-1.0, 1.0)] * (3 * n), budget // k, seed,
+                       **kw)
+        return res.x.reshape(n, 3).astype(np.float32).astype(float), res.episodes * k
+
+    def identify(self, history: list[Transition]) -> tuple[float, float]:
+        """The (friction, mass) factors [-] under which the model best reproduces the observed
+        firings of ``history``: least squares of the position and velocity residuals after each
+        firing (in units of :data:`ID_SCALES`) over a grid of the prior range, refined once."""
+        from microconveyor_env.envs import MicroConveyorVectorEnv
+
+        r = self.settings.factor_range
+        g = ID_GRID
+        if self._id_env is None:
+            cfg = dataclasses.replace(self.rollouts.config, action_noise=0.0)
+            self._id_env = MicroConveyorVectorEnv(g * g, config=cfg)
+        env = self._id_env
+        lo_f = lo_m = 1.0 - r
+        span = 2.0 * r
+        best = self.factors
+        for _ in range(ID_PASSES):
+            ff, mf = (np.array(m).ravel() for m in np.meshgrid(
+                np.linspace(lo_f, lo_f + span, g), np.linspace(lo_m, lo_m + span, g),
+                indexing="ij"))
+            cost = np.zeros(g * g)
+            for before, action, after in history:
+                starts = [dataclasses.replace(before, friction_factor=float(a),
+                                              mass_factor=float(b))
+                          for a, b in zip(ff, mf, strict=True)]
+                env.reset(seed=0, options={"state": starts})
+                env.step(np.repeat(action[None].astype(np.float32), g * g, axis=0))
+                cost += ((env.x - after.position_m) / ID_SCALES[0]) ** 2
+                cost += ((env.v - after.velocity_m_s) / ID_SCALES[1]) ** 2
+            i = int(np.argmin(cost))
+            best = (float(ff[i]), float(mf[i]))
+            step = span / (g - 1)
+            span = 2.0 * step  # the next pass: +-1 cell around the best, finer
+            lo_f = min(max(best[0] - step, 1.0 - r), 1.0 + r - span)
+            lo_m = min(max(best[1] - step, 1.0 - r), 1.0 + r - span)
+        return best
 
     def run(self, env: MicroConveyorEnv, target_m: float, seed: int,
             search_seed: int | None = None) -> MPCEpisode:
@@ -114,18 +219,26 @@ class MPC:
         base = s.seed if search_seed is None else int(search_seed)
         env.reset(seed=int(seed), options={"target": float(target_m)})
         ff, mf = env.friction_factor, env.mass_factor
+        self.factors = (1.0, 1.0)
+        history: list[Transition] = []
         plan: np.ndarray | None = None
         episodes, wall, k = 0, 0.0, 0
         fired: dict[str, list[float]] = {"frequency_hz": [], "stroke_m": [], "delay_s": []}
         while True:
             state = observed(env.get_state())
-            warm = plan[1:] if (plan is not None and s.warm_start) else None
             t0 = time.perf_counter()
+            if history:
+                history[-1] = (history[-1][0], history[-1][1], state)
+                if s.identify:
+                    self.factors = self.identify(history)
+            warm = plan[1:] if (plan is not None and s.warm_start) else None
             plan, used = self.plan(state, s.first_budget if k == 0 else s.replan_budget,
                                    base + k, warm)
             wall += time.perf_counter() - t0
             episodes += used
-            _, _, term, trunc, info = env.step(plan[0].astype(np.float32))
+            action = plan[0].astype(np.float32)
+            history.append((state, action.astype(float), state))
+            _, _, term, trunc, info = env.step(action)
             for key in fired:
                 fired[key].append(float(info[key]))
             k += 1
@@ -135,14 +248,15 @@ class MPC:
             target_m=float(target_m), error_m=float(info["position_error_m"]),
             outcome=str(info["outcome"]), success=bool(info["is_success"]),
             time_s=float(info["sim_time_s"]), firings=k, episodes=episodes, wall_time_s=wall,
-            friction_factor=ff, mass_factor=mf, frequency_hz=fired["frequency_hz"],
-            stroke_m=fired["stroke_m"], delay_s=fired["delay_s"])
+            friction_factor=ff, mass_factor=mf, estimated_factors=self.factors,
+            frequency_hz=fired["frequency_hz"], stroke_m=fired["stroke_m"],
+            delay_s=fired["delay_s"])
 
 
 def _episodes(config: EnvConfig, model: EnvConfig | None, settings: MPCSettings | None,
               targets: np.ndarray, seeds: np.ndarray, index: np.ndarray) -> list[MPCEpisode]:
     """Episodes ``index`` (global numbers, for the search seeds) of :func:`mpc_rollout`."""
-    ctl = MPC(model or nominal_config(config), settings)
+    ctl = MPC(model or nominal(config), settings)
     env = MicroConveyorEnv(config=config)
     return [ctl.run(env, float(tg), int(sd), search_seed=ctl.settings.seed + 1000 * int(i))
             for tg, sd, i in zip(targets, seeds, index, strict=True)]

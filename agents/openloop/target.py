@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import asdict, dataclass, field
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -62,13 +63,14 @@ class Rollouts:
         self._envs: dict[int, MicroConveyorVectorEnv] = {}
         self.episodes = 0
 
-    def run(self, plans: np.ndarray, target: float | np.ndarray, seed: int = 0,
+    def run(self, plans: np.ndarray, target: float | np.ndarray, seed: int | Sequence[int] = 0,
             same_episode: bool = True, start: PartState | None = None) -> Replay:
         """Play ``plans`` ``(B, n_actuators, 3)`` towards ``target`` [m] (scalar or per plan).
         Resets with ``seed`` [-]: ``same_episode`` gives every plan the episode of that seed
         (the same start, the same randomisation: common random numbers for a fair comparison);
         otherwise plan ``i`` gets seed ``seed + i`` (independent episodes, as for replays under
-        perturbation). ``start``: every episode starts from this part state instead (its target
+        perturbation); a sequence gives plan ``i`` seed ``seed[i]``. ``start``: every episode
+        starts from this part state instead (its target
         is the one played; ``target`` is ignored) and the plans hold the remaining firings,
         ``(B, n_actuators - start.fired, 3)``."""
         plans = np.asarray(plans, dtype=float)
@@ -80,7 +82,13 @@ class Rollouts:
         if env is None:
             env = self._envs[b] = MicroConveyorVectorEnv(b, config=self.config,
                                                          autoreset_mode="SameStep")
-        env.reset(seed=[int(seed)] * b if same_episode else int(seed),
+        if not isinstance(seed, (int, np.integer)):
+            seeds = [int(x) for x in seed]
+            if len(seeds) != b:
+                raise ValueError(f"{len(seeds)} seeds for {b} plans")
+        else:
+            seeds = [int(seed)] * b if same_episode else [int(seed) + i for i in range(b)]
+        env.reset(seed=seeds,
                   options={"target": target} if start is None else {"state": start})
         targets = env.target.copy()
         done = np.zeros(b, bool)

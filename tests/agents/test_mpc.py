@@ -5,9 +5,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from agents.mpc.controller import MPC, MPCSettings, mpc_rollout, nominal_config, observed
+from agents.mpc.controller import MPC, MPCSettings, mpc_rollout, observed
 from agents.openloop.target import solve_target
 from microconveyor_env.envs import MicroConveyorEnv, env_config
+from microconveyor_env.envs.versions import nominal
 
 pytest.importorskip("cma")
 
@@ -60,7 +61,7 @@ def test_the_controller_sees_no_hidden_randomisation_and_plans_nominally():
     env.reset(seed=0)
     seen = observed(env.get_state())
     assert seen.friction_factor is None and seen.noise is None
-    assert not nominal_config(cfg).randomised
+    assert not nominal(cfg).randomised
     with pytest.raises(ValueError, match="nominal"):
         MPC(cfg)
     with pytest.raises(ValueError, match="method"):
@@ -69,3 +70,39 @@ def test_the_controller_sees_no_hidden_randomisation_and_plans_nominally():
         MPCSettings(first_budget=2)
     with pytest.raises(ValueError, match="workers"):
         mpc_rollout(workers=0)
+
+
+def test_identification_recovers_the_episodes_friction_without_noise():
+    """Without execution noise the observed firings are the model's with the true factors, so
+    the grid search finds the true friction to within its finer grid's resolution (the mass
+    factor is only weakly identifiable: adhesion dominates the weight, so the pair sits on a
+    ridge; the friction-to-mass ratio is what a coast reveals)."""
+    real = env_config("MicroConveyor-v1", friction_factor_range=(0.9, 1.1),
+                      mass_factor_range=(1.0, 1.0))
+    s = MPCSettings(first_budget=40, replan_budget=20, identify=True, factor_range=0.1)
+    ctl = MPC(nominal(real), s)
+    env = MicroConveyorEnv(config=real)
+    found = 0
+    for seed in range(6):
+        ep = ctl.run(env, 9e-3, seed=seed)
+        if ep.firings >= 2:  # identified from at least one observed firing
+            found += 1
+            step = 2 * 0.1 / (9 - 1) / 4  # the refined grid's spacing
+            assert abs(ep.estimated_factors[0] / ep.estimated_factors[1]
+                       - ep.friction_factor / ep.mass_factor) <= 2 * step, ep
+    assert found >= 3
+
+
+def test_robust_settings_are_checked():
+    with pytest.raises(ValueError, match="go together"):
+        MPCSettings(noise_copies=4)
+    with pytest.raises(ValueError, match="go together"):
+        MPCSettings(assumed_noise=3e-3)
+    with pytest.raises(ValueError, match="budget"):
+        MPCSettings(noise_copies=8, assumed_noise=3e-3, first_budget=30)
+    with pytest.raises(ValueError, match="factor_range"):
+        MPCSettings(identify=True, factor_range=0.0)
+    s = MPCSettings(first_budget=80, replan_budget=80, noise_copies=4, assumed_noise=3e-3)
+    cfg = env_config("MicroConveyor-v1")
+    ep = MPC(cfg, s).run(MicroConveyorEnv(config=cfg), 2e-3, seed=0)
+    assert ep.episodes <= 80 * ep.firings and ep.episodes % 4 == 0
