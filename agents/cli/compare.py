@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 from pathlib import Path
@@ -47,7 +48,8 @@ def mpc_budgets(text: str) -> tuple[int, int]:
 
 
 def add_args(p: argparse.ArgumentParser) -> None:
-    from ..experiments.compare import DIAGONAL, MPC_SETTINGS, NOISE_LADDER, SPREAD_LADDER
+    from ..experiments.compare import (DIAGONAL, MPC_SETTINGS, NOISE_LADDER,
+                                       ROBUST_MPC_SETTINGS, SPREAD_LADDER)
 
     p.add_argument("--targets", type=count(1, 10_000), default=None,
                    help="number of fixed targets (drawn with --seed from the default range; "
@@ -63,6 +65,13 @@ def add_args(p: argparse.ArgumentParser) -> None:
                         "--quick 300,100; 0: no MPC)")
     p.add_argument("--mpc-method", choices=("de", "cmaes"), default="de",
                    help="the MPC's planner")
+    p.add_argument("--robust-mpc", type=mpc_budgets, nargs="?", default=None,
+                   const=(ROBUST_MPC_SETTINGS.first_budget, ROBUST_MPC_SETTINGS.replan_budget),
+                   metavar="FIRST,REPLAN",
+                   help="also the robust, adaptive MPC: 8 noisy copies per candidate at σ=3e-3, "
+                        "friction and mass identified online (budgets default "
+                        f"{ROBUST_MPC_SETTINGS.first_budget},{ROBUST_MPC_SETTINGS.replan_budget}"
+                        ": ~5x the MPC's compute)")
     p.add_argument("--workers", type=count(1, 64), default=2,
                    help="processes for the MPC's episodes (results do not depend on it)")
     p.add_argument("--policy", default=None, help="PPO policy folder (default: the shipped one)")
@@ -118,7 +127,8 @@ def run(args: Any) -> None:
                   policy=args.policy, randomised_policy=args.randomised_policy,
                   amortise_over=args.amortise_over, noise_ladder=args.noise,
                   spread_ladder=args.spread, diagonal=args.diagonal, full_grid=args.full,
-                  perturb_repeats=args.repeats, mpc=mpc, mpc_workers=args.workers,
+                  perturb_repeats=args.repeats, mpc=mpc,
+                  robust_mpc=_robust(args.robust_mpc, args.seed), mpc_workers=args.workers,
                   policy_seeds=args.policy_seeds, config=env_config_of(args, args.env),
                   env_id=args.env)
     res.update(env_id=args.env, env_kwargs=env_kwargs_of(args))
@@ -133,6 +143,15 @@ def run(args: Any) -> None:
     if args.json:
         print(text, file=sys.stderr)
     emit(args, res, text + "".join(f"\nwrote {c}" for c in res.get("charts", [])))
+
+
+def _robust(budgets: tuple[int, int] | None, seed: int) -> Any:
+    from ..experiments.compare import ROBUST_MPC_SETTINGS
+
+    if budgets is None or budgets == (0, 0):
+        return None
+    return dataclasses.replace(ROBUST_MPC_SETTINGS, first_budget=budgets[0],
+                               replan_budget=budgets[1], seed=seed)
 
 
 def _compare_args(p: argparse.ArgumentParser) -> None:

@@ -18,6 +18,7 @@ With several training seeds of PPO (``policy_seeds``), their IQM and its bootstr
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -46,6 +47,11 @@ SPREAD_LADDER = (0.0, 0.01, 0.02, 0.05, 0.1)
 DIAGONAL = ((1e-3, 0.01), (3e-3, 0.05), (1e-2, 0.1))
 # the MPC of the comparison: episodes of the model before the first firing and per re-plan
 MPC_SETTINGS = MPCSettings(first_budget=1000, replan_budget=300)
+# the robust, adaptive MPC (compare(robust_mpc=...), `compare --robust-mpc`): each candidate
+# scored over 8 copies under the goal level's noise sigma = 3e-3, friction and mass identified
+# within +-10 % from the firings seen (agents.mpc); ~5x the nominal MPC's compute
+ROBUST_MPC_SETTINGS = MPCSettings(first_budget=4000, replan_budget=2000, noise_copies=8,
+                                  assumed_noise=3e-3, identify=True, factor_range=0.1)
 
 
 class _RandomPolicy:
@@ -169,7 +175,8 @@ def compare(n_targets: int = 100, seed: int = 0, budgets: Sequence[int] = (1000,
             noise_ladder: Sequence[float] = NOISE_LADDER,
             spread_ladder: Sequence[float] = SPREAD_LADDER,
             diagonal: Sequence[tuple[float, float]] = DIAGONAL, full_grid: bool = False,
-            perturb_repeats: int = 1, mpc: MPCSettings | None = MPC_SETTINGS, mpc_workers: int = 2,
+            perturb_repeats: int = 1, mpc: MPCSettings | None = MPC_SETTINGS,
+            robust_mpc: MPCSettings | None = None, mpc_workers: int = 2,
             policy_seeds: Sequence[str | Path] = (), config: EnvConfig | None = None,
             progress: bool = True, env_id: str = "MicroConveyor-v1") -> dict:
     """Run the comparison on ``n_targets`` fixed targets (drawn with ``seed`` from the target
@@ -177,7 +184,8 @@ def compare(n_targets: int = 100, seed: int = 0, budgets: Sequence[int] = (1000,
     its scene); ``budgets``: episodes per target for each open-loop ``method``; ``policy``: the PPO
     policy (default: the one shipped for ``env_id``), ``randomised_policy``: the PPO trained
     under randomisation (default: ``env_id``'s shipped ``ppo_randomised`` if present; ``""`` to
-    skip); ``mpc``: the MPC's settings (None: no MPC), run by ``mpc_workers`` processes;
+    skip); ``mpc``: the MPC's settings (None: no MPC), ``robust_mpc`` a second, robust MPC's
+    (e.g. :data:`ROBUST_MPC_SETTINGS`; None: none), both run by ``mpc_workers`` processes;
     ``policy_seeds``: policy folders of PPO
     trained with other seeds on the same recipe (their IQM, nominal and perturbed);
     ``amortise_over``: N targets for the amortised PPO point; the perturbation axes
@@ -200,14 +208,15 @@ def compare(n_targets: int = 100, seed: int = 0, budgets: Sequence[int] = (1000,
     with contextlib.ExitStack() as stack:  # the MPC's worker processes
         return _compare(stack, cfg, targets, ppo, rand_path, seeds, seed, budgets, methods,
                         amortise_over, noise_ladder, spread_ladder, diagonal, full_grid,
-                        perturb_repeats, mpc, mpc_workers, progress, env_id)
+                        perturb_repeats, mpc, robust_mpc, mpc_workers, progress, env_id)
 
 
 def _compare(stack: contextlib.ExitStack, cfg: EnvConfig, targets: np.ndarray, ppo: Any,
              rand_path: Path | None, seeds: list, seed: int, budgets: Sequence[int],
              methods: Sequence[str], amortise_over: int, noise_ladder: Sequence[float],
              spread_ladder: Sequence[float], diagonal: Sequence[tuple[float, float]],
-             full_grid: bool, perturb_repeats: int, mpc: MPCSettings | None, mpc_workers: int,
+             full_grid: bool, perturb_repeats: int, mpc: MPCSettings | None,
+             robust_mpc: MPCSettings | None, mpc_workers: int,
              progress: bool, env_id: str) -> dict:
     from tqdm import tqdm
 
@@ -229,17 +238,18 @@ def _compare(stack: contextlib.ExitStack, cfg: EnvConfig, targets: np.ndarray, p
     runners: dict[str, Callable] = {"ppo": policy_rollout(ppo)}
     if robust is not None:
         runners["ppo_randomised"] = policy_rollout(robust)
-    if mpc is not None:
-        run_mpc = stack.enter_context(mpc_rollout(mpc, workers=mpc_workers))
+    for name, settings in (("mpc", mpc), ("mpc_robust", robust_mpc)):
+        if settings is None:
+            continue
+        run_mpc = stack.enter_context(mpc_rollout(settings, workers=mpc_workers))
         t0 = time.perf_counter()
         res = run_mpc(cfg, targets, seed)
-        rows.append(_rows("mpc", res, targets, cfg.tolerance,
+        rows.append(_rows(name, res, targets, cfg.tolerance,
                           wall_s_per_target=(time.perf_counter() - t0) / len(targets),
                           episodes_per_target=float(np.mean(res["episodes"])),
                           planning_wall_s_per_target=float(np.mean(res["wall_time_s"])),
-                          first_budget=mpc.first_budget, replan_budget=mpc.replan_budget,
-                          planner=mpc.method))
-        runners["mpc"] = run_mpc
+                          workers=mpc_workers, settings=dataclasses.asdict(settings)))
+        runners[name] = run_mpc
     rows.append(_closed_loop("random", _RandomPolicy(seed), targets, cfg, seed))
     fixed = encode_actions(FIXED_SCHEDULE["frequency_hz"], FIXED_SCHEDULE["stroke_m"],
                            FIXED_SCHEDULE["delay_s"], cfg)
@@ -315,12 +325,17 @@ def summary_table(result: dict) -> str:
                  "(firings); "
                  f"amortised over {result['ppo_amortised']['over_targets']} targets: "
                  f"{result['ppo_amortised']['wall_s_per_target']:.2f} s per target")
-    mpc = next((r for r in result["rows"] if r["method"] == "mpc"), None)
-    if mpc is not None:
-        lines.append(f"MPC ({mpc['planner']}, {mpc['first_budget']} episodes before the first "
-                     f"firing, {mpc['replan_budget']} per re-plan): "
-                     f"{mpc['episodes_per_target']:.0f} model episodes and "
-                     f"{mpc['planning_wall_s_per_target']:.2f} s of planning per target")
+    for r in result["rows"]:
+        if r["method"].startswith("mpc"):
+            st = r["settings"]
+            extra = (f", {st['noise_copies']} noisy copies at σ={st['assumed_noise']:g}"
+                     if st["noise_copies"] > 1 else "")
+            extra += ", friction and mass identified online" if st["identify"] else ""
+            lines.append(f"{r['method']} ({st['method']}, {st['first_budget']} episodes before "
+                         f"the first firing, {st['replan_budget']} per re-plan{extra}): "
+                         f"{r['episodes_per_target']:.0f} model episodes and "
+                         f"{r['planning_wall_s_per_target']:.2f} s of planning per target "
+                         f"({r['wall_s_per_target']:.2f} s wall with {r['workers']} workers)")
     lines += ["", perturbation_text(result)]
     return "\n".join(lines)
 

@@ -11,13 +11,14 @@ from .common import pyplot
 
 LABELS = {"ppo": "PPO (shipped)", "ppo_randomised": "PPO trained with randomisation",
           "mpc": "MPC (re-plans after each firing)",
+          "mpc_robust": "robust adaptive MPC (noisy copies, identifies friction)",
           "random": "random policy", "fixed_schedule": "fixed schedule (950 Hz, 200 µm)",
           "de": "DE (open loop)", "cmaes": "CMA-ES (open loop)"}
-COLORS = {"ppo": "C0", "ppo_randomised": "C4", "mpc": "C3", "random": "C7", "fixed_schedule": "C5",
+COLORS = {"ppo": "C0", "ppo_randomised": "C4", "mpc": "C3", "mpc_robust": "C9", "random": "C7", "fixed_schedule": "C5",
           "de": "C1", "cmaes": "C2"}
 # one marker shape per method, so points that coincide (e.g. several methods at 0 %) stay
 # distinguishable
-MARKERS = {"ppo": "s", "ppo_randomised": "P", "mpc": "*", "random": "X", "fixed_schedule": "^",
+MARKERS = {"ppo": "s", "ppo_randomised": "P", "mpc": "*", "mpc_robust": "h", "random": "X", "fixed_schedule": "^",
            "de": "o", "cmaes": "D"}
 
 
@@ -219,9 +220,10 @@ def episodes_ecdf(result: dict, path: str | Path) -> str:
         ax.step(x, y, where="post", color=_color(r["method"]),
                 label=f"{_label(r['method'])}, budget {r['budget']}")
     for r in result["rows"]:
-        if r["method"] == "mpc":
-            ax.semilogx(r["episodes_per_target"], 100 * r["success_rate"], _marker("mpc"),
-                        ms=12, color=_color("mpc"), label=f"{_label('mpc')} (mean episodes)")
+        if r["method"].startswith("mpc"):
+            m = r["method"]
+            ax.semilogx(r["episodes_per_target"], 100 * r["success_rate"], _marker(m), ms=12,
+                        color=_color(m), label=f"{_label(m)} (mean episodes)")
     ax.set_xscale("log")
     ax.set(xlabel="episodes of the model per target", ylim=(-2, 102),
            ylabel=f"targets reached within ±{tol:.0f} µm [%]",

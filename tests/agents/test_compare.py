@@ -66,20 +66,24 @@ def test_compare_full_grid_and_seed_iqm(tmp_path):
     shipped = str(require_shipped("MicroConveyor-v1"))
     out = tmp_path / "cmp"
     r = subprocess.run([sys.executable, "-m", "microconveyor_env.cli", "compare", "--quick",
-                        "--targets", "2", "--budgets", "20", "--mpc-budgets", "0", "--noise",
+                        "--targets", "2", "--budgets", "20", "--mpc-budgets", "0", "--robust-mpc",
+                        "80,40", "--noise",
                         "0.01", "--spread", "0.02", "--diagonal", "0.01:0.02", "--full",
                         "--policy-seeds", shipped, shipped, "--plot", str(out / "c.png"),
                         "--json"], capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     res = json.loads(r.stdout)
     assert res["env_id"] == "MicroConveyor-v1"
-    assert "mpc" not in [row["method"] for row in res["rows"]]
+    assert [row["method"] for row in res["rows"]][:3] == ["ppo", "ppo_randomised", "mpc_robust"]
     grid = res["perturbation"]["ppo"]["grid"]
     assert sorted((g["action_noise"], g["spread"]) for g in grid) == [
         (0.0, 0.0), (0.0, 0.02), (0.01, 0.0), (0.01, 0.02)]
     nominal = res["seeds"]["nominal"]
     assert nominal["iqm"] == res["rows"][0]["success_rate"]
     assert nominal["ci95"] == [nominal["iqm"]] * 2
+    robust = res["rows"][2]
+    assert robust["settings"]["identify"] and robust["settings"]["noise_copies"] == 8
+    assert "friction and mass identified online" in r.stderr
     assert (out / "c_grid.png").stat().st_size > 20_000
     assert "full grid" in r.stderr
 
@@ -97,7 +101,7 @@ def test_iqm_and_episodes_to_tolerance():
 @pytest.mark.parametrize("argv, message", [
     (["--methods", "pso"], "de, cmaes"), (["--diagonal", "0.01"], "SIGMA:R"),
     (["--diagonal=-1:0.1"], "SIGMA:R"), (["--mpc-budgets", "100"], "FIRST,REPLAN"),
-    (["--mpc-budgets", "5,5"], ">= 10"), (["--workers", "0"], "workers")])
+    (["--mpc-budgets", "5,5"], ">= 10"), (["--robust-mpc", "x"], "FIRST,REPLAN"), (["--workers", "0"], "workers")])
 def test_compare_rejects_bad_arguments(argv, message):
     r = subprocess.run([sys.executable, "-m", "microconveyor_env.cli", "compare", *argv,
                         "--json"], capture_output=True, text=True, timeout=300)
