@@ -70,6 +70,8 @@ class EnvConfig:
     action_noise: float = 0.0  # [action units] sigma of Gaussian noise on each fired action
     friction_factor_range: tuple = (1.0, 1.0)  # [-] factor on the friction Q, uniform per episode
     mass_factor_range: tuple = (1.0, 1.0)  # [-] factor on the part mass, uniform per episode
+    # observation history, off by default (the env card, "Observation history")
+    observe_history: int = 0  # [firings] previous firings appended to the observation
 
     def __post_init__(self):
         self._check_ranges()
@@ -114,6 +116,14 @@ class EnvConfig:
                 raise ParameterError(f"EnvConfig.num_threads = {nt!r} is invalid: must be null "
                                      "(automatic) or an integer in [1, 1024]")
             object.__setattr__(self, "num_threads", int(nt))
+        k = self.observe_history
+        if isinstance(k, bool) or not isinstance(k, (int, float)) or not math.isfinite(k) \
+                or k != int(k) or not 0 <= k <= self.n_actuators - 1:
+            raise ParameterError(f"EnvConfig.observe_history = {k!r} is invalid: must be an "
+                                 f"integer in [0, n_actuators - 1 = {self.n_actuators - 1}] "
+                                 "(firings to remember; the last firing's decision sees at most "
+                                 "n_actuators - 1 before it)")
+        object.__setattr__(self, "observe_history", int(k))
 
     def _check_pairs(self) -> None:
         for name, (lo, hi, unit) in _PAIRS.items():

@@ -51,6 +51,24 @@ class MicroConveyorEnv(OwnsConveyor, gym.Env):
     | 4 | fraction of actuators fired | – |
     | 5 | target (distance beyond actuator 1) | / 10 mm |
 
+    ## Observation history (``observe_history`` k, off by default)
+    With k > 0 [firings, integer in [0, ``n_actuators`` − 1]] the observation is
+    ``Box(-10, 10, (6 + 10 k,), float32)``: the row above, then the k most recent firings of this
+    episode, the latest first, 10 numbers each: the 6-number row observed **before** that firing,
+    the action **as commanded** (3 numbers, action units, clipped to [-1, 1]; the execution
+    noise is not in it: the controller cannot know it) and 1.0 (the slot holds a firing; an empty
+    slot, before k firings, is all zeros). Why this: with randomisation the friction and mass
+    factors are hidden, but each remembered (row before, action) pair with the row after it (the
+    next slot's row, or the current one) is one observed transition of the dynamics: the velocity
+    and position a known firing left from a known state tell this episode's friction and mass,
+    which the current row alone cannot (it holds no action). Actions, not the fired (noisy)
+    values, because only what was commanded is known to a real controller. k = ``n_actuators``
+    − 1 remembers the whole episode at the last decision. ``reset`` empties the history, and so
+    does ``reset(options={"state": s})``: a :class:`~.part_state.PartState` carries no history,
+    so an episode restarted from a saved state starts with empty slots (its rows and dynamics
+    continue exactly). ``observe_history`` = 0 is the 6-number observation, unchanged bit for
+    bit. The single and the batched env fill the history identically.
+
     ## Reward
     ``Phi(s') - Phi(s) - time_cost * (t' - t) + success_bonus * [success]`` with the potential
     ``Phi = -min(|x - target|, progress_horizon) / progress_scale`` (the horizon: default twice the
@@ -89,7 +107,7 @@ class MicroConveyorEnv(OwnsConveyor, gym.Env):
     ``reset(options={"target": d})`` sets the target distance d [m] beyond actuator 1;
     ``reset(options={"state": s})`` starts from a saved part state ``s`` (:meth:`get_state`, a
     :class:`~.part_state.PartState` or its dict): the episode continues exactly as the one it was
-    saved from (model-predictive control plans from it).
+    saved from (model-predictive control plans from it), with an empty observation history.
 
     ## Rendering (never changes a step: tests/envs/test_render.py)
     ``render_mode``: ``"rgb_array"`` (``render()`` gives the frame of the state now),
@@ -139,8 +157,8 @@ class MicroConveyorEnv(OwnsConveyor, gym.Env):
         self.conveyor = Conveyor(self.config, 1, num_threads=1)
         self.conveyor.parts.target[0] = np.nan  # no target before the first reset
         self.action_space = spaces.Box(-1.0, 1.0, (actions.ACTION_DIM,), np.float32)
-        self.observation_space = spaces.Box(-task.OBS_BOUND, task.OBS_BOUND, (task.OBS_DIM,),
-                                            np.float32)
+        self.observation_space = spaces.Box(-task.OBS_BOUND, task.OBS_BOUND,
+                                            (self.conveyor.obs_dim,), np.float32)
         self._done = True
         self._last_firing: tuple[float, float, float, float] | None = None
         self._renderer = EnvRenderer(self, render_mode, n_frames)
@@ -196,7 +214,7 @@ class MicroConveyorEnv(OwnsConveyor, gym.Env):
         self._last_firing = (xa, f, h, d)
         info = self._info(outcome, bool(out.success[0]))
         info["frequency_hz"], info["stroke_m"], info["delay_s"] = f, h, d
-        result = (out.obs[0].copy(), float(out.reward[0]), terminated, truncated, info)
+        result = (c.obs[0].copy(), float(out.reward[0]), terminated, truncated, info)
         if before is not None:  # the frames of this firing: after the step, never changing it
             self._renderer.fired(k, before, f, h, d, outcome)
             if self.render_mode == "human":

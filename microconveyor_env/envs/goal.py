@@ -47,6 +47,11 @@ class MicroConveyorGoalEnv(MicroConveyorEnv):
 
     def __init__(self, render_mode: str | None = None, config: Any = None, **kwargs: Any) -> None:
         super().__init__(render_mode=render_mode, config=config, **kwargs)
+        if self.config.observe_history:
+            raise ValueError(f"MicroConveyorGoal-v1 does not take observe_history (got "
+                             f"{self.config.observe_history}): its remembered rows hold the "
+                             "target, so a relabelled goal would not be a valid observation; "
+                             "use MicroConveyor-v1")
         b = task.OBS_BOUND
         goal = spaces.Box(-b, b, (1,), np.float32)
         self.observation_space = spaces.Dict({

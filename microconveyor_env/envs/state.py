@@ -34,6 +34,11 @@ from .step import (NO_NOISE, NO_RECORD, Constants, Outputs, Parts, observe_all, 
 from .threads import ThreadChooser, threads
 
 Streams = tuple[np.random.Generator, np.random.Generator]
+# One remembered firing of the observation history (EnvConfig.observe_history): the observation
+# row before it (task.OBS_DIM), the action as commanded (actions.ACTION_DIM, clipped to the box
+# [-1, 1] as the decoding clips it, before execution noise) and 1.0 (the slot holds a firing; an
+# empty slot is all zeros)
+HISTORY_ROW = task.OBS_DIM + actions.ACTION_DIM + 1
 
 
 class BoundCall:
@@ -74,7 +79,9 @@ class Conveyor:
 
     ``parts`` (x, v, t, fired, target), ``consts`` (dt, min_steps, positions, P, noise, tables),
     ``action`` / ``task`` (constants), ``out`` (the last step's outputs): see :mod:`.step`.
-    ``friction_factor`` / ``mass_factor``: each part's factors this episode (1 while
+    ``obs`` (n, ``obs_dim``): the observations the envs return, each part's row and, with
+    ``observe_history`` k > 0, its k latest firings (``history``, a view; ``out.obs`` itself when
+    k = 0). ``friction_factor`` / ``mass_factor``: each part's factors this episode (1 while
     randomisation is off). ``num_threads``: as :class:`.threads.ThreadChooser` (the single env
     passes 1: always the serial loop). The compiled calls hold these very arrays: write them in
     place, never rebind them. Pickles (the compiled calls are rebuilt after loading).
@@ -108,6 +115,13 @@ class Conveyor:
         self.mass_factor: np.ndarray = np.ones(n)      # this episode's factor on the mass
         self._streams: list[Streams | None] = [None] * n
         self._stream_src: list[np.random.Generator | None] = [None] * n
+        # the observations the envs return: with observe_history k > 0, each part's row followed
+        # by its k most recent firings (HISTORY_ROW numbers each, the latest first); with k = 0,
+        # the compiled step's own rows (``out.obs``, the same array: nothing is copied)
+        self.history_len: int = config.observe_history
+        self.obs_dim: int = task.OBS_DIM + self.history_len * HISTORY_ROW
+        self.obs: np.ndarray = (self.out.obs if self.history_len == 0 else
+                                np.zeros((n, self.obs_dim), dtype=np.float32))
         # the compiled calls' inputs (owned, so their types never change) and the calls; the envs
         # check their actions straight into ``action_input`` (actions.check_actions(out=...))
         self.action_input: np.ndarray = np.zeros((n, actions.ACTION_DIM))
@@ -143,9 +157,12 @@ class Conveyor:
         p.x[i], p.v[i], p.t[i] = x0, 0.0, 0.0
         p.fired[i] = 0
         p.target[i] = tgt
+        if self.history_len:
+            self.obs[i, task.OBS_DIM:] = 0.0  # a new episode remembers no firing
 
     def get_state(self, i: int) -> PartState:
-        """Part ``i``'s state now (with randomisation on, its factors and noise too)."""
+        """Part ``i``'s state now (with randomisation on, its factors and noise too; not the
+        observation history: an episode started from it starts with an empty history)."""
         p = self.parts
         ff = mf = None
         noise = None
@@ -173,10 +190,19 @@ class Conveyor:
             self.consts.noise[i] = np.asarray(s.noise)
 
     # ------------------------------------------------------------------ step
+    @property
+    def history(self) -> np.ndarray:
+        """The observation history, ``(n, observe_history, HISTORY_ROW)`` float32, a view into
+        ``obs`` (slot 0: the latest firing)."""
+        return self.obs[:, task.OBS_DIM:].reshape(self.n, self.history_len, HISTORY_ROW)
+
     def observe(self) -> np.ndarray:
-        """Every part's observation, into (and returned as) ``out.obs``: copy to keep it."""
+        """Every part's observation, into (and returned as) ``obs``: copy to keep it. The
+        history is not changed (only a step adds to it, a reset empties it)."""
         self._observe()
-        return self.out.obs
+        if self.history_len:
+            self.obs[:, :task.OBS_DIM] = self.out.obs
+        return self.obs
 
     def step(self, a: np.ndarray, active: np.ndarray | None = None) -> Outputs:
         """Fire the next actuator of each part (``active``: those parts only; default all) with
@@ -200,7 +226,25 @@ class Conveyor:
             chooser.record(k, time.perf_counter() - t0, int(self._active.sum()))
         if beyond:
             raise_if_beyond_table("load_beyond_table", self.sim)
+        if self.history_len:
+            self._remember(self._all_active)
         return self.out
+
+    def _remember(self, everyone: bool) -> None:
+        """After a step: each active part's history shifts by one slot and slot 0 takes the
+        firing just made (the row ``obs`` held before it and the commanded action); then every
+        part's row is the step's."""
+        od, ad = task.OBS_DIM, actions.ACTION_DIM
+        hist = self.history
+        rows: slice | np.ndarray = slice(None) if everyone else np.flatnonzero(self._active)
+        count = self.n if everyone else int(self._active.sum())
+        latest = np.empty((count, HISTORY_ROW), dtype=np.float32)
+        latest[:, :od] = self.obs[rows, :od]
+        np.clip(self.action_input[rows], -1.0, 1.0, out=latest[:, od:od + ad])  # as decoded
+        latest[:, od + ad] = 1.0
+        hist[rows, 1:] = hist[rows, :-1].copy()
+        hist[rows, 0] = latest
+        self.obs[:, :od] = self.out.obs
 
     def _run(self, k: int) -> int:
         """Step with ``k`` threads; the number of parts that left the contact table."""

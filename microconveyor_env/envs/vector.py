@@ -73,7 +73,7 @@ class MicroConveyorVectorEnv(OwnsConveyor, VectorEnv):
         self.conveyor: Conveyor = Conveyor(self.config, n, self.config.num_threads)
         self.single_action_space = spaces.Box(-1.0, 1.0, (act.ACTION_DIM,), np.float32)
         self.single_observation_space = spaces.Box(-task.OBS_BOUND, task.OBS_BOUND,
-                                                   (task.OBS_DIM,), np.float32)
+                                                   (self.conveyor.obs_dim,), np.float32)
         self.action_space = batch_space(self.single_action_space, n)
         self.observation_space = batch_space(self.single_observation_space, n)
         self.done: np.ndarray = np.zeros(n, dtype=bool)
@@ -140,7 +140,7 @@ class MicroConveyorVectorEnv(OwnsConveyor, VectorEnv):
         truncated = active & ((codes == kernel.MAX_TIME) | (codes == kernel.TOO_MANY_EVENTS))
         rew = np.where(active, out.reward, 0.0)
         self.done = terminated | truncated
-        obs = out.obs.copy()
+        obs = self.conveyor.obs.copy()  # out.obs itself without observation history
         infos = self._infos(np.array(kernel.OUTCOMES, dtype=object)[codes], active & out.success)
         for key, col in (("frequency_hz", out.frequency), ("stroke_m", out.stroke),
                          ("delay_s", out.delay)):
