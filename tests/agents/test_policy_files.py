@@ -210,3 +210,48 @@ def test_convert_stats_turns_a_trusted_pickle_into_json(tmp_path):
     assert stats["gamma"] == 0.95 and stats["obs_rms"]["mean"] == [0.25] * 6
     r = _cli("convert-stats", str(tmp_path / "nope.pkl"), "--json")
     assert r.returncode == 2
+
+
+def test_policy_with_observation_history_loads_and_evaluates(tmp_path):
+    """A policy trained with observe_history (issue 21) is loaded in the scene of its metadata
+    (its observation has the history's shape), evaluates from the CLI, and a folder whose
+    metadata no longer matches the model's observation shape is refused."""
+    import numpy as np
+
+    from agents.experiments.perturb import Level, perturbation_table, policy_rollout
+    from agents.rl.evaluate import evaluate
+    from agents.rl.train import train
+    from microconveyor_env.envs import env_config
+
+    folder = tmp_path / "hist"
+    kw = {"observe_history": 2, "action_noise": 0.003, "num_threads": 1}
+    train(folder, steps=512, seed=0, env_id="MicroConveyor-v1", env_kwargs=kw,
+          overrides={"n_envs": 16, "n_steps": 32, "batch_size": 256, "n_epochs": 1,
+                     "policy_kwargs": {"net_arch": {"pi": [16], "vf": [16]}}},
+          checkpoint_freq=512, eval_freq=0, eval_targets=0, progress_bar=False,
+          tensorboard=False)
+    pol = load_policy(folder)
+    assert pol.config.observe_history == 2 and pol.config.action_noise == 0.0  # nominal
+    assert pol.model.observation_space.shape == (26,)
+    res = evaluate(pol, n_targets=3, seed=0)
+    assert res["n_targets"] == 3
+    rows = perturbation_table(policy_rollout(pol), pol.config, np.array([2e-3, 5e-3]),
+                              [Level(0.003, 0.05)], tolerance=50e-6, repeats=1)
+    assert len(rows) == 1
+    r = _cli("evaluate", "--policy", str(folder), "--targets", "2", "--json")
+    assert r.returncode == 0, r.stdout + r.stderr
+    out = json.loads(r.stdout)
+    assert out["n_targets"] == 2 and out["env_kwargs"]["observe_history"] == 2
+    with pytest.raises(PolicyError, match="observe_history: trained 2, asked 0"):
+        load_policy(folder, env_config("MicroConveyor-v1"))
+    r = _cli("evaluate", "--policy", str(folder), "--targets", "2", "--json",
+             "--env-kwargs", "observe_history:1")
+    assert r.returncode == 2 and "observe_history: trained 2, asked 1" in json.loads(
+        r.stdout)["error"], r.stdout
+    # metadata edited to another history length: the zip's observation shape disagrees
+    _drop_hashes(folder)
+    meta = json.loads((folder / "metadata.json").read_text())
+    meta["env_kwargs"]["observe_history"] = 1
+    (folder / "metadata.json").write_text(json.dumps(meta))
+    with pytest.raises(PolicyError, match=r"observation"):
+        load_policy(folder)
