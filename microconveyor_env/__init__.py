@@ -18,7 +18,8 @@ def _register() -> None:
     from gymnasium.envs.registration import register, registry
 
     # the light module only: the envs themselves load when one is made
-    from .env_ids import ALL_ENV_IDS, ENTRY_POINTS, ENV_IDS, VECTOR_ENTRY_POINT, \
+    from .env_ids import ALL_ENV_IDS, ENTRY_POINTS, ENV_IDS, PLANE_ENTRY_POINT, \
+        PLANE_ENV_IDS, PLANE_MAX_FIRINGS, PLANE_VECTOR_ENTRY_POINT, VECTOR_ENTRY_POINT, \
         max_episode_steps, overrides
 
     for env_id in ALL_ENV_IDS:
@@ -29,6 +30,11 @@ def _register() -> None:
         register(id=env_id, entry_point=ENTRY_POINTS[env_id], vector_entry_point=vector,
                  kwargs=overrides(env_id), max_episode_steps=max_episode_steps(env_id),
                  disable_env_checker=False)
+    for env_id in PLANE_ENV_IDS:  # the plane (2-D): defaults in its own config file
+        if env_id not in registry:
+            register(id=env_id, entry_point=PLANE_ENTRY_POINT,
+                     vector_entry_point=PLANE_VECTOR_ENTRY_POINT, kwargs={},
+                     max_episode_steps=PLANE_MAX_FIRINGS, disable_env_checker=False)
 
 
 _register()

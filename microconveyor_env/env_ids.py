@@ -19,6 +19,12 @@ ENTRY_POINTS = {**{i: "microconveyor_env.envs.conveyor:MicroConveyorEnv" for i i
                 **{i: "microconveyor_env.envs.goal:MicroConveyorGoalEnv" for i in GOAL_ENV_IDS}}
 VECTOR_ENTRY_POINT = "microconveyor_env.envs.vector:MicroConveyorVectorEnv"  # ENV_IDS only
 MAX_ACTUATORS = 1000  # an episode has at most this many steps (one firing per actuator)
+# the plane (issue 22): its own config (envs/plane_config.py, defaults in
+# configs/envs/MicroConveyor2D-v0.yaml), registered with kwargs {} as v0 is
+PLANE_ENV_IDS = ("MicroConveyor2D-v0",)
+PLANE_ENTRY_POINT = "microconveyor_env.envs.plane_env:MicroConveyor2DEnv"
+PLANE_VECTOR_ENTRY_POINT = "microconveyor_env.envs.plane_vector:MicroConveyor2DVectorEnv"
+PLANE_MAX_FIRINGS = 1000  # spec.max_episode_steps: the most firings a 2-D config allows
 
 
 def base_id(env_id: str) -> str:

@@ -1,0 +1,192 @@
+"""MicroConveyor2D-v0: position a micropart in a plane with a grid of micro-actuators."""
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from gymnasium.core import RenderFrame
+
+from ..physics import dynamics_kernel as kernel
+from . import plane_task
+from .common import check_render_mode
+from .plane_config import PlaneEnvConfig
+from .plane_state import PlaneConveyor, check_plane_actions, check_plane_target
+from .plane_step import ACTION_DIM
+
+
+class MicroConveyor2DEnv(gym.Env):
+    """Goal-conditioned micropart positioning on a surface (docs/physics.md §10: the 1-D model's
+    Kogut–Etsion contact and stick–slip dynamics on a plane deformed by radial bumps).
+
+    A part starts at ``start`` (default the centre of the grid) on a level surface over an
+    ``nx`` x ``ny`` grid of actuators ``spacing`` apart (actuator (i, j), index ``i + nx j``, at
+    ``(i, j) * spacing``) and must come to rest within ``tolerance`` (a disc, Euclidean) of a
+    target drawn uniformly on the grid's box. Each ``step`` fires **one actuator the agent picks
+    near the part**, with the action's frequency, stroke and delay: the part coasts during the
+    delay, the bump rises and falls under it, and the step returns when the stroke ends; the
+    ``max_firings``-th step also runs the part to rest. With ``stop_at_target`` (default on) the
+    episode ends as soon as the part, left alone, would come to rest within tolerance.
+
+    ## Action space: ``Box(-1, 1, (5,), float32)``
+
+    | index | meaning | mapping |
+    |---|---|---|
+    | 0, 1 | aim offset from the part (x, y) [m] | times ``pick_reach`` (0.5 mm): the actuator nearest to part + offset fires |
+    | 2 | stroke frequency f [Hz] | log-uniform onto ``freq_range`` (200–2000 Hz) |
+    | 3 | stroke height h [m] | linear onto ``stroke_range`` (100–200 µm) |
+    | 4 | delay before the stroke [s] | linear onto ``delay_range`` (0–0.1 s) |
+
+    Components 2–4 decode exactly as MicroConveyor-v1's action (:func:`.actions.decode`).
+    Out-of-range actions are **clipped** to [-1, 1]; NaN or inf, a shape other than ``(5,)`` or a
+    non-numeric dtype raise ``ValueError``.
+
+    *Why an aim offset.* A firing moves the part along the line through it and the fired
+    actuator (the bump pulls or pushes it radially), so the actuator's position relative to the
+    part is the direction of the move: the agent chooses it as a continuous offset, and the
+    actuator nearest to the aimed point fires (ties to the lower index; off the grid, the nearest
+    edge actuator). With a reach of one pitch the aim point covers the part's cell and its
+    neighbours, so the choice is always among the actuators whose bump reaches the part (a
+    firing farther than ~WL/2 does nothing), whatever the grid's size; a continuous Box suits
+    PPO and SAC alike (a discrete choice of 25 actuators would not fit SAC, and most of the 25
+    would be out of reach). A direction-only action (an angle) would fire the same few
+    neighbours but cannot choose the actuator under the part.
+
+    ## Observation space: ``Box(-10, 10, (10,), float32)`` (values clipped to the bounds)
+
+    | index | observation | scaling |
+    |---|---|---|
+    | 0, 1 | position error p − target (x, y) | / 1 mm |
+    | 2, 3 | velocity (vx, vy) | / 0.1 m/s |
+    | 4, 5 | part − nearest actuator (x, y) (where the part sits in its cell) | / spacing |
+    | 6 | elapsed simulated time | / max_time |
+    | 7 | fraction of the firings used | / max_firings |
+    | 8, 9 | target − grid centre (x, y) | / 1 mm |
+
+    ## Reward
+    ``Phi(s') - Phi(s) - time_cost * (t' - t) + success_bonus * [success]`` with
+    ``Phi = -min(|p - target|, progress_horizon) / progress_scale`` (Euclidean; horizon default:
+    twice the farthest start-to-target distance). On detachment the part forfeits all progress,
+    pays the time cost up to ``max_time`` and ``detach_penalty``: any episode ending at rest
+    returns more than any detaching one, and at equal time a closer rest returns more
+    (:mod:`.plane_task`; hypothesis properties in tests/envs/test_plane_env_reward.py).
+
+    ## Episode end
+    ``terminated``: at rest after the ``max_firings``-th firing (default 8), delivered
+    (``stop_at_target``: at rest within tolerance after any firing), or detachment.
+    ``truncated``: the simulated time limit ``max_time`` (or an unresolved stick–slip chatter).
+    ``info``: ``is_success``, ``position_error_m`` ((x, y) of p − target, a tuple), ``distance_m``
+    (Euclidean), ``outcome``, ``sim_time_s``, and after a step ``actuator`` (the index fired),
+    ``frequency_hz``, ``stroke_m``, ``delay_s``.
+
+    ## Scene (``configs/envs/MicroConveyor2D-v0.yaml``; any field of :class:`PlaneEnvConfig`)
+    5 x 5 actuators 0.5 mm apart (a 2 x 2 mm grid: the issue's example, the 1-D pitch) on
+    MicroConveyor-v1's surface (preset ``conveyor``, chapter 4), Gaussian bumps of wavelength
+    **2 mm** (width WL/6 = 0.33 mm) and frequencies up to **2000 Hz**. Why: a bump moves a part only
+    within about one width of its centre, and on the plane a part can come to rest anywhere,
+    including the centre of a cell, 0.35 mm from its four actuators. With v1's 0.6 mm wavelength
+    a part resting farther than ~0.25 mm from every actuator could never be moved again (no
+    firing of 16 nearby actuators at any frequency and stroke moved a part from a cell's centre at
+    0.35 or 0.5 mm pitch); with 2 mm every point of the grid can be moved (from a cell's centre
+    57 % of random actions move the part by more than 25 µm; from on top of an actuator 23 %),
+    moves are 0.1–0.5 mm (median) up to ~1.2 mm, so a part stays on the grid, and targets 1.4 mm
+    away at most need a few firings. Above ~1.3 kHz strokes of 200 µm detach the part (as in
+    1-D); 2 kHz keeps detachment reachable (the agent must learn to avoid it) without making
+    most of the action box detach. ``max_firings`` 8: a few moves, plus corrections.
+
+    ## Arguments
+    Any field of :class:`PlaneEnvConfig` (SI units), e.g. ``gym.make("MicroConveyor2D-v0",
+    nx=7, ny=7, tolerance=100e-6)``, or ``config=PlaneEnvConfig(...)``.
+    ``reset(options={"target": (x, y)})`` sets the target [m] (actuator 0 at the origin).
+    ``spec.max_episode_steps`` is 1000, an upper bound that never cuts an episode short.
+
+    ## Rendering
+    ``render_mode="rgb_array"``: ``render()`` returns a 480 x 400 top view: the grid, the height
+    map and contours of the last firing's bump at its peak, the part's path (its position after
+    the reset and each step), the part, the target and its tolerance disc. Never changes a step.
+
+    ## Version history
+    * **v0** (package 0.2.0, issue 22): the first 2-D version. No per-episode randomisation and
+      no observation history yet (the 1-D v1 has both).
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
+
+    def __init__(self, render_mode: str | None = None, config: PlaneEnvConfig | None = None,
+                 **kwargs: Any) -> None:
+        if config is not None and kwargs:
+            raise ValueError("give either config= or keyword overrides, not both")
+        if config is not None and not isinstance(config, PlaneEnvConfig):
+            raise ValueError(f"config must be a PlaneEnvConfig, got {type(config).__name__}")
+        self.config = config or PlaneEnvConfig.from_yaml(**kwargs)
+        check_render_mode(render_mode, self.metadata["render_modes"])
+        self.render_mode = render_mode
+        self.conveyor = PlaneConveyor(self.config, 1, num_threads=1)
+        self.conveyor.parts.tx[0] = self.conveyor.parts.ty[0] = np.nan
+        self.action_space = spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
+        self.observation_space = spaces.Box(-plane_task.OBS_BOUND, plane_task.OBS_BOUND,
+                                            (plane_task.OBS_DIM,), np.float32)
+        self._done = True
+        self._path: list[tuple[float, float]] = []
+        self._last_firing: tuple[int, float, float, float] | None = None
+
+    # state accessors (SI units)
+    x = property(lambda self: float(self.conveyor.parts.x[0]), doc="part x [m]")
+    y = property(lambda self: float(self.conveyor.parts.y[0]), doc="part y [m]")
+    vx = property(lambda self: float(self.conveyor.parts.vx[0]), doc="part vx [m/s]")
+    vy = property(lambda self: float(self.conveyor.parts.vy[0]), doc="part vy [m/s]")
+    t = property(lambda self: float(self.conveyor.parts.t[0]), doc="simulated time [s]")
+    fired = property(lambda self: int(self.conveyor.parts.fired[0]), doc="firings so far")
+    target = property(lambda self: (float(self.conveyor.parts.tx[0]),
+                                    float(self.conveyor.parts.ty[0])), doc="target (x, y) [m]")
+    positions = property(lambda self: self.conveyor.positions,
+                         doc="actuator positions (n_actuators, 2) [m]")
+    path = property(lambda self: tuple(self._path),
+                    doc="the part's positions [m] after the reset and each step")
+
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        super().reset(seed=seed)
+        given = check_plane_target(options["target"]) if options and "target" in options \
+            else None
+        self.conveyor.reset_part(0, self.np_random, given)
+        self._done = False
+        self._last_firing = None
+        self._path = [(self.x, self.y)]
+        obs = self.conveyor.observe()[0].copy()
+        return obs, self._info("moving", False)
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        if self._done:
+            raise RuntimeError("step() called on a finished episode: call reset() first")
+        c = self.conveyor
+        a = check_plane_actions(action, None, c.action_input)
+        out = c.step(a)
+        outcome = kernel.OUTCOMES[int(out.outcome[0])]
+        terminated = outcome in ("rest", "detached")
+        truncated = outcome in ("max_time", "too_many_events")
+        self._done = terminated or truncated
+        j, f, h, d = int(out.actuator[0]), float(out.frequency[0]), float(out.stroke[0]), \
+            float(out.delay[0])
+        self._last_firing = (j, f, h, d)
+        self._path.append((self.x, self.y))
+        info = self._info(outcome, bool(out.success[0]))
+        info["actuator"], info["frequency_hz"], info["stroke_m"], info["delay_s"] = j, f, h, d
+        return c.out.obs[0].copy(), float(out.reward[0]), terminated, truncated, info
+
+    def render(self) -> RenderFrame | list[RenderFrame] | None:
+        """``rgb_array``: the frame of the state now (uint8 (400, 480, 3))."""
+        if self.render_mode != "rgb_array":
+            return None
+        from .plane_render import render_plane_frame
+
+        path = self._path or [(self.x, self.y)]
+        return render_plane_frame(self.config, path, self.target, self.fired, self._last_firing,
+                                  self.t)
+
+    def _info(self, outcome: str, success: bool) -> dict[str, Any]:
+        (tx, ty), x, y = self.target, self.x, self.y
+        return {"is_success": success, "position_error_m": (x - tx, y - ty),
+                "distance_m": float(np.hypot(x - tx, y - ty)), "outcome": outcome,
+                "sim_time_s": self.t}

@@ -1,0 +1,170 @@
+"""N parts on the plane: the state and the step that the single MicroConveyor2D-v0 env (N = 1)
+and its batched env share (the plane's :class:`.state.Conveyor`: arrays in :mod:`.plane_step`,
+one compiled call per step, serial or numba's parallel loop as :class:`.threads.ThreadChooser`
+picks; results bit-identical either way)."""
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from ..physics import plane_kernel
+from ..physics.contact_table import TableRangeError
+from ..physics.materials import ParameterError
+from ..physics.plane import PlaneSimulator
+from ..presets import load_preset
+from . import actions, plane_task
+from .common import raise_if_beyond_table
+from .plane_config import PlaneEnvConfig
+from .plane_step import ACTION_DIM, NO_RECORD, PlaneConstants, PlaneOutputs, PlaneParts, \
+    observe_all, step_parallel, step_serial
+from .state import BoundCall
+from .threads import ThreadChooser, threads
+
+
+def make_plane_simulator(cfg: PlaneEnvConfig) -> PlaneSimulator:
+    """The env's plane simulator; refuses action ranges whose strongest stroke would load the
+    part beyond the contact table (checked once here, so steps never need to)."""
+    sim = PlaneSimulator(load_preset(cfg.preset).contact, shape=cfg.shape,
+                         wavelength=cfg.wavelength, kinematics=cfg.kinematics, dt=cfg.dt,
+                         max_time=cfg.max_time, min_steps=cfg.min_steps, max_steps=cfg.max_steps)
+    try:
+        sim.check_firings(np.array([cfg.freq_range[1]]), np.array([cfg.stroke_range[1]]))
+    except TableRangeError as exc:
+        raise ParameterError(f"PlaneEnvConfig.freq_range / stroke_range: {exc}") from None
+    return sim
+
+
+def check_plane_actions(raw_actions: Any, n: int | None, out: np.ndarray) -> np.ndarray:
+    """Check actions into ``out`` (float64 ``(n, 5)``) and return it: ``n = None`` is the single
+    env (exactly shape ``(5,)``), otherwise exactly ``(n, 5)``; a wrong shape, a non-numeric
+    dtype or NaN/inf raise ``ValueError`` (values outside [-1, 1] are clipped when decoded)."""
+    expected = (ACTION_DIM,) if n is None else (n, ACTION_DIM)
+    what = ("one action of 5 components (aim x, aim y, frequency, stroke, delay)" if n is None
+            else f"{n} actions of 5 components (aim x, aim y, frequency, stroke, delay)")
+    try:
+        raw = np.asarray(raw_actions)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"expected {what}, shape {expected}; got "
+                         f"{type(raw_actions).__name__} that is not an array ({exc})") from None
+    if raw.shape != expected:
+        raise ValueError(f"expected {what}, shape {expected}; got shape {raw.shape}")
+    if raw.dtype.kind not in "iuf":
+        raise ValueError(f"expected {what} as real numbers; got dtype {raw.dtype}")
+    out[...] = raw.reshape(-1, ACTION_DIM)
+    if not np.isfinite(out).all():
+        raise ValueError(f"action contains NaN or inf: {raw.tolist()}")
+    return out
+
+
+def check_plane_target(target: object) -> tuple[float, float]:
+    """A target from ``reset(options=...)``: an ``(x, y)`` pair [m], finite, where the
+    observation can show it (within +-OBS_BOUND * LENGTH_SCALE of the grid's origin)."""
+    limit = plane_task.OBS_BOUND * plane_task.LENGTH_SCALE
+    try:
+        arr = np.asarray(target, dtype=float)
+    except (TypeError, ValueError):
+        arr = np.array([np.nan])
+    if arr.shape != (2,) or not np.isfinite(arr).all() or np.abs(arr).max() > limit \
+            or isinstance(target, (str, bytes)):
+        raise ValueError(f"options['target'] = {target!r} is invalid: must be an (x, y) pair of "
+                         f"finite positions [m] within +-{limit:g} m of actuator 0")
+    return float(arr[0]), float(arr[1])
+
+
+class PlaneConveyor:
+    """``n`` parts on one :class:`PlaneEnvConfig`: their state and step (see :mod:`.plane_step`
+    for ``parts``, ``consts``, ``action``, ``task``, ``out``). ``num_threads``: as
+    :class:`.threads.ThreadChooser` (the single env passes 1). The compiled calls hold these very
+    arrays: write them in place, never rebind them. Pickles."""
+
+    def __init__(self, config: PlaneEnvConfig, n: int, num_threads: int | None = 1) -> None:
+        self.config = config
+        self.n = n
+        self.sim = make_plane_simulator(config)
+        pos = np.asarray(config.actuator_positions, dtype=np.float64).reshape(-1, 2)
+        self.positions: np.ndarray = pos
+        self.action = actions.constants(config)  # type: ignore[arg-type]  # same fields
+        self.task = plane_task.constants(config)
+        self.parts = PlaneParts(x=np.zeros(n), y=np.zeros(n), vx=np.zeros(n), vy=np.zeros(n),
+                                t=np.zeros(n), fired=np.zeros(n, dtype=np.int64),
+                                tx=np.zeros(n), ty=np.zeros(n))
+        tu, tq, tqu = self.sim.tables
+        self.consts = PlaneConstants(
+            dt=float(self.sim.dt), min_steps=int(self.sim.min_steps),
+            ax=np.ascontiguousarray(pos[:, 0]), ay=np.ascontiguousarray(pos[:, 1]),
+            P=np.tile(self.sim.params, (n, 1)), tu=tu, tq=tq, tqu=tqu, rec=NO_RECORD)
+        self.out = PlaneOutputs(
+            reward=np.zeros(n), outcome=np.zeros(n, dtype=np.int64),
+            success=np.zeros(n, dtype=np.bool_), actuator=np.full(n, -1, dtype=np.int64),
+            frequency=np.zeros(n), stroke=np.zeros(n), delay=np.zeros(n),
+            obs=np.zeros((n, plane_task.OBS_DIM), dtype=np.float32),
+            kernel=np.zeros((n, plane_kernel.N_OUT)))
+        self.threads = ThreadChooser(num_threads, n)
+        self.action_input: np.ndarray = np.zeros((n, ACTION_DIM))
+        self._active = np.ones(n, dtype=np.bool_)
+        self._all_active = True
+        self._bind()
+
+    def _bind(self) -> None:
+        args = (self.action_input, self._active, self.parts, self.consts, self.action, self.task,
+                self.out)
+        self._serial = BoundCall(step_serial, args)
+        self._parallel = BoundCall(step_parallel, args)
+        self._observe = BoundCall(observe_all, (self.parts, self.task, self.out.obs))
+
+    def reset_part(self, i: int, rng: np.random.Generator,
+                   target: tuple[float, float] | None = None) -> None:
+        """Start part ``i``'s next episode: start and target from ``rng`` (``target``, checked,
+        overrides the drawn one)."""
+        x0, y0, tx, ty = plane_task.initial_state(self.config, rng, target)
+        p = self.parts
+        p.x[i], p.y[i], p.vx[i], p.vy[i], p.t[i] = x0, y0, 0.0, 0.0, 0.0
+        p.fired[i] = 0
+        p.tx[i], p.ty[i] = tx, ty
+
+    def observe(self) -> np.ndarray:
+        """Every part's observation, into (and returned as) ``out.obs``: copy to keep it."""
+        self._observe()
+        return self.out.obs
+
+    def step(self, a: np.ndarray, active: np.ndarray | None = None) -> PlaneOutputs:
+        """Fire one actuator for each part (``active``: those parts only) with the actions ``a``
+        (N, 5) (as checked by :func:`check_plane_actions`); returns ``out``. Raises
+        ``TableRangeError`` if a stroke loaded a part beyond the contact table."""
+        if a is not self.action_input:
+            self.action_input[:] = a
+        if active is not None:
+            self._active[:] = active
+            self._all_active = False
+        elif not self._all_active:
+            self._active.fill(True)
+            self._all_active = True
+        chooser = self.threads
+        if chooser.fixed is not None:
+            beyond = self._run(chooser.fixed)
+        else:
+            k = chooser.choose()
+            t0 = time.perf_counter()
+            beyond = self._run(k)
+            chooser.record(k, time.perf_counter() - t0, int(self._active.sum()))
+        if beyond:
+            raise_if_beyond_table("load_beyond_table", self.sim.line)
+        return self.out
+
+    def _run(self, k: int) -> int:
+        if k == 1:
+            return int(self._serial())
+        with threads(k):
+            return int(self._parallel())
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        for name in ("_serial", "_parallel", "_observe"):
+            del state[name]
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._bind()
