@@ -83,17 +83,21 @@ class MicroConveyor2DEnv(gym.Env):
     ## Scene (``configs/envs/MicroConveyor2D-v0.yaml``; any field of :class:`PlaneEnvConfig`)
     5 x 5 actuators 0.5 mm apart (a 2 x 2 mm grid: the issue's example, the 1-D pitch) on
     MicroConveyor-v1's surface (preset ``conveyor``, chapter 4), Gaussian bumps of wavelength
-    **2 mm** (width WL/6 = 0.33 mm) and frequencies up to **2000 Hz**. Why: a bump moves a part only
-    within about one width of its centre, and on the plane a part can come to rest anywhere,
-    including the centre of a cell, 0.35 mm from its four actuators. With v1's 0.6 mm wavelength
-    a part resting farther than ~0.25 mm from every actuator could never be moved again (no
-    firing of 16 nearby actuators at any frequency and stroke moved a part from a cell's centre at
-    0.35 or 0.5 mm pitch); with 2 mm every point of the grid can be moved (from a cell's centre
-    57 % of random actions move the part by more than 25 µm; from on top of an actuator 23 %),
-    moves are 0.1–0.5 mm (median) up to ~1.2 mm, so a part stays on the grid, and targets 1.4 mm
-    away at most need a few firings. Above ~1.3 kHz strokes of 200 µm detach the part (as in
-    1-D); 2 kHz keeps detachment reachable (the agent must learn to avoid it) without making
-    most of the action box detach. ``max_firings`` 8: a few moves, plus corrections.
+    **2 mm** (width WL/6 = 0.33 mm) and frequencies up to **2000 Hz**. Why
+    (``scripts/plane_scene_scan.py``: 400 random firings as the env picks them, from a part at
+    rest at typical points of a cell): a bump moves a part only within about one width of its
+    centre, and on the plane a part can come to rest anywhere, including a cell's centre, 0.35 mm
+    from its four actuators. With v1's 0.6 mm wavelength and a 0.5 mm pitch no firing moved a part
+    resting at a cell's centre, at an edge's middle or on an actuator by more than 25 µm (0.35 mm
+    pitch: 1 % from a cell's centre, none from on an actuator): such a part could never be moved
+    again. With 2 mm every point can be moved (52 % of the firings from a cell's centre, 36 % from
+    an edge's middle, 18 % from on an actuator), by 0.1–0.16 mm (median) up to 1.1 mm, so a part
+    stays on the grid and a target (1.4 mm away at most) takes a few firings. A 1 mm wavelength
+    on a 0.25 mm pitch works too but carries parts up to 3.7 mm, off a 1 mm grid. Above ~1.3 kHz
+    strokes of 200 µm detach the part (as in 1-D): 2 kHz keeps detachment reachable (the agent
+    must learn to avoid it: ~30 % of random firings detach) without making most of the action
+    box detach (10 kHz, v1's limit, would).
+    ``max_firings`` 8: a few moves, plus corrections.
 
     ## Arguments
     Any field of :class:`PlaneEnvConfig` (SI units), e.g. ``gym.make("MicroConveyor2D-v0",
@@ -181,9 +185,10 @@ class MicroConveyor2DEnv(gym.Env):
             return None
         from .plane_render import render_plane_frame
 
-        path = self._path or [(self.x, self.y)]
-        return render_plane_frame(self.config, path, self.target, self.fired, self._last_firing,
-                                  self.t)
+        if not self._path:
+            raise RuntimeError("render() before the first reset(): there is no part to draw")
+        return render_plane_frame(self.config, self._path, self.target, self.fired,
+                                  self._last_firing, self.t)
 
     def _info(self, outcome: str, success: bool) -> dict[str, Any]:
         (tx, ty), x, y = self.target, self.x, self.y
