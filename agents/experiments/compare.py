@@ -151,12 +151,24 @@ def perturbation_levels(noise: Sequence[float] = NOISE_LADDER,
     return axes
 
 
+def unique_levels(axes: dict[str, list[Level]]) -> list[Level]:
+    """The distinct levels of ``axes``, in order."""
+    return list(dict.fromkeys(lv for levels in axes.values() for lv in levels))
+
+
 def _perturb(run: Callable, cfg: EnvConfig, targets: np.ndarray, axes: dict[str, list[Level]],
-             seed: int, repeats: int) -> dict[str, list[dict]]:
-    """Every distinct level of ``axes`` run once, its row placed on each axis that has it."""
-    unique = list(dict.fromkeys(lv for levels in axes.values() for lv in levels))
-    rows = perturbation_table(run, cfg, targets, unique, seed=seed, repeats=repeats,
-                              tolerance=cfg.tolerance)
+             seed: int, repeats: int,
+             progress: Callable[[], None] | None = None) -> dict[str, list[dict]]:
+    """Every distinct level of ``axes`` run once (``progress`` called after each), its row
+    placed on each axis that has it."""
+    unique = unique_levels(axes)
+    rows: list[dict] = []
+    for lv in unique:
+        row = perturbation_table(run, cfg, targets, [lv], seed=seed, repeats=repeats,
+                                 tolerance=cfg.tolerance)[0]
+        rows.append({**row, "level": len(rows)})
+        if progress:
+            progress()
     by_level = dict(zip(unique, rows, strict=True))
     return {axis: [by_level[lv] for lv in levels] for axis, levels in axes.items()}
 
@@ -287,8 +299,12 @@ def _compare(stack: contextlib.ExitStack, cfg: EnvConfig, targets: np.ndarray, p
         runners[f"{key}_plan"] = plan_rollout(plans[key])
     axes = perturbation_levels(noise_ladder, spread_ladder, diagonal, full_grid)
     pert: dict[str, dict] = {}
-    for name, run in tqdm(runners.items(), desc="perturbation", disable=not progress):
-        pert[name] = _perturb(run, cfg, targets, axes, seed, perturb_repeats)
+    bar = tqdm(total=len(runners) * len(unique_levels(axes)), desc="perturbation",
+               unit="level", disable=not progress)
+    for name, run in runners.items():
+        bar.set_postfix_str(name)
+        pert[name] = _perturb(run, cfg, targets, axes, seed, perturb_repeats, bar.update)
+    bar.close()
     seed_stats = None
     if seeds:
         per_seed = [_perturb(policy_rollout(p), cfg, targets, axes, seed, perturb_repeats)
