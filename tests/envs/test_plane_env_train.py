@@ -12,10 +12,11 @@ sb3 = pytest.importorskip("stable_baselines3")
 def test_ppo_trains_a_few_thousand_steps_end_to_end():
     from stable_baselines3.common.env_util import make_vec_env
 
-    venv = make_vec_env("MicroConveyor2D-v0", n_envs=4, seed=0)
-    model = sb3.PPO("MlpPolicy", venv, n_steps=512, batch_size=256, n_epochs=2, seed=0,
+    venv = make_vec_env("MicroConveyor2D-v0", n_envs=8, seed=0)
+    model = sb3.PPO("MlpPolicy", venv, n_steps=128, batch_size=256, n_epochs=2, seed=0,
                     device="cpu")
-    model.learn(total_timesteps=4096)
+    model.learn(total_timesteps=3072)
+    assert model.num_timesteps == 3072
     env = gym.make("MicroConveyor2D-v0")
     obs, _ = env.reset(seed=0)
     done, steps = False, 0
@@ -29,7 +30,7 @@ def test_ppo_trains_a_few_thousand_steps_end_to_end():
 
 def test_sac_accepts_the_action_space():
     env = gym.make("MicroConveyor2D-v0")
-    model = sb3.SAC("MlpPolicy", env, learning_starts=50, batch_size=32, seed=0, device="cpu")
-    model.learn(total_timesteps=120)
+    model = sb3.SAC("MlpPolicy", env, learning_starts=40, batch_size=32, seed=0, device="cpu")
+    model.learn(total_timesteps=80)
     action, _ = model.predict(np.zeros(10, np.float32), deterministic=True)
     assert action.shape == (5,)
