@@ -20,7 +20,7 @@ ALLOWED = {
     "mce": {"mce.physics", "mce.presets", "mce.envs", "mce.plots", "mce.studies", "mce.cli"},
     "agents.openloop": {"mce.physics", "mce.presets", "mce.envs"},
     "agents.rl": {"mce.physics", "mce.presets", "mce.envs"},
-    "agents.mpc": {"agents.openloop", "mce.physics", "mce.presets", "mce.envs"},
+    "agents.mpc": {"agents.openloop", "agents.rl", "mce.physics", "mce.presets", "mce.envs"},
     "agents.plots": {"mce.physics", "mce.envs"},
     "agents.experiments": {"agents.openloop", "agents.rl", "agents.mpc", "agents.plots",
                            "mce.physics", "mce.presets", "mce.envs"},

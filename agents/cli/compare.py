@@ -13,7 +13,7 @@ from microconveyor_env.cli.base import command, companion, count, emit, plot_pat
 from .args import add_env_args, budgets, env_config_of, env_kwargs_of, levels
 
 # --quick: a short look (README, tests): fewer targets, one small budget, a cheap MPC
-QUICK: dict[str, Any] = {"targets": 20, "budgets": [300], "mpc_budgets": (300, 100)}
+QUICK: dict[str, Any] = {"targets": 20, "budgets": [300], "mpc_budgets": (100, 50)}
 
 
 def pairs(text: str) -> list[tuple[float, float]]:
@@ -62,7 +62,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--mpc-budgets", type=mpc_budgets, default=None, metavar="FIRST,REPLAN",
                    help="MPC: episodes of the model before the first firing and per re-plan "
                         f"(default {MPC_SETTINGS.first_budget},{MPC_SETTINGS.replan_budget}, "
-                        "--quick 300,100; 0: no MPC)")
+                        "--quick 100,50; 0: no MPC)")
     p.add_argument("--mpc-method", choices=("de", "cmaes"), default="de",
                    help="the MPC's planner")
     p.add_argument("--robust-mpc", type=mpc_budgets, nargs="?", default=None,
@@ -72,6 +72,10 @@ def add_args(p: argparse.ArgumentParser) -> None:
                         "friction and mass identified online (budgets default "
                         f"{ROBUST_MPC_SETTINGS.first_budget},{ROBUST_MPC_SETTINGS.replan_budget}"
                         ": ~5x the MPC's compute)")
+    p.add_argument("--mpc-prior", default=None, metavar="POLICY",
+                   help="a policy folder ('shipped': the env's shipped PPO) whose plan on the "
+                        "model seeds the MPC's searches: adds the method mpc_ppo and seeds the "
+                        "robust MPC")
     p.add_argument("--workers", type=count(1, 64), default=2,
                    help="processes for the MPC's episodes (results do not depend on it)")
     p.add_argument("--policy", default=None, help="PPO policy folder (default: the shipped one)")
@@ -91,7 +95,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    help="also every (σ, r) combination of the two axes (the full grid; ~20 "
                         "levels: long)")
     p.add_argument("--quick", action="store_true",
-                   help="a short look: 20 targets, budget 300, MPC 300,100 (explicit options win)")
+                   help="a short look: 20 targets, budget 300, MPC 100,50 (explicit options win)")
     p.add_argument("--repeats", type=count(1, 1000), default=1,
                    help="perturbed replays per target and level")
     p.add_argument("--amortise-over", type=count(1), default=100,
@@ -128,7 +132,8 @@ def run(args: Any) -> None:
                   amortise_over=args.amortise_over, noise_ladder=args.noise,
                   spread_ladder=args.spread, diagonal=args.diagonal, full_grid=args.full,
                   perturb_repeats=args.repeats, mpc=mpc,
-                  robust_mpc=_robust(args.robust_mpc, args.seed), mpc_workers=args.workers,
+                  robust_mpc=_robust(args.robust_mpc, args.seed),
+                  mpc_prior=_prior(args.mpc_prior, args.env), mpc_workers=args.workers,
                   policy_seeds=args.policy_seeds, config=env_config_of(args, args.env),
                   env_id=args.env)
     res.update(env_id=args.env, env_kwargs=env_kwargs_of(args))
@@ -152,6 +157,17 @@ def _robust(budgets: tuple[int, int] | None, seed: int) -> Any:
         return None
     return dataclasses.replace(ROBUST_MPC_SETTINGS, first_budget=budgets[0],
                                replan_budget=budgets[1], seed=seed)
+
+
+def _prior(given: str | None, env_id: str) -> str | None:
+    from ..rl.shipped import require_shipped
+
+    if given is None:
+        return None
+    path = require_shipped(env_id) if given == "shipped" else Path(given)
+    if not (Path(path) / "model.zip").is_file():
+        raise ValueError(f"--mpc-prior {given!r}: no policy folder (model.zip) there")
+    return str(path)
 
 
 def _compare_args(p: argparse.ArgumentParser) -> None:

@@ -45,8 +45,10 @@ TOLERANCES = tuple(float(t) for t in np.geomspace(1e-8, 1e-3, 51))
 NOISE_LADDER = (0.0, 1e-3, 3e-3, 1e-2)
 SPREAD_LADDER = (0.0, 0.01, 0.02, 0.05, 0.1)
 DIAGONAL = ((1e-3, 0.01), (3e-3, 0.05), (1e-2, 0.1))
-# the MPC of the comparison: episodes of the model before the first firing and per re-plan
-MPC_SETTINGS = MPCSettings(first_budget=1000, replan_budget=300)
+# the MPC of the default comparison: episodes of the model before the first firing and per
+# re-plan, small enough for the default `compare` to stay under 5 minutes on 2 cores (the stored
+# run, docs/agents.md, uses 1000 and 300: `--mpc-budgets 1000,300`)
+MPC_SETTINGS = MPCSettings(first_budget=300, replan_budget=100)
 # the robust, adaptive MPC (compare(robust_mpc=...), `compare --robust-mpc`): each candidate
 # scored over 8 copies under the goal level's noise sigma = 3e-3, friction and mass identified
 # within +-10 % from the firings seen (agents.mpc); ~5x the nominal MPC's compute
@@ -188,7 +190,8 @@ def compare(n_targets: int = 100, seed: int = 0, budgets: Sequence[int] = (1000,
             spread_ladder: Sequence[float] = SPREAD_LADDER,
             diagonal: Sequence[tuple[float, float]] = DIAGONAL, full_grid: bool = False,
             perturb_repeats: int = 1, mpc: MPCSettings | None = MPC_SETTINGS,
-            robust_mpc: MPCSettings | None = None, mpc_workers: int = 2,
+            robust_mpc: MPCSettings | None = None, mpc_prior: str | Path | None = None,
+            mpc_workers: int = 2,
             policy_seeds: Sequence[str | Path] = (), config: EnvConfig | None = None,
             progress: bool = True, env_id: str = "MicroConveyor-v1") -> dict:
     """Run the comparison on ``n_targets`` fixed targets (drawn with ``seed`` from the target
@@ -198,6 +201,8 @@ def compare(n_targets: int = 100, seed: int = 0, budgets: Sequence[int] = (1000,
     under randomisation (default: ``env_id``'s shipped ``ppo_randomised`` if present; ``""`` to
     skip); ``mpc``: the MPC's settings (None: no MPC), ``robust_mpc`` a second, robust MPC's
     (e.g. :data:`ROBUST_MPC_SETTINGS`; None: none), both run by ``mpc_workers`` processes;
+    ``mpc_prior``: a policy folder whose plan on the model seeds the searches: adds the method
+    ``mpc_ppo`` (``mpc``'s settings seeded by it) and seeds ``mpc_robust`` too;
     ``policy_seeds``: policy folders of PPO
     trained with other seeds on the same recipe (their IQM, nominal and perturbed);
     ``amortise_over``: N targets for the amortised PPO point; the perturbation axes
@@ -220,7 +225,8 @@ def compare(n_targets: int = 100, seed: int = 0, budgets: Sequence[int] = (1000,
     with contextlib.ExitStack() as stack:  # the MPC's worker processes
         return _compare(stack, cfg, targets, ppo, rand_path, seeds, seed, budgets, methods,
                         amortise_over, noise_ladder, spread_ladder, diagonal, full_grid,
-                        perturb_repeats, mpc, robust_mpc, mpc_workers, progress, env_id)
+                        perturb_repeats, mpc, robust_mpc, mpc_prior, mpc_workers, progress,
+                        env_id)
 
 
 def _compare(stack: contextlib.ExitStack, cfg: EnvConfig, targets: np.ndarray, ppo: Any,
@@ -228,7 +234,7 @@ def _compare(stack: contextlib.ExitStack, cfg: EnvConfig, targets: np.ndarray, p
              methods: Sequence[str], amortise_over: int, noise_ladder: Sequence[float],
              spread_ladder: Sequence[float], diagonal: Sequence[tuple[float, float]],
              full_grid: bool, perturb_repeats: int, mpc: MPCSettings | None,
-             robust_mpc: MPCSettings | None, mpc_workers: int,
+             robust_mpc: MPCSettings | None, mpc_prior: str | Path | None, mpc_workers: int,
              progress: bool, env_id: str) -> dict:
     from tqdm import tqdm
 
@@ -250,17 +256,21 @@ def _compare(stack: contextlib.ExitStack, cfg: EnvConfig, targets: np.ndarray, p
     runners: dict[str, Callable] = {"ppo": policy_rollout(ppo)}
     if robust is not None:
         runners["ppo_randomised"] = policy_rollout(robust)
-    for name, settings in (("mpc", mpc), ("mpc_robust", robust_mpc)):
+    prior = None if mpc_prior is None else str(mpc_prior)
+    for name, settings, seeded in (("mpc", mpc, None),
+                                   ("mpc_ppo", mpc if prior else None, prior),
+                                   ("mpc_robust", robust_mpc, prior)):
         if settings is None:
             continue
-        run_mpc = stack.enter_context(mpc_rollout(settings, workers=mpc_workers))
+        run_mpc = stack.enter_context(mpc_rollout(settings, workers=mpc_workers, prior=seeded))
         t0 = time.perf_counter()
         res = run_mpc(cfg, targets, seed)
         rows.append(_rows(name, res, targets, cfg.tolerance,
                           wall_s_per_target=(time.perf_counter() - t0) / len(targets),
                           episodes_per_target=float(np.mean(res["episodes"])),
                           planning_wall_s_per_target=float(np.mean(res["wall_time_s"])),
-                          workers=mpc_workers, settings=dataclasses.asdict(settings)))
+                          workers=mpc_workers, settings=dataclasses.asdict(settings),
+                          prior=seeded))
         runners[name] = run_mpc
     rows.append(_closed_loop("random", _RandomPolicy(seed), targets, cfg, seed))
     fixed = encode_actions(FIXED_SCHEDULE["frequency_hz"], FIXED_SCHEDULE["stroke_m"],
@@ -347,6 +357,7 @@ def summary_table(result: dict) -> str:
             extra = (f", {st['noise_copies']} noisy copies at σ={st['assumed_noise']:g}"
                      if st["noise_copies"] > 1 else "")
             extra += ", friction and mass identified online" if st["identify"] else ""
+            extra += f", seeded by {Path(r['prior']).name}'s plan" if r.get("prior") else ""
             lines.append(f"{r['method']} ({st['method']}, {st['first_budget']} episodes before "
                          f"the first firing, {st['replan_budget']} per re-plan{extra}): "
                          f"{r['episodes_per_target']:.0f} model episodes and "

@@ -122,7 +122,8 @@ class MPC:
     """The controller: plans on ``model`` (an :class:`EnvConfig`, randomisation off: the nominal
     model) with ``settings``. :meth:`run` controls one episode of a real env."""
 
-    def __init__(self, model: EnvConfig, settings: MPCSettings | None = None) -> None:
+    def __init__(self, model: EnvConfig, settings: MPCSettings | None = None,
+                 prior: Any = None) -> None:
         if model.randomised:
             raise ValueError("the MPC's model must be nominal (randomisation off); perturb the "
                              "real env instead")
@@ -136,6 +137,8 @@ class MPC:
             friction_factor_range=(1.0 - r, 1.0 + r) if s.identify else (1.0, 1.0),
             mass_factor_range=(1.0 - r, 1.0 + r) if s.identify else (1.0, 1.0))
         self.rollouts = Rollouts(planning)
+        self.prior = prior  # a policy (act(obs) -> actions) whose plan seeds every search
+        self._prior_env: MicroConveyorEnv | None = None
         self._id_env: Any = None
         self.factors: tuple[float, float] = (1.0, 1.0)  # friction, mass: the current estimate
 
@@ -145,16 +148,51 @@ class MPC:
         model episodes, and the episodes used."""
         s = self.settings
         kw: dict[str, Any] = {}
-        if warm is not None and len(warm):
-            kw["x0"] = np.clip(np.asarray(warm, float).ravel(), -1.0, 1.0)
         if s.identify:
             state = dataclasses.replace(state, friction_factor=self.factors[0],
                                         mass_factor=self.factors[1])
+        used = 0
+        if self.prior is not None:  # the policy's plan on the model, if it beats the warm start
+            prior = self.prior_plan(state)
+            warm, used = self._better(state, warm, prior)
+        if warm is not None and len(warm):
+            kw["x0"] = np.clip(np.asarray(warm, float).ravel(), -1.0, 1.0)
         if not s.robust:
-            r = solve_target(state.target_m, s.method, budget, seed, rollouts=self.rollouts,
-                             start=state, **kw)
-            return r.plan, r.episodes
-        return self._robust_plan(state, budget, seed, kw)
+            r = solve_target(state.target_m, s.method, budget - used, seed,
+                             rollouts=self.rollouts, start=state, **kw)
+            return r.plan, r.episodes + used
+        plan, eps = self._robust_plan(state, budget - used, seed, kw)
+        return plan, eps + used
+
+    def prior_plan(self, state: PartState) -> np.ndarray:
+        """The remaining firings the prior policy fires from ``state`` on the model (closed loop,
+        without noise); firings it never reaches (the part delivered first) repeat its last."""
+        if self._prior_env is None:
+            cfg = dataclasses.replace(self.rollouts.config, action_noise=0.0)
+            self._prior_env = MicroConveyorEnv(config=cfg)
+        env = self._prior_env
+        obs, _ = env.reset(seed=0, options={"state": state})
+        acts: list[np.ndarray] = []
+        n = self.model.n_actuators - state.fired
+        while len(acts) < n:
+            a = np.clip(np.asarray(self.prior.act(obs[None]), float).reshape(-1, 3)[0], -1, 1)
+            acts.append(a)
+            obs, _, term, trunc, _ = env.step(a.astype(np.float32))
+            if term or trunc:
+                break
+        acts += [acts[-1]] * (n - len(acts))
+        return np.array(acts)
+
+    def _better(self, state: PartState, warm: np.ndarray | None,
+                prior: np.ndarray) -> tuple[np.ndarray, int]:
+        """Of the warm start and the prior's plan, the one closer to the target on the model
+        (one episode each, the same draw), and the episodes spent."""
+        if warm is None or not len(warm):
+            return prior, 0
+        plans = np.stack([np.asarray(warm, float), prior]).astype(np.float32).astype(float)
+        r = self.rollouts.run(plans, state.target_m, seed=0, start=state)
+        c = np.where(r.rest, np.nan_to_num(r.abs_error_m, nan=MISS), MISS)
+        return plans[int(np.argmin(c))], 2
 
     def _robust_plan(self, state: PartState, budget: int, seed: int,
                      kw: dict[str, Any]) -> tuple[np.ndarray, int]:
@@ -254,9 +292,15 @@ class MPC:
 
 
 def _episodes(config: EnvConfig, model: EnvConfig | None, settings: MPCSettings | None,
-              targets: np.ndarray, seeds: np.ndarray, index: np.ndarray) -> list[MPCEpisode]:
+              targets: np.ndarray, seeds: np.ndarray, index: np.ndarray,
+              prior: str | None = None) -> list[MPCEpisode]:
     """Episodes ``index`` (global numbers, for the search seeds) of :func:`mpc_rollout`."""
-    ctl = MPC(model or nominal(config), settings)
+    policy = None
+    if prior is not None:
+        from ..rl.policy_files import load_policy
+
+        policy = load_policy(prior)
+    ctl = MPC(model or nominal(config), settings, policy)
     env = MicroConveyorEnv(config=config)
     return [ctl.run(env, float(tg), int(sd), search_seed=ctl.settings.seed + 1000 * int(i))
             for tg, sd, i in zip(targets, seeds, index, strict=True)]
@@ -273,10 +317,11 @@ class MPCRollout:
     per target: ``episodes`` (of the model) and ``wall_time_s`` (planning)."""
 
     def __init__(self, settings: MPCSettings | None = None, model: EnvConfig | None = None,
-                 workers: int = 1) -> None:
+                 workers: int = 1, prior: str | None = None) -> None:
         if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
             raise ValueError(f"workers = {workers!r} is invalid: must be an integer >= 1")
         self.settings, self.model, self.workers = settings, model, workers
+        self.prior = None if prior is None else str(prior)
         self._pool: Any = None
 
     def __call__(self, config: EnvConfig, targets: np.ndarray, seed: int) -> dict:
@@ -285,7 +330,7 @@ class MPCRollout:
         seeds = seed + index
         k = min(self.workers, tg.size)
         if k <= 1:
-            eps = _episodes(config, self.model, self.settings, tg, seeds, index)
+            eps = _episodes(config, self.model, self.settings, tg, seeds, index, self.prior)
         else:
             if self._pool is None:
                 import multiprocessing as mp
@@ -295,7 +340,7 @@ class MPCRollout:
                                                  mp_context=mp.get_context("spawn"))
             parts = np.array_split(index, k)
             futures = [self._pool.submit(_episodes, config, self.model, self.settings, tg[p],
-                                         seeds[p], p) for p in parts]
+                                         seeds[p], p, self.prior) for p in parts]
             eps = [e for f in futures for e in f.result()]
         out: dict[str, Any] = {
             "targets_m": tg,
@@ -323,6 +368,7 @@ class MPCRollout:
 
 
 def mpc_rollout(settings: MPCSettings | None = None, model: EnvConfig | None = None,
-                workers: int = 1) -> MPCRollout:
-    """:class:`MPCRollout` (``settings``, ``model``, ``workers``)."""
-    return MPCRollout(settings, model, workers)
+                workers: int = 1, prior: str | None = None) -> MPCRollout:
+    """:class:`MPCRollout` (``settings``, ``model``, ``workers``; ``prior``: a policy folder
+    whose plan on the model seeds every search, loaded in each worker as data)."""
+    return MPCRollout(settings, model, workers, prior)

@@ -11,14 +11,15 @@ from .common import pyplot
 
 LABELS = {"ppo": "PPO (shipped)", "ppo_randomised": "PPO trained with randomisation",
           "mpc": "MPC (re-plans after each firing)",
+          "mpc_ppo": "MPC seeded by the PPO's plan",
           "mpc_robust": "robust adaptive MPC (noisy copies, identifies friction)",
           "random": "random policy", "fixed_schedule": "fixed schedule (950 Hz, 200 µm)",
           "de": "DE (open loop)", "cmaes": "CMA-ES (open loop)"}
-COLORS = {"ppo": "C0", "ppo_randomised": "C4", "mpc": "C3", "mpc_robust": "C9", "random": "C7", "fixed_schedule": "C5",
+COLORS = {"ppo": "C0", "ppo_randomised": "C4", "mpc": "C3", "mpc_ppo": "C8", "mpc_robust": "C9", "random": "C7", "fixed_schedule": "C5",
           "de": "C1", "cmaes": "C2"}
 # one marker shape per method, so points that coincide (e.g. several methods at 0 %) stay
 # distinguishable
-MARKERS = {"ppo": "s", "ppo_randomised": "P", "mpc": "*", "mpc_robust": "h", "random": "X", "fixed_schedule": "^",
+MARKERS = {"ppo": "s", "ppo_randomised": "P", "mpc": "*", "mpc_ppo": "p", "mpc_robust": "h", "random": "X", "fixed_schedule": "^",
            "de": "o", "cmaes": "D"}
 
 

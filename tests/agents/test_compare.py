@@ -22,14 +22,15 @@ def test_compare_tiny_budget_writes_its_charts(tmp_path):
     r = subprocess.run([sys.executable, "-m", "microconveyor_env.cli", "compare", "--targets", "2",
                         "--env", "MicroConveyor-v0", "--budgets", "20,40", "--noise", "0,0.01",
                         "--spread", "0,0.02", "--diagonal", "0.01:0.02", "--mpc-budgets",
-                        "20,10", "--repeats", "1", "--randomised-policy", "", "--plot",
+                        "20,10", "--mpc-prior", "shipped", "--repeats", "1", "--randomised-policy", "", "--plot",
                         str(out / "compare.png"), "--json"],
                        capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     res = json.loads(r.stdout)
     methods = [(row["method"], row.get("budget")) for row in res["rows"]]
-    assert methods == [("ppo", None), ("mpc", None), ("random", None), ("fixed_schedule", None),
-                       ("de", 20), ("de", 40), ("cmaes", 20), ("cmaes", 40)]
+    assert methods == [("ppo", None), ("mpc", None), ("mpc_ppo", None), ("random", None),
+                       ("fixed_schedule", None), ("de", 20), ("de", 40), ("cmaes", 20),
+                       ("cmaes", 40)]
     for row in res["rows"]:
         assert row["n_targets"] == 2 and 0 <= row["success_rate"] <= 1
         assert row["wall_s_per_target"] > 0
@@ -42,7 +43,13 @@ def test_compare_tiny_budget_writes_its_charts(tmp_path):
     assert 10 <= mpc["episodes_per_target"] <= 20 + 4 * 10
     assert res["rows"][0]["train_wall_s"] > 0 and res["rows"][0]["train_steps"] > 0
     pert = res["perturbation"]
-    assert set(pert) == {"ppo", "mpc", "random", "fixed_schedule", "de_40_plan", "cmaes_40_plan"}
+    assert set(pert) == {"ppo", "mpc", "mpc_ppo", "random", "fixed_schedule", "de_40_plan",
+                         "cmaes_40_plan"}
+    # seeded by the shipped PPO's plan on the (exact) model, MPC never ends farther than PPO
+    seeded = res["rows"][2]
+    assert seeded["prior"].endswith("ppo")
+    for a, b in zip(seeded["abs_error_m"], res["rows"][0]["abs_error_m"], strict=True):
+        assert a <= b + 1e-12
     assert [lvl["action_noise"] for lvl in pert["ppo"]["action_noise"]] == [0.0, 0.01]
     assert [lvl["spread"] for lvl in pert["ppo"]["spread"]] == [0.0, 0.02]
     assert [(lvl["action_noise"], lvl["spread"]) for lvl in pert["ppo"]["combined"]] == [
@@ -101,7 +108,8 @@ def test_iqm_and_episodes_to_tolerance():
 @pytest.mark.parametrize("argv, message", [
     (["--methods", "pso"], "de, cmaes"), (["--diagonal", "0.01"], "SIGMA:R"),
     (["--diagonal=-1:0.1"], "SIGMA:R"), (["--mpc-budgets", "100"], "FIRST,REPLAN"),
-    (["--mpc-budgets", "5,5"], ">= 10"), (["--robust-mpc", "x"], "FIRST,REPLAN"), (["--workers", "0"], "workers")])
+    (["--mpc-budgets", "5,5"], ">= 10"), (["--robust-mpc", "x"], "FIRST,REPLAN"),
+    (["--mpc-prior", "/nonexistent"], "no policy folder"), (["--workers", "0"], "workers")])
 def test_compare_rejects_bad_arguments(argv, message):
     r = subprocess.run([sys.executable, "-m", "microconveyor_env.cli", "compare", *argv,
                         "--json"], capture_output=True, text=True, timeout=300)
