@@ -153,6 +153,21 @@ def perturbation_levels(noise: Sequence[float] = NOISE_LADDER,
     return axes
 
 
+def _reusing(run: Callable, cfg: EnvConfig, targets: np.ndarray, seed: int,
+             result: dict) -> Callable:
+    """``run``, except that the unperturbed level's call (``cfg`` without randomisation, these
+    targets, ``seed``: the episodes the table's row already played) returns ``result``: an
+    expensive method (MPC) is not played twice on the same episodes."""
+    base = Level().config(cfg)
+
+    def wrapped(config: EnvConfig, tg: np.ndarray, s: int) -> dict:
+        if s == seed and config == base and np.array_equal(tg, targets):
+            return result
+        return run(config, tg, s)
+
+    return wrapped
+
+
 def unique_levels(axes: dict[str, list[Level]]) -> list[Level]:
     """The distinct levels of ``axes``, in order."""
     return list(dict.fromkeys(lv for levels in axes.values() for lv in levels))
@@ -271,7 +286,7 @@ def _compare(stack: contextlib.ExitStack, cfg: EnvConfig, targets: np.ndarray, p
                           planning_wall_s_per_target=float(np.mean(res["wall_time_s"])),
                           workers=mpc_workers, settings=dataclasses.asdict(settings),
                           prior=seeded))
-        runners[name] = run_mpc
+        runners[name] = _reusing(run_mpc, cfg, targets, seed, res)
     rows.append(_closed_loop("random", _RandomPolicy(seed), targets, cfg, seed))
     fixed = encode_actions(FIXED_SCHEDULE["frequency_hz"], FIXED_SCHEDULE["stroke_m"],
                            FIXED_SCHEDULE["delay_s"], cfg)
