@@ -20,6 +20,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import math
+import sys
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -278,6 +279,9 @@ def _compare(stack: contextlib.ExitStack, cfg: EnvConfig, targets: np.ndarray, p
         if settings is None:
             continue
         run_mpc = stack.enter_context(mpc_rollout(settings, workers=mpc_workers, prior=seeded))
+        if progress:
+            print(f"{name}: {len(targets)} targets on {mpc_workers} workers ...", file=sys.stderr,
+                  flush=True)
         t0 = time.perf_counter()
         res = run_mpc(cfg, targets, seed)
         rows.append(_rows(name, res, targets, cfg.tolerance,
