@@ -15,6 +15,25 @@ def _isolated_cache(tmp_path_factory):
         os.environ["MICROCONVEYOR_CACHE_DIR"] = old
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _isolated_tmp(tmp_path_factory):
+    """Temporary files of the run (SB3's default logger makes a ``SB3-<date>`` folder in the
+    temp dir for every model that learns without one, and the CLI subprocesses inherit
+    ``TMPDIR``) go to pytest's own temporary tree, not the machine's /tmp."""
+    import tempfile
+
+    old_env, old_dir = os.environ.get("TMPDIR"), tempfile.tempdir
+    tmp = str(tmp_path_factory.mktemp("tmp"))
+    os.environ["TMPDIR"] = tmp
+    tempfile.tempdir = tmp
+    yield
+    tempfile.tempdir = old_dir
+    if old_env is None:
+        os.environ.pop("TMPDIR", None)
+    else:
+        os.environ["TMPDIR"] = old_env
+
+
 @pytest.fixture(scope="session")
 def feasibility_preset():
     from microconveyor_env.presets import load_preset
