@@ -11,9 +11,14 @@ tested under perturbations. Loading it runs no code from any of them (:mod:`.sb3
 identify with the one the metadata names, the zip's spaces with the env's, the statistics' shape
 with the observations, the files with their recorded hashes. A disagreement is one
 :class:`PolicyError` naming the file and the mismatch.
+
+A policy of the plane (``MicroConveyor2D-v0``, issue 22) is loaded the same way: its scene is a
+:class:`~microconveyor_env.envs.plane_config.PlaneEnvConfig` made from its env kwargs, and the
+model's shapes are checked against the plane env's spaces.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -21,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from microconveyor_env.envs import EnvConfig, env_config, scene_differences
+from microconveyor_env.envs.plane_config import PlaneEnvConfig
 from microconveyor_env.envs.versions import check_env_id, nominal
 from microconveyor_env.physics.materials import ParameterError
 
@@ -30,6 +36,11 @@ from .normalization import NORMALIZATION, NormalizationError, ObsNormalizer
 from .sb3_files import ALGOS, ModelFileError, algo_of, check_spaces, read_data, safe_load
 
 FIRST_ENV_ID = "MicroConveyor-v0"  # what a policy without an env id in its metadata was trained on
+# plane config fields that are not the scene: how the env runs, and how training scores an episode
+PLANE_NOT_SCENE = frozenset({"num_threads", "max_steps", "progress_scale", "progress_horizon",
+                             "time_cost", "success_bonus", "detach_penalty"})
+AnyConfig = EnvConfig | PlaneEnvConfig
+PLANE_ENV_IDS = ("MicroConveyor2D-v0",)   # ids whose scene is a PlaneEnvConfig (issue 22)
 
 
 class PolicyError(ValueError):
@@ -46,15 +57,16 @@ class Policy:
     metadata: dict[str, Any]
     path: Path
     # the scene it was trained in, randomisation off (None: unknown, no metadata)
-    config: EnvConfig | None = None
+    config: AnyConfig | None = None
 
     @property
     def env_id(self) -> str:
         return str(self.metadata.get("env_id", FIRST_ENV_ID))
 
     def act(self, obs: np.ndarray) -> np.ndarray:
-        """Deterministic actions in [-1, 1]^3 for a batch of raw observations of the Box env
-        (a policy trained on the goal-conditioned env gets them as its Dict observations)."""
+        """Deterministic actions in [-1, 1]^k (k = 3 in 1-D, 5 in the plane) for a batch of raw
+        observations of the Box env (a policy trained on the goal-conditioned env gets them as
+        its Dict observations)."""
         from gymnasium import spaces
 
         if isinstance(self.model.observation_space, spaces.Dict):
@@ -88,7 +100,12 @@ def _metadata(folder: Path) -> dict[str, Any]:
     return meta
 
 
-def _spaces(config: EnvConfig, env_id: str) -> tuple[Any, Any]:
+def _spaces(config: AnyConfig, env_id: str) -> tuple[Any, Any]:
+    if isinstance(config, PlaneEnvConfig):
+        from microconveyor_env.envs.plane_env import MicroConveyor2DEnv
+
+        plane = MicroConveyor2DEnv(config=config)
+        return plane.observation_space, plane.action_space
     from microconveyor_env.envs import MicroConveyorEnv
     from microconveyor_env.envs.goal import MicroConveyorGoalEnv
     from microconveyor_env.envs.versions import GOAL_ENV_IDS
@@ -135,19 +152,34 @@ def policy_env_kwargs(meta: dict[str, Any]) -> dict[str, Any]:
     return dict(kw)
 
 
-def policy_scene(meta: dict[str, Any], where: str = "metadata") -> EnvConfig:
-    """The config of the env a policy was trained on: ``env_config(env_id, **env_kwargs)``."""
+def policy_scene(meta: dict[str, Any], where: str = "metadata") -> AnyConfig:
+    """The config of the env a policy was trained on: ``env_config(env_id, **env_kwargs)`` (an
+    :class:`EnvConfig`), or for the plane ``PlaneEnvConfig.from_yaml(**env_kwargs)``."""
+    env_id = str(meta.get("env_id", FIRST_ENV_ID))
     try:
-        return env_config(check_env_id(str(meta.get("env_id", FIRST_ENV_ID))),
-                          **policy_env_kwargs(meta))
+        if env_id in PLANE_ENV_IDS:
+            return PlaneEnvConfig.from_yaml(**policy_env_kwargs(meta))
+        return env_config(check_env_id(env_id), **policy_env_kwargs(meta))
     except ParameterError as exc:
         raise PolicyError(f"{where}: the env the policy was trained on cannot be made ({exc})") \
             from None
 
 
-def check_scene(trained: EnvConfig, asked: EnvConfig, meta: dict[str, Any], where: str) -> None:
+def _plane_differences(trained: PlaneEnvConfig, asked: Any) -> dict[str, tuple[Any, Any]]:
+    if not isinstance(asked, PlaneEnvConfig):
+        return {"env": ("MicroConveyor2D-v0 (the plane)", f"a {type(asked).__name__} (1-D)")}
+    a, b = dataclasses.asdict(trained), dataclasses.asdict(asked)
+    return {k: (a[k], b[k]) for k in a if k not in PLANE_NOT_SCENE and a[k] != b[k]}
+
+
+def check_scene(trained: AnyConfig, asked: AnyConfig, meta: dict[str, Any], where: str) -> None:
     """PolicyError when ``asked`` is another scene than the one the policy was trained in."""
-    diff = scene_differences(trained, asked)
+    if isinstance(trained, PlaneEnvConfig):
+        diff = _plane_differences(trained, asked)
+    elif isinstance(asked, PlaneEnvConfig):
+        diff = {"env": (f"a {type(trained).__name__} (1-D)", "MicroConveyor2D-v0 (the plane)")}
+    else:
+        diff = scene_differences(trained, asked)
     if diff:
         fields = "; ".join(f"{k}: trained {a!r}, asked {b!r}" for k, (a, b) in diff.items())
         raise PolicyError(f"{where}: the policy was trained on {meta.get('env_id', FIRST_ENV_ID)}"
@@ -156,12 +188,13 @@ def check_scene(trained: EnvConfig, asked: EnvConfig, meta: dict[str, Any], wher
                           "give the policy's own --env/--env-kwargs (or none)")
 
 
-def load_policy(path: str | Path, config: EnvConfig | None = None) -> Policy:
+def load_policy(path: str | Path, config: AnyConfig | None = None) -> Policy:
     """The policy at ``path`` (a policy folder, or a model zip with its files beside it), checked
     as a unit, for the env ``config`` (default: the scene it was trained in, from its metadata,
     with per-episode randomisation off;
-    a policy without metadata: MicroConveyor-v0's defaults). A ``config`` of another scene than
-    the policy's is refused (:func:`check_scene`)."""
+    a policy without metadata: MicroConveyor-v0's defaults; a MicroConveyor2D-v0 policy: its
+    :class:`PlaneEnvConfig`). A ``config`` of another scene than the policy's is refused
+    (:func:`check_scene`)."""
     folder, model_file = _locate(Path(path))
     meta = _metadata(folder)
     try:
@@ -178,8 +211,8 @@ def load_policy(path: str | Path, config: EnvConfig | None = None) -> Policy:
     trained = policy_scene(meta, repr(str(folder / META))) if meta else None
     if trained is not None and config is not None:
         check_scene(trained, config, meta, repr(str(folder / META)))
-    if trained is not None:
-        trained = nominal(trained)
+    if trained is not None and not isinstance(trained, PlaneEnvConfig):
+        trained = nominal(trained)   # the plane has no per-episode randomisation to turn off
     cfg = config or trained or env_config(FIRST_ENV_ID)
     env_id = str(meta.get("env_id", FIRST_ENV_ID))
     obs_space, act_space = _spaces(cfg, env_id)
