@@ -19,7 +19,7 @@ import sys
 import numpy as np
 
 from agents.rl.checkpoint import MODEL, NORMALIZATION, sha256
-from agents.rl.policy_files import policy_scene
+from agents.rl.policy_files import PLANE_ENV_IDS, policy_scene
 from agents.rl.evaluate import fixed_targets, load_policy, rollout, summarize
 from agents.rl.shipped import shipped_path
 
@@ -80,4 +80,9 @@ if __name__ == "__main__":
                               for n in names]
     for item in wanted:
         env_id, _, name = item.partition("/")
+        if env_id in PLANE_ENV_IDS:   # the plane's record: scripts/ship_plane_policy.py
+            from ship_plane_policy import record as record_plane
+
+            print(f"{item}: {record_plane(shipped_path(name, env_id))}", file=sys.stderr)
+            continue
         record(env_id, name)
