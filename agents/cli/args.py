@@ -78,14 +78,17 @@ def env_kwarg(text: str) -> tuple[str, Any]:
 
 
 def add_env_args(p: argparse.ArgumentParser, default: str | None = "MicroConveyor-v0",
-                 what: str = "", default_text: str | None = None, goal: bool = False) -> None:
-    """``--env ID`` (a registered version; with ``goal`` also the goal-conditioned variants) and
-    ``--env-kwargs KEY:VALUE ...`` (its overrides, as ``gym.make(ID, **kwargs)``);
-    ``default_text`` says what a ``None`` default means."""
+                 what: str = "", default_text: str | None = None, goal: bool = False,
+                 extra_ids: tuple[str, ...] = ()) -> None:
+    """``--env ID`` (a registered version; with ``goal`` also the goal-conditioned variants;
+    ``extra_ids`` also these, e.g. the plane's) and ``--env-kwargs KEY:VALUE ...`` (its
+    overrides, as ``gym.make(ID, **kwargs)``); ``default_text`` says what a ``None`` default
+    means."""
     from microconveyor_env.envs import ENV_IDS
     from microconveyor_env.envs.versions import ALL_ENV_IDS
 
-    p.add_argument("--env", choices=ALL_ENV_IDS if goal else ENV_IDS, default=default,
+    p.add_argument("--env", choices=(ALL_ENV_IDS if goal else ENV_IDS) + tuple(extra_ids),
+                   default=default,
                    help=f"env id{what} (default: {default or default_text})")
     p.add_argument("--env-kwargs", type=env_kwarg, nargs="+", default=None, metavar="KEY:VALUE",
                    help="env overrides as gym.make(ID, **kwargs): SI units, e.g. n_actuators:7 "

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import Any
 
 from microconveyor_env.cli.base import command, count, emit, plot_path
 
@@ -103,9 +104,12 @@ def _evaluate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the fixed target set")
     p.add_argument("--tolerance", type=float, default=None,
                    help="success tolerance [m] (default: the env's, 50 um)")
+    from ..rl.policy_files import PLANE_ENV_IDS
+
     add_env_args(p, default=None, default_text="the policy's own, from its metadata",
                  what=": refused if it differs from the scene the policy was trained in "
-                      "(randomisation aside)")
+                      "(randomisation aside); MicroConveyor2D-v0: the plane, targets on the "
+                      "grid's box, Euclidean errors", extra_ids=PLANE_ENV_IDS)
 
 
 @command("evaluate", "evaluate a policy (PPO, SAC, TQC, TD3) on a fixed seeded set of targets, "
@@ -117,6 +121,8 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
     if args.tolerance is not None and not 0 < args.tolerance < 1:
         raise ValueError(f"--tolerance {args.tolerance!r} must be in (0, 1) m")
     path = args.policy or require_shipped(args.env or "MicroConveyor-v0")
+    if _plane_evaluation(args, path):
+        return
     asked = None
     if args.env or args.env_kwargs:
         from microconveyor_env.envs import env_config
@@ -135,6 +141,42 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
     res.update(policy=str(pol.path), env_id=pol.env_id,
                env_kwargs=policy_env_kwargs(pol.metadata))
     emit(args, res)
+
+
+def _plane_evaluation(args: argparse.Namespace, path: Any) -> bool:
+    """``evaluate`` of a MicroConveyor2D-v0 policy (``--env`` or the policy's metadata say so):
+    targets uniform on the grid's box drawn with ``--seed``, success at rest within the
+    tolerance (Euclidean). False: not a plane policy."""
+    from microconveyor_env.envs.plane_config import PlaneEnvConfig
+
+    from ..rl.evaluate_plane import plane_rollout, plane_summary, plane_targets
+    from ..rl.policy_files import PLANE_ENV_IDS, load_policy, policy_env_kwargs, read_policy_meta
+
+    meta = read_policy_meta(path)
+    env_id = args.env or meta.get("env_id")
+    if env_id not in PLANE_ENV_IDS and meta.get("env_id") not in PLANE_ENV_IDS:
+        return False
+    if env_id not in PLANE_ENV_IDS:
+        raise ValueError(f"{str(path)!r} is a policy of {meta.get('env_id')} (the plane); --env "
+                         f"{env_id} is another env. Evaluating a policy on another scene is "
+                         "refused; give the policy's own --env (or none)")
+    asked = None
+    if args.env or args.env_kwargs:   # load_policy refuses another scene (or a 1-D policy)
+        asked = PlaneEnvConfig.from_yaml(**{**policy_env_kwargs(meta), **env_kwargs_of(args)})
+    pol = load_policy(path, asked)
+    cfg = asked or pol.config
+    if not isinstance(cfg, PlaneEnvConfig):
+        raise ValueError(f"{str(path)!r} is not a MicroConveyor2D-v0 policy (its metadata says "
+                         f"{meta.get('env_id')!r})")
+    res = plane_rollout(pol, plane_targets(cfg, args.targets, args.seed), cfg)
+    out = plane_summary(res, cfg.tolerance if args.tolerance is None else args.tolerance)
+    out.update(seed=args.seed, target_box_m=[list(b) for b in cfg.grid_box], policy=str(pol.path),
+               env_id=pol.env_id, env_kwargs=policy_env_kwargs(pol.metadata))
+    emit(args, out, f"{pol.env_id}: {out['n_targets']} targets, success within "
+                    f"{out['tolerance_m'] * 1e6:.0f} µm (at rest, Euclidean) "
+                    f"{out['success_rate']:.1%}, median error {out['median_error_m'] * 1e6:.1f} µm, "
+                    f"detached {out['detach_rate']:.1%}")
+    return True
 
 
 def _seeds_args(p: argparse.ArgumentParser) -> None:

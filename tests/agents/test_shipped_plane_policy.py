@@ -83,3 +83,23 @@ def test_shipped_plane_policy_reproduces_its_record():
     # the recorded figures (README, "In the plane")
     assert stored["success_rate_50um"] == 0.8 and stored["detach_rate"] == 0.0
     assert 38e-6 <= stored["median_error_m"] <= 39e-6
+
+
+def test_cli_evaluates_the_plane_policy_and_refuses_another_env():
+    import subprocess
+    import sys
+
+    def cli(*args):
+        return subprocess.run([sys.executable, "-m", "microconveyor_env.cli", "evaluate", *args],
+                              capture_output=True, text=True, timeout=300)
+
+    r = cli("--env", ENV_ID, "--targets", "3", "--seed", "2026", "--json")
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    pol = load_policy(shipped_path("ppo", ENV_ID))
+    res = plane_rollout(pol, plane_targets(pol.config, 3, 2026), pol.config)
+    assert out["env_id"] == ENV_ID and out["n_targets"] == 3
+    assert abs(out["median_error_m"] - float(np.median(res["error_m"]))) <= EPISODE_TOL_M
+    r = cli("--policy", str(shipped_path("ppo", ENV_ID)), "--env", "MicroConveyor-v1",
+            "--targets", "2", "--json")
+    assert r.returncode == 2 and "another scene is refused" in r.stdout
