@@ -112,7 +112,8 @@ def add_args(p: argparse.ArgumentParser) -> None:
 def run(args: Any) -> None:
     from microconveyor_env.cli.base import json_default
 
-    from ..experiments.compare import MPC_SETTINGS, compare, summary_table
+    from ..experiments.compare import MPC_SETTINGS, compare
+    from ..experiments.compare_text import summary_table
     from ..mpc.controller import MPCSettings
     from ..plots.compare import plot_all
 

@@ -1,0 +1,87 @@
+"""The comparison's result (:func:`.compare.compare`) as plain text: one line per method and
+budget, the MPCs' compute, and success under every perturbation level (the full grid as a matrix
+per method). Units people read: µm, ms, %.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+
+def summary_table(result: dict) -> str:
+    """The comparison as a plain-text table (one line per method and budget)."""
+    head = (f"{'method':<16}{'budget':>7}{'success':>9}{'median |err|':>14}{'travel':>9}"
+            f"{'wall/target':>13}{'episodes':>10}{'crossover N':>13}")
+    lines = [head, "-" * len(head)]
+    for r in result["rows"]:
+        tt = r.get("median_travel_time_s")
+        cross = r.get("crossover_targets")
+        lines.append(
+            f"{r['method']:<16}{r.get('budget', ''):>7}{100 * r['success_rate']:>8.0f}%"
+            f"{1e6 * r['median_abs_error_m']:>11.1f} µm"
+            f"{'' if tt is None else f'{1e3 * tt:.0f} ms':>9}"
+            f"{1e3 * r['wall_s_per_target']:>10.2f} ms{r['episodes_per_target']:>10.0f}"
+            f"{'' if cross is None else f'{cross:.0f}':>13}")
+    ppo = result["rows"][0]
+    lines.append(f"PPO training: {ppo['train_wall_s']:.0f} s, {ppo['train_steps']:,} env steps "
+                 "(firings); "
+                 f"amortised over {result['ppo_amortised']['over_targets']} targets: "
+                 f"{result['ppo_amortised']['wall_s_per_target']:.2f} s per target")
+    for r in result["rows"]:
+        if r["method"].startswith("mpc"):
+            st = r["settings"]
+            extra = (f", {st['noise_copies']} noisy copies at σ={st['assumed_noise']:g}"
+                     if st["noise_copies"] > 1 else "")
+            extra += ", friction and mass identified online" if st["identify"] else ""
+            extra += f", seeded by {Path(r['prior']).name}'s plan" if r.get("prior") else ""
+            lines.append(f"{r['method']} ({st['method']}, {st['first_budget']} episodes before "
+                         f"the first firing, {st['replan_budget']} per re-plan{extra}): "
+                         f"{r['episodes_per_target']:.0f} model episodes and "
+                         f"{r['planning_wall_s_per_target']:.2f} s of planning per target "
+                         f"({r['wall_s_per_target']:.2f} s wall with {r['workers']} workers)")
+    lines += ["", perturbation_text(result)]
+    return "\n".join(lines)
+
+
+def _level_name(row: dict) -> str:
+    return f"σ={row['action_noise']:g},r={100 * row['spread']:g}%"
+
+
+def perturbation_text(result: dict) -> str:
+    """Success within the tolerance [%] of every method at every perturbation level, one block
+    per axis (levels as σ [action units], r [%]); with PPO seeds, their IQM [95 % CI]."""
+    pert = result["perturbation"]
+    if not pert:
+        return ""
+    first = next(iter(pert.values()))
+    out = []
+    for axis, levels in first.items():
+        if axis == "grid":
+            out.append(_grid_text(pert))
+            continue
+        names = [_level_name(r) for r in levels]
+        width = max(14, *(len(n) + 1 for n in names))
+        out.append(f"success [%] under perturbation, {axis}:")
+        out.append(f"{'method':<18}" + "".join(f"{n:>{width}}" for n in names))
+        for method, tables in pert.items():
+            out.append(f"{method:<18}" + "".join(
+                f"{100 * r['success_rate']:>{width}.0f}" for r in tables[axis]))
+        seeds = result.get("seeds")
+        if seeds:
+            cells = [f"{100 * r['iqm']:.0f} [{100 * r['ci95'][0]:.0f},{100 * r['ci95'][1]:.0f}]"
+                     for r in seeds["perturbation"][axis]]
+            out.append(f"{'PPO seeds IQM':<18}" + "".join(f"{c:>{width}}" for c in cells))
+    return "\n".join(out)
+
+
+def _grid_text(pert: dict) -> str:
+    """The full grid: per method, success [%] with σ down and r across."""
+    out = ["success [%] under perturbation, full grid (rows: noise σ; columns: model error r):"]
+    for method, tables in pert.items():
+        grid = tables["grid"]
+        sig = sorted({r["action_noise"] for r in grid})
+        rr = sorted({r["spread"] for r in grid})
+        val = {(r["action_noise"], r["spread"]): r["success_rate"] for r in grid}
+        out.append(f"{method:<18}" + "".join(f"{f'r={100 * r:g}%':>9}" for r in rr))
+        for x in sig:
+            out.append(f"{f'  σ={x:g}':<18}" + "".join(f"{100 * val[(x, r)]:>9.0f}" for r in rr))
+    return "\n".join(out)
