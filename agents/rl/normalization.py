@@ -50,9 +50,16 @@ def _rms(rms: Any) -> dict[str, Any]:
 
 def stats_of(vec_normalize: Any) -> dict[str, Any]:
     """The JSON-ready statistics and settings of an SB3 ``VecNormalize`` (floats kept exactly)."""
-    if isinstance(vec_normalize.obs_rms, dict):
+    if not vec_normalize.norm_obs:
+        # SB3 keeps no observation statistics then; the file holds the identity (unused:
+        # norm_obs false means the policy reads raw observations)
+        n = int(np.prod(vec_normalize.observation_space.shape))
+        obs_rms: dict[str, Any] = {"mean": [0.0] * n, "var": [1.0] * n, "count": 1.0}
+    elif isinstance(vec_normalize.obs_rms, dict):
         raise NormalizationError("dict observations are not supported by this format yet")
-    out: dict[str, Any] = {"format": FORMAT, "obs_rms": _rms(vec_normalize.obs_rms),
+    else:
+        obs_rms = _rms(vec_normalize.obs_rms)
+    out: dict[str, Any] = {"format": FORMAT, "obs_rms": obs_rms,
                            "ret_rms": _rms(vec_normalize.ret_rms)}
     for key in _SETTINGS:
         value = getattr(vec_normalize, key)
@@ -134,7 +141,7 @@ def restore(venv: Any, stats: dict[str, Any]) -> Any:
     from stable_baselines3.common.vec_env import VecNormalize
 
     vn = VecNormalize(venv, training=True, **{k: stats[k] for k in _SETTINGS})
-    for key in ("obs_rms", "ret_rms"):
+    for key in ("obs_rms", "ret_rms") if stats["norm_obs"] else ("ret_rms",):
         rms, src = getattr(vn, key), stats[key]
         rms.mean = np.asarray(src["mean"], float).reshape(np.shape(rms.mean))
         rms.var = np.asarray(src["var"], float).reshape(np.shape(rms.var))
