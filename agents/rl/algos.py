@@ -29,10 +29,18 @@ def budgeted(base: type) -> type:
         # 2-core machine but fall to ~450 steps/s when the cores are busy
         # (benchmarks/train_speed.py)
         update_threads = 1
+        # PPO's exploration restart (set by train() from the recipe's exploration_restart):
+        # once the run's progress (steps or wall budget, whichever is further) reaches the
+        # fraction restart_at, the log std of every action component is set to
+        # restart_log_std, once (restart_pending); None: no restart
+        restart_at: float | None = None
+        restart_log_std: float = 0.0
+        restart_pending = False
         _current_progress_remaining: float
 
         def _excluded_save_params(self) -> list:
-            return [*super()._excluded_save_params(), "budget_clock", "update_threads"]
+            return [*super()._excluded_save_params(), "budget_clock", "update_threads",
+                    "restart_at", "restart_log_std", "restart_pending"]
 
         def train(self, *args: Any, **kwargs: Any) -> None:
             import torch
@@ -43,6 +51,13 @@ def budgeted(base: type) -> type:
                 super().train(*args, **kwargs)
             finally:
                 torch.set_num_threads(before)
+            if (self.restart_pending and self.restart_at is not None
+                    and 1.0 - self._current_progress_remaining >= self.restart_at):
+                # after this update, before the next rollout: the next rollout explores
+                # with the restarted noise and its log-probabilities are computed with it
+                with torch.no_grad():
+                    self.policy.log_std.fill_(self.restart_log_std)
+                self.restart_pending = False
 
         def _update_current_progress_remaining(self, num_timesteps: int,
                                                total_timesteps: int) -> None:

@@ -1,0 +1,205 @@
+"""Recipe options beyond SB3's keyword arguments: the training-only log-error shaping
+(agents/rl/shaping.py), PPO's exploration restart, raw observations (norm_obs false)."""
+import numpy as np
+import pytest
+from stable_baselines3.common.vec_env import VecMonitor
+
+from agents.rl import hyperparams, shaping
+from agents.rl.shaping import LogErrorShaping
+from microconveyor_env.envs.sb3 import MicroConveyorSB3VecEnv
+
+N = 16
+
+
+def _plain_and_shaped(seed: int):
+    plain = VecMonitor(MicroConveyorSB3VecEnv(N, env_id="MicroConveyor-v1", num_threads=1))
+    shaped = LogErrorShaping(VecMonitor(MicroConveyorSB3VecEnv(N, env_id="MicroConveyor-v1",
+                                                               num_threads=1)),
+                             weight=3.0, scale_m=20e-6)
+    plain.seed(seed)
+    shaped.seed(seed)
+    return plain, shaped
+
+
+def test_shaping_telescopes_to_the_log_of_the_final_error():
+    """Over every episode the added terms sum to Psi(final error) - Psi(start error), with a
+    detached part at Psi(horizon); the env's own reward is unchanged underneath."""
+    plain, shaped = _plain_and_shaped(3)
+    obs_p, obs_s = plain.reset(), shaped.reset()
+    np.testing.assert_array_equal(obs_p, obs_s)
+    start = shaped.potential(obs_s[:, 0] * 10e-3)
+    added = np.zeros(N)
+    rng = np.random.default_rng(0)
+    ended = 0
+    outcomes = set()
+    for _ in range(40):
+        act = rng.uniform(-1, 1, (N, 3)).astype(np.float32)
+        obs_p, r_p, d_p, inf_p = plain.step(act)
+        obs_s, r_s, d_s, inf_s = shaped.step(act)
+        np.testing.assert_array_equal(obs_p, obs_s)
+        np.testing.assert_array_equal(d_p, d_s)
+        added += r_s.astype(float) - r_p.astype(float)
+        for i in np.flatnonzero(d_s):
+            err = inf_s[i]["position_error_m"]
+            outcomes.add(inf_s[i]["outcome"])
+            final = (shaped.potential(shaped.horizon) if inf_s[i]["outcome"] == "detached"
+                     else shaped.potential(err))
+            # float32 rewards: a few ulps of the env's reward per step
+            assert added[i] == pytest.approx(final - start[i], abs=1e-3 * max(1.0, abs(r_p[i])))
+            added[i] = 0.0
+            start[i] = shaped.potential(obs_s[i, 0] * 10e-3)
+            ended += 1
+    assert ended > N and {"rest", "detached"} <= outcomes
+
+
+def test_potential_is_log_of_relative_error_and_saturates():
+    env = LogErrorShaping(VecMonitor(MicroConveyorSB3VecEnv(2, env_id="MicroConveyor-v1",
+                                                            num_threads=1)),
+                          weight=2.0, scale_m=10e-6)
+    assert env.horizon == pytest.approx(2 * (10e-3 + 0.15e-3))  # v1's progress_horizon
+    e = np.array([0.0, 10e-6, 90e-6, 1.0])
+    np.testing.assert_allclose(env.potential(e), [0.0, -2 * np.log(2), -2 * np.log(10),
+                                                  -2 * np.log1p(env.horizon / 10e-6)])
+    # halving 100 um pays as much as halving 2 mm (up to the bend at the scale)
+    gain = lambda a, b: float(env.potential(b) - env.potential(a))  # noqa: E731
+    assert gain(100e-6, 50e-6) == pytest.approx(gain(2e-3, 1e-3), rel=0.15)
+
+
+@pytest.mark.parametrize("spec, message", [
+    ("os.system", "is not one this package builds"),
+    ({"agents.rl.shaping.LogErrorShaping": {"weight": -1}}, "weight must be a positive"),
+    ({"agents.rl.shaping.LogErrorShaping": {"wieght": 1}}, "unexpected keyword"),
+    ([1], "expected a name"),
+])
+def test_a_recipe_names_only_known_wrappers(spec, message):
+    venv = VecMonitor(MicroConveyorSB3VecEnv(2, env_id="MicroConveyor-v1", num_threads=1))
+    with pytest.raises(ValueError, match=message):
+        shaping.wrap(venv, spec)
+
+
+def test_the_wrapper_key_is_the_trainers_not_ppos():
+    hp = hyperparams.load(env_id="MicroConveyor-v1")
+    hp["vec_env_wrapper"] = [{"agents.rl.shaping.LogErrorShaping": {"weight": 1.0}}]
+    assert "vec_env_wrapper" not in hyperparams.algo_kwargs(hp)
+    venv = VecMonitor(MicroConveyorSB3VecEnv(2, env_id="MicroConveyor-v1", num_threads=1))
+    wrapped = shaping.wrap(venv, hp["vec_env_wrapper"])
+    assert isinstance(wrapped, LogErrorShaping) and wrapped.weight == 1.0
+    assert shaping.wrap(venv, None) is venv
+
+
+def _tiny_ppo(out, steps, **overrides):
+    from agents.rl.train import train
+
+    tiny = {"n_envs": 8, "n_steps": 16, "batch_size": 64, "n_epochs": 2,
+            "policy_kwargs": {"net_arch": {"pi": [16], "vf": [16]}, "log_std_init": -3.0},
+            **overrides}
+    return train(out, steps=steps, seed=0, env_id="MicroConveyor-v1", overrides=tiny,
+                 checkpoint_freq=10**6, eval_freq=0, eval_targets=0, progress_bar=False,
+                 tensorboard=False)
+
+
+def test_exploration_restart_fires_once_and_restarts_the_schedule():
+    """exploration_restart {at, log_std}: the first rollout past the fraction ``at`` explores
+    with exactly that log std (set after the update before it), no other rollout does, and the
+    learning rate decays towards 0 in each phase from its initial value."""
+    import torch
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    from agents.rl.algos import algo_class
+    from agents.rl.hyperparams import linear_schedule
+    from agents.rl.train import _exploration_restart
+
+    seen = []
+
+    class Record(BaseCallback):
+        def _on_rollout_start(self) -> None:
+            seen.append((self.model.num_timesteps, self.model.policy.log_std.detach().clone(),
+                         self.model.lr_schedule(self.model._current_progress_remaining)))
+
+        def _on_step(self) -> bool:
+            return True
+
+    env = MicroConveyorSB3VecEnv(8, env_id="MicroConveyor-v1", num_threads=1)
+    model = algo_class("ppo")("MlpPolicy", env, n_steps=16, batch_size=64, n_epochs=2, seed=0,
+                              learning_rate=linear_schedule(1e-3), device="cpu",
+                              policy_kwargs={"net_arch": [16], "log_std_init": -3.0})
+    _exploration_restart(model, {"exploration_restart": {"at": 0.5, "log_std": -0.7}}, "ppo",
+                         1024)
+    model.learn(1024, callback=Record())
+    steps = [s for s, _, _ in seen]
+    exact = [s for s, ls, _ in seen if torch.all(ls == -0.7)]
+    assert exact == [min(s for s in steps if s >= 512)]  # once, at the first rollout past 50 %
+    lrs = {s: lr for s, _, lr in seen}
+    assert lrs[0] == pytest.approx(1e-3)
+    assert lrs[384] == pytest.approx(1e-3 * (1 - 384 / 512))   # phase 1 decays towards 0
+    assert lrs[512] == pytest.approx(1e-3)                      # and restarts at the fraction
+    assert lrs[896] == pytest.approx(1e-3 * (1024 - 896) / 512)
+
+
+def test_exploration_restart_is_not_repeated_on_resume(tmp_path):
+    from agents.rl.algos import algo_class
+    from agents.rl.train import _exploration_restart
+
+    class Fake:
+        lr_schedule = staticmethod(lambda p: 3e-4 * p)
+
+    hp = {"exploration_restart": {"at": 0.5, "log_std": -2.0}}
+    for done, pending in ((0, True), (499, True), (500, False), (900, False)):
+        model = Fake()
+        model.num_timesteps = done
+        _exploration_restart(model, hp, "ppo", 1000)
+        assert model.restart_pending is pending and model.restart_at == 0.5
+    assert "restart_at" in algo_class("ppo")("MlpPolicy", "Pendulum-v1")._excluded_save_params()
+
+
+@pytest.mark.parametrize("overrides, message", [
+    ({"exploration_restart": {"at": 1.5, "log_std": -2.0}}, "at must be a number in"),
+    ({"exploration_restart": {"at": 0.5}}, "must be {at: FRACTION"),
+    ({"exploration_restart": {"at": 0.5, "log_std": "low"}}, "log_std must be a number"),
+    ({"vec_env_wrapper": "builtins.eval"}, "is not one this package builds"),
+])
+def test_bad_recipe_keys_are_refused_by_name(tmp_path, overrides, message):
+    with pytest.raises(ValueError, match=message):
+        _tiny_ppo(tmp_path, 64, **overrides)
+
+
+def test_exploration_restart_is_a_ppo_setting(tmp_path):
+    from agents.rl.train import train
+
+    with pytest.raises(ValueError, match="PPO setting"):
+        train(tmp_path, steps=64, algo="sac", env_id="MicroConveyor-v1",
+              overrides={"exploration_restart": {"at": 0.5, "log_std": -2.0}, "n_envs": 2},
+              eval_freq=0, progress_bar=False, tensorboard=False)
+
+
+def test_raw_observations_train_save_resume_and_load(tmp_path):
+    """normalize with norm_obs false (rewards still normalised): SB3 keeps no observation
+    statistics, the file records the identity, and the loaded policy reads raw observations."""
+    import json
+
+    from agents.rl.policy_files import load_policy
+
+    raw = {"normalize": {"norm_obs": False, "norm_reward": True}}
+    _tiny_ppo(tmp_path, 256, **raw)
+    stats = json.loads((tmp_path / "normalization.json").read_text())
+    assert stats["norm_obs"] is False and stats["obs_rms"]["var"] == [1.0] * 6
+    pol = load_policy(tmp_path)
+    assert pol.normalizer is None
+    from agents.rl.train import train
+
+    meta = train(tmp_path, steps=512, seed=0, env_id="MicroConveyor-v1", resume=True,
+                 overrides={"n_envs": 8, "n_steps": 16, "batch_size": 64, "n_epochs": 2,
+                            "policy_kwargs": {"net_arch": {"pi": [16], "vf": [16]},
+                                              "log_std_init": -3.0}, **raw},
+                 checkpoint_freq=10**6, eval_freq=0, eval_targets=0, progress_bar=False,
+                 tensorboard=False)
+    assert meta["steps"] == 512
+
+
+def test_shaped_training_records_the_envs_own_returns(tmp_path):
+    """The wrapper sits outside the monitor: a shaped run trains and its recorded metadata
+    names the shaping (part of the config hash) while evaluations use v1's reward."""
+    meta = _tiny_ppo(tmp_path, 256, vec_env_wrapper=[
+        {"agents.rl.shaping.LogErrorShaping": {"weight": 5.0, "scale_m": 20e-6}}])
+    assert meta["hyperparams"]["vec_env_wrapper"][0]["agents.rl.shaping.LogErrorShaping"] == {
+        "weight": 5.0, "scale_m": 20e-6}
