@@ -39,9 +39,10 @@ def _train_args(p: argparse.ArgumentParser) -> None:
                    help="stop after this wall time [min], resumed time included")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--quick", action="store_true",
-                   help="a short look: --max-minutes 3 (unless given), an evaluation on 50 "
-                        "targets every 250,000 steps printed as it goes (on v1 the default recipe "
-                        "does not yet learn visibly in 3 minutes: docs/agents.md)")
+                   help="a short look: PPO on v1's nearest targets (0.5-1.4 mm) with "
+                        "configs/ppo_quick.yml unless --conf-file is given, --max-minutes 3 "
+                        "(unless given), an evaluation on 50 targets every 250,000 steps printed "
+                        "as it goes (docs/agents.md, 'The quick look')")
     add_env_args(p, default="MicroConveyor-v1", goal=True,
                  what=" to train on (its entry in the conf file gives the hyperparameters)")
 
@@ -57,6 +58,9 @@ def cmd_train(args: argparse.Namespace) -> None:
     if args.quick:
         args.max_minutes = args.max_minutes or 3.0
         args.eval_freq, args.eval_targets = 250_000, 50
+        if args.conf_file is None and args.algo == "ppo" and args.env == "MicroConveyor-v1":
+            from importlib import resources
+            args.conf_file = str(resources.files("microconveyor_env.configs") / "ppo_quick.yml")
     args.out = args.out or f"runs/{args.algo}"
     meta = train(args.out, algo=args.algo, steps=args.steps, seed=args.seed, conf_file=args.conf_file,
                  resume=args.resume, checkpoint_freq=args.checkpoint_freq,

@@ -203,3 +203,30 @@ def test_shaped_training_records_the_envs_own_returns(tmp_path):
         {"agents.rl.shaping.LogErrorShaping": {"weight": 5.0, "scale_m": 20e-6}}])
     assert meta["hyperparams"]["vec_env_wrapper"][0]["agents.rl.shaping.LogErrorShaping"] == {
         "weight": 5.0, "scale_m": 20e-6}
+
+
+def test_train_quick_uses_the_quick_recipe_and_its_scene(tmp_path, capsys):
+    """`train --quick` (PPO on v1): configs/ppo_quick.yml, v1's nearest targets (0.5-1.4 mm),
+    evaluations printed as it goes; the policy is evaluated in that scene, and refused on v1's
+    full range unless asked."""
+    import json
+
+    from agents.rl.evaluate import load_policy
+    from microconveyor_env.cli import main
+    from microconveyor_env.envs import env_config
+
+    quick = hyperparams.load(None, "MicroConveyor-v1", "ppo_quick")  # the packaged file
+    assert quick["env_kwargs"]["target_range"] == [0.5e-3, 1.4e-3]
+    assert quick["policy_kwargs"]["log_std_init"] == -2.0
+    out = tmp_path / "q"
+    assert main(["train", "--quick", "--steps", "8192", "--out", str(out), "--no-progress",
+                 "--json"]) in (0, None)
+    meta = json.loads((out / "metadata.json").read_text())
+    assert meta["env_kwargs"]["target_range"] == [0.5e-3, 1.4e-3]
+    assert meta["hyperparams"]["policy_kwargs"]["log_std_init"] == -2.0
+    assert meta["evaluation"]["n_targets"] == 50
+    assert "eval: step" in capsys.readouterr().err
+    pol = load_policy(out)
+    assert pol.config.target_range == (0.5e-3, 1.4e-3)
+    with pytest.raises(ValueError, match="target_range"):
+        load_policy(out, env_config("MicroConveyor-v1"))
