@@ -219,6 +219,14 @@ def test_staged_outputs_all_or_nothing(tmp_path):
 
 
 # ----------------------------------------------------------------------------- Ctrl-C
+def _sigint_default() -> None:
+    """In the child before exec: SIGINT back to its default. A shell that starts a command in
+    the background (``cmd &``, as CI runners and nohup'd runs may) ignores SIGINT, the child
+    inherits that, and Python then installs no KeyboardInterrupt handler: the Ctrl-C test would
+    measure the launcher, not the CLI."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @pytest.mark.parametrize("workers", ["0", "2"])
 def test_ctrl_c_exits_130_with_one_line_and_no_output(tmp_path, workers):
     """SIGINT to the whole process group (a terminal's Ctrl-C) once the study is under way (its
@@ -231,7 +239,7 @@ def test_ctrl_c_exits_130_with_one_line_and_no_output(tmp_path, workers):
                           "--json", "--no-progress", "--workers", workers,
                           "--out", str(out_dir / "s.csv"), "--plot", str(out_dir / "s.png")],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         start_new_session=True,
+                         start_new_session=True, preexec_fn=_sigint_default,
                          env={**os.environ, "MICROCONVEYOR_CACHE_DIR": str(cache)})
     try:
         t_end = time.monotonic() + 120
