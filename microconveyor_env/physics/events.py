@@ -71,6 +71,20 @@ def illinois_slip(x0, v0, tl, hmax, s, xa, f, h, P, tu, tq, tqu):
 
 
 @njit(cache=True)
+def screened_clear(N0: float, Nm: float, N1: float, n_min: float) -> bool:
+    """The cheap screen of :func:`hidden_pull_off` (and of the plane's): True when the parabola
+    through the normal loads at a step's ends (``N0``, ``N1``) and midpoint (``Nm``) [N] stays
+    above the pull-off load ``n_min`` [N] by ``SCREEN_MARGIN`` of it, so no pull-off can hide."""
+    curv = N0 - 2.0 * Nm + N1
+    low = min(N0, Nm, N1)
+    if curv > 0.0:
+        th = 0.5 + 0.25 * (N0 - N1) / curv
+        if 0.0 < th < 1.0:
+            low = min(low, Nm - 0.125 * (N1 - N0) ** 2 / curv)
+    return low - n_min > SCREEN_MARGIN * -n_min
+
+
+@njit(cache=True)
 def hidden_pull_off(x0, v0, x1, v1, tl, hs, N1, xa, f, h, P, tu):
     """A dip of the load below pull-off *inside* an accepted sliding step (both ends above it).
 
@@ -84,15 +98,8 @@ def hidden_pull_off(x0, v0, x1, v1, tl, hs, N1, xa, f, h, P, tu):
     N0 = shifted_load(normal_load(x0, v0, tl, xa, f, h, P)[0], x0, tl, xa, f, h, P, tu)
     if min(N0, N1) >= 0.0:
         return -1.0
-    # cheap screen: the parabola through the ends and the midpoint stays well above pull-off
     Nm = _load_on_hermite(0.5, x0, v0, x1, v1, tl, hs, xa, f, h, P, tu)
-    curv = N0 - 2.0 * Nm + N1
-    low = min(N0, Nm, N1)
-    if curv > 0.0:
-        th = 0.5 + 0.25 * (N0 - N1) / curv
-        if 0.0 < th < 1.0:
-            low = min(low, Nm - 0.125 * (N1 - N0) ** 2 / curv)
-    if low - n_min > SCREEN_MARGIN * -n_min:
+    if screened_clear(N0, Nm, N1, n_min):
         return -1.0
     a, b = 0.0, 1.0
     g = 0.6180339887498949

@@ -12,7 +12,7 @@ import math
 from numba import njit
 
 from ..jit_cache import refresh as refresh_jit_cache
-from .events import GOLDEN_ITERATIONS, SCREEN_MARGIN, _illinois, _secant
+from .events import GOLDEN_ITERATIONS, _illinois, _secant, screened_clear
 from .forces import I_NMIN
 from .plane_forces import plane_accel, plane_normal_load, plane_rk4, plane_stick_state
 
@@ -83,13 +83,7 @@ def _hidden_pull_off(x0, y0, vx0, vy0, x1, y1, vx1, vy1, tl, hs, N1, xa, ya, f, 
     if min(N0, N1) >= 0.0:
         return -1.0
     Nm = _load_on_hermite(0.5, x0, y0, vx0, vy0, x1, y1, vx1, vy1, tl, hs, xa, ya, f, h, P)
-    curv = N0 - 2.0 * Nm + N1
-    low = min(N0, Nm, N1)
-    if curv > 0.0:
-        th = 0.5 + 0.25 * (N0 - N1) / curv
-        if 0.0 < th < 1.0:
-            low = min(low, Nm - 0.125 * (N1 - N0) ** 2 / curv)
-    if low - n_min > SCREEN_MARGIN * -n_min:
+    if screened_clear(N0, Nm, N1, n_min):
         return -1.0
     a, b = 0.0, 1.0
     g = 0.6180339887498949
