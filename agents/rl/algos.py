@@ -36,11 +36,14 @@ def budgeted(base: type) -> type:
         restart_at: float | None = None
         restart_log_std: float = 0.0
         restart_pending = False
+        # VecNormalize's observation statistics stop updating once the run's progress reaches
+        # freeze_obs_at (set by train() from the recipe's freeze_obs_stats_at); None: never
+        freeze_obs_at: float | None = None
         _current_progress_remaining: float
 
         def _excluded_save_params(self) -> list:
             return [*super()._excluded_save_params(), "budget_clock", "update_threads",
-                    "restart_at", "restart_log_std", "restart_pending"]
+                    "restart_at", "restart_log_std", "restart_pending", "freeze_obs_at"]
 
         def train(self, *args: Any, **kwargs: Any) -> None:
             import torch
@@ -65,6 +68,21 @@ def budgeted(base: type) -> type:
             if self.budget_clock is not None:
                 self._current_progress_remaining = max(0.0, min(
                     self._current_progress_remaining, 1.0 - self.budget_clock()))
+            self.freeze_obs_if_due()
+
+        def freeze_obs_if_due(self) -> bool:
+            """Freeze the observation statistics if the run's progress has reached
+            ``freeze_obs_at`` (after a rollout, before its update: the next rollout is the
+            first normalised with the frozen statistics); True if they were frozen now."""
+            if (self.freeze_obs_at is None
+                    or 1.0 - self._current_progress_remaining < self.freeze_obs_at):
+                return False
+            from stable_baselines3.common.vec_env import VecNormalize
+
+            from .normalization import freeze_obs_stats
+
+            env = self.get_env()
+            return isinstance(env, VecNormalize) and freeze_obs_stats(env)
 
     Budgeted.__name__ = Budgeted.__qualname__ = f"Budget{base.__name__}"
     Budgeted.__module__ = __name__

@@ -149,6 +149,27 @@ def restore(venv: Any, stats: dict[str, Any]) -> Any:
     return vn
 
 
+def freeze_obs_stats(vec_normalize: Any) -> bool:
+    """Stop ``vec_normalize`` updating its observation statistics (the reward statistics go on);
+    True if it was updating them. The policy then sees every later observation through the same
+    normalisation, which its last updates need: the fine corrections PPO makes near a target
+    are smaller than the drift of still-moving statistics (docs/agents.md, "PPO on
+    MicroConveyor-v1")."""
+    if not vec_normalize.norm_obs:
+        return False
+    rms = vec_normalize.obs_rms
+    items = list(rms.values()) if isinstance(rms, dict) else [rms]
+    live = [r for r in items if not getattr(r, "frozen", False)]
+    for r in live:
+        r.update = _no_update
+        r.frozen = True
+    return bool(live)
+
+
+def _no_update(*_: Any) -> None:
+    """RunningMeanStd.update of frozen statistics."""
+
+
 def convert_pickle(pickle_path: Path, out: Path) -> dict[str, Any]:
     """Convert a trusted SB3 ``vecnormalize.pkl`` to ``normalization.json`` at ``out``.
 

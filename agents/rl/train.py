@@ -31,7 +31,7 @@ from microconveyor_env.envs import EnvConfig, env_config
 from microconveyor_env.envs.versions import GOAL_ENV_IDS, check_env_id
 from microconveyor_env.envs.sb3 import MicroConveyorSB3VecEnv
 
-from . import checkpoint, hyperparams, normalization, shaping
+from . import checkpoint, hyperparams, normalization, phases, shaping
 from .algos import ALGO_NAMES, algo_class
 from .checkpoint import META, MODEL, NORMALIZATION, CheckpointError
 from .evaluate import Policy, evaluate
@@ -207,39 +207,6 @@ def _resumable(out: Path, chash: str, hp: dict, allow_config_change: bool,
     return gen
 
 
-def _exploration_restart(model: Any, hp: dict, algo: str, total: int) -> None:
-    """Arm the recipe's ``exploration_restart: {at: FRACTION, log_std: VALUE}`` on ``model``:
-    when the run's progress reaches ``at`` (a fraction of the whole run, so ``--steps`` and
-    resumes scale it), PPO's log std is set to ``log_std`` in every action component, and the
-    learning-rate schedule restarts, decaying in each phase from its initial value to 0 (the
-    schedule stays a function of progress through the whole run). Why: docs/agents.md, "PPO
-    on MicroConveyor-v1"."""
-    spec = hp.get("exploration_restart")
-    if spec is None:
-        return
-    if algo != "ppo":
-        raise ValueError(f"exploration_restart is a PPO setting (its state-independent log "
-                         f"std); the {algo} recipe cannot use it")
-    if not isinstance(spec, dict) or set(spec) != {"at", "log_std"}:
-        raise ValueError(f"exploration_restart must be {{at: FRACTION, log_std: VALUE}}, got "
-                         f"{spec!r}")
-    at, log_std = spec["at"], spec["log_std"]
-    for name, val, lo, hi in (("at", at, 0.0, 1.0), ("log_std", log_std, -20.0, 2.0)):
-        if isinstance(val, bool) or not isinstance(val, (int, float)) or not lo < val < hi:
-            raise ValueError(f"exploration_restart: {name} must be a number in ({lo:g}, "
-                             f"{hi:g}), got {val!r}")
-    base = model.lr_schedule
-    at = float(at)
-
-    def schedule(remaining: float) -> float:
-        done = 1.0 - remaining
-        return base(1.0 - done / at if done < at else (1.0 - done) / (1.0 - at))
-
-    model.lr_schedule = schedule
-    model.restart_at, model.restart_log_std = at, float(log_std)
-    model.restart_pending = model.num_timesteps < at * total
-
-
 def _new_model(env: VecEnv, hp: dict, seed: int, tb: str | None, algo: str) -> Any:
     norm = hp.get("normalize") or None
     if norm is not None:
@@ -325,7 +292,8 @@ def train(out: str | Path, steps: int | None = None, seed: int = 0, conf_file: s
             _refuse_used_folder(out)
             model = _new_model(env, hp, seed, tb, algo)
         total = int(steps if steps is not None else hp.get("n_timesteps", 1e6))
-        _exploration_restart(model, hp, algo, total)
+        phases.exploration_restart(model, hp, algo)
+        phases.freeze_obs_stats(model, hp)
         if resume:
             _check_budget_left(model.num_timesteps, total, wall_before, max_minutes, log)
             if log and hasattr(model, "replay_buffer"):

@@ -107,7 +107,7 @@ def test_exploration_restart_fires_once_and_restarts_the_schedule():
 
     from agents.rl.algos import algo_class
     from agents.rl.hyperparams import linear_schedule
-    from agents.rl.train import _exploration_restart
+    from agents.rl.phases import exploration_restart
 
     seen = []
 
@@ -123,8 +123,7 @@ def test_exploration_restart_fires_once_and_restarts_the_schedule():
     model = algo_class("ppo")("MlpPolicy", env, n_steps=16, batch_size=64, n_epochs=2, seed=0,
                               learning_rate=linear_schedule(1e-3), device="cpu",
                               policy_kwargs={"net_arch": [16], "log_std_init": -3.0})
-    _exploration_restart(model, {"exploration_restart": {"at": 0.5, "log_std": -0.7}}, "ppo",
-                         1024)
+    exploration_restart(model, {"exploration_restart": {"at": 0.5, "log_std": -0.7}}, "ppo")
     model.learn(1024, callback=Record())
     steps = [s for s, _, _ in seen]
     exact = [s for s, ls, _ in seen if torch.all(ls == -0.7)]
@@ -137,19 +136,73 @@ def test_exploration_restart_fires_once_and_restarts_the_schedule():
 
 
 def test_exploration_restart_is_not_repeated_on_resume(tmp_path):
+    """Pending or not follows the progress the checkpoint saved, not its step count: under
+    --max-minutes the wall budget can be further along than the steps (here 30 % of the steps
+    but 70 % of the run), and a restart that fired then must not fire again."""
     from agents.rl.algos import algo_class
-    from agents.rl.train import _exploration_restart
+    from agents.rl.phases import exploration_restart
 
     class Fake:
         lr_schedule = staticmethod(lambda p: 3e-4 * p)
 
     hp = {"exploration_restart": {"at": 0.5, "log_std": -2.0}}
-    for done, pending in ((0, True), (499, True), (500, False), (900, False)):
+    for done, steps, pending in ((0.0, 0, True), (0.499, 499, True), (0.5, 500, False),
+                                 (0.9, 900, False), (0.7, 300, False), (0.3, 700, True)):
         model = Fake()
-        model.num_timesteps = done
-        _exploration_restart(model, hp, "ppo", 1000)
+        model.num_timesteps, model._current_progress_remaining = steps, 1.0 - done
+        exploration_restart(model, hp, "ppo")
         assert model.restart_pending is pending and model.restart_at == 0.5
+    new = Fake()  # a model that never learnt has no progress yet
+    exploration_restart(new, hp, "ppo")
+    assert new.restart_pending is True
     assert "restart_at" in algo_class("ppo")("MlpPolicy", "Pendulum-v1")._excluded_save_params()
+
+
+def test_obs_stats_freeze_at_the_fraction_and_stay_frozen_across_a_resume(tmp_path):
+    """freeze_obs_stats_at: the observation statistics move until the first update past the
+    fraction and never after, also in a run killed and resumed later (the resumed run freezes
+    them at once); the reward statistics keep moving. Without the key they keep moving."""
+    import json
+
+    from agents.rl.train import train
+
+    tiny = {"n_envs": 8, "n_steps": 16, "batch_size": 64, "n_epochs": 2,
+            "policy_kwargs": {"net_arch": {"pi": [16], "vf": [16]}, "log_std_init": -1.0}}
+
+    class Stop(Exception):
+        pass
+
+    def stop(res):
+        raise Stop
+
+    def run(out, **extra):
+        kw = dict(seed=0, env_id="MicroConveyor-v1", overrides={**tiny, **extra},
+                  checkpoint_freq=128, eval_freq=512, eval_targets=2, progress_bar=False,
+                  tensorboard=False)
+        # killed at step 512 by its evaluation (before that step's checkpoint): the two
+        # newest checkpoints, 256 and 384, stay
+        with pytest.raises(Stop):
+            train(out, steps=2048, on_eval=stop, **kw)
+        gens = sorted((out / "checkpoints").iterdir())
+        assert [g.name for g in gens] == ["gen-000000000256", "gen-000000000384"]
+        stats = [json.loads((g / "normalization.json").read_text()) for g in gens]
+        kw.pop("eval_freq")
+        train(out, steps=2048, resume=True, eval_freq=0, **kw)
+        return stats, json.loads((out / "normalization.json").read_text())
+
+    (frozen_gens, frozen_end) = run(tmp_path / "f", freeze_obs_stats_at=0.1)
+    # 0.1 of 2,048 steps: frozen after the 2nd rollout (256 steps, progress 0.125 >= 0.1)
+    assert frozen_end["obs_rms"] == frozen_gens[0]["obs_rms"] == frozen_gens[1]["obs_rms"]
+    assert frozen_end["ret_rms"] != frozen_gens[1]["ret_rms"]
+    (live_gens, live_end) = run(tmp_path / "l")
+    assert live_end["obs_rms"]["mean"] != live_gens[1]["obs_rms"]["mean"]
+    assert live_gens[0]["obs_rms"]["mean"] != live_gens[1]["obs_rms"]["mean"]
+
+
+def test_obs_stats_freeze_needs_normalised_observations(tmp_path):
+    for raw in ({"normalize": None}, {"normalize": {"norm_obs": False, "norm_reward": True}}):
+        with pytest.raises(ValueError, match="needs normalised observations"):
+            _tiny_ppo(tmp_path, 64, freeze_obs_stats_at=0.5, **raw)
 
 
 @pytest.mark.parametrize("overrides, message", [
@@ -157,6 +210,8 @@ def test_exploration_restart_is_not_repeated_on_resume(tmp_path):
     ({"exploration_restart": {"at": 0.5}}, "must be {at: FRACTION"),
     ({"exploration_restart": {"at": 0.5, "log_std": "low"}}, "log_std must be a number"),
     ({"vec_env_wrapper": "builtins.eval"}, "is not one this package builds"),
+    ({"freeze_obs_stats_at": 1.0}, "freeze_obs_stats_at must be a number in"),
+    ({"freeze_obs_stats_at": "late"}, "freeze_obs_stats_at must be a number in"),
 ])
 def test_bad_recipe_keys_are_refused_by_name(tmp_path, overrides, message):
     with pytest.raises(ValueError, match=message):
