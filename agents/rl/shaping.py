@@ -16,8 +16,7 @@ term pays as much for halving an error of 100 µm as one of 2 mm.
 
 Only training sees it: the env, its reward, evaluations and shipped metadata are unchanged.
 A recipe names it the way rl-zoo3 names a VecEnv wrapper (``vec_env_wrapper``, applied
-before VecNormalize), and :func:`wrap` builds only the wrappers listed in :data:`WRAPPERS`:
-a recipe is data and never imports what it names.
+before VecNormalize; :mod:`.wrappers` builds only the wrappers it lists).
 """
 from __future__ import annotations
 
@@ -79,36 +78,3 @@ class LogErrorShaping(VecEnvWrapper):
         shaped = np.asarray(rew, np.float64) + psi - self._psi
         self._psi = np.where(dones, self._start_potential(obs), psi)
         return obs, shaped.astype(np.float32), dones, infos
-
-
-# what a recipe's vec_env_wrapper may name: rl-zoo3's dotted path -> the class
-WRAPPERS: dict[str, type[VecEnvWrapper]] = {
-    "agents.rl.shaping.LogErrorShaping": LogErrorShaping,
-}
-
-
-def wrap(venv: VecEnv, spec: Any) -> VecEnv:
-    """``venv`` inside the wrappers of a recipe's ``vec_env_wrapper`` (rl-zoo3's forms: a
-    name, ``{name: kwargs}``, or a list of these, innermost first); ValueError for a name
-    not in :data:`WRAPPERS` or kwargs it does not take."""
-    if spec is None:
-        return venv
-    for item in spec if isinstance(spec, list) else [spec]:
-        kwargs: Any
-        if isinstance(item, str):
-            name, kwargs = item, {}
-        elif isinstance(item, dict) and len(item) == 1:
-            (name, kwargs), = item.items()
-            kwargs = kwargs or {}
-        else:
-            raise ValueError(f"vec_env_wrapper: expected a name or {{name: kwargs}}, got {item!r}")
-        if name not in WRAPPERS:
-            raise ValueError(f"vec_env_wrapper {name!r} is not one this package builds "
-                             f"(known: {', '.join(WRAPPERS)})")
-        if not isinstance(kwargs, dict):
-            raise ValueError(f"vec_env_wrapper {name}: kwargs must be a mapping, got {kwargs!r}")
-        try:
-            venv = WRAPPERS[name](venv, **kwargs)
-        except TypeError as exc:
-            raise ValueError(f"vec_env_wrapper {name}: {exc}") from None
-    return venv

@@ -31,7 +31,7 @@ from microconveyor_env.envs import EnvConfig, env_config
 from microconveyor_env.envs.versions import GOAL_ENV_IDS, check_env_id
 from microconveyor_env.envs.sb3 import MicroConveyorSB3VecEnv
 
-from . import checkpoint, hyperparams, normalization, phases, shaping
+from . import checkpoint, hyperparams, normalization, phases, wrappers
 from .algos import ALGO_NAMES, algo_class
 from .checkpoint import META, MODEL, NORMALIZATION, CheckpointError
 from .evaluate import Policy, evaluate
@@ -133,10 +133,12 @@ def make_env(cfg: EnvConfig, hp: dict, seed: int, env_id: str = hyperparams.ENV_
         venv = DummyVecEnv([lambda: MicroConveyorGoalEnv(config=cfg)] * n)
     else:
         venv = MicroConveyorSB3VecEnv(n, config=cfg)
-    venv.seed(seed)
-    # training-only reward shaping a recipe names (rl-zoo3's vec_env_wrapper), before
-    # VecNormalize; the monitor inside it records the env's own returns
-    return shaping.wrap(VecMonitor(venv), hp.get("vec_env_wrapper"))
+    # training-only wrappers a recipe names (rl-zoo3's vec_env_wrapper: reward shaping, a
+    # target distribution), before VecNormalize; the monitor inside them records the env's
+    # own returns. Seeded through them (a wrapper that draws seeds its own generator).
+    wrapped = wrappers.wrap(VecMonitor(venv), hp.get("vec_env_wrapper"))
+    wrapped.seed(seed)
+    return wrapped
 
 
 def check_budgets(steps: int | None, max_minutes: float | None, checkpoint_freq: int,

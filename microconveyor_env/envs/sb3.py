@@ -92,6 +92,11 @@ class MicroConveyorSB3VecEnv(VecEnv):
         n = self.num_envs if rows is None else len(rows)
         return [{k: vals[j] for k, vals, present in cols if present[j]} for j in range(n)]
 
+    def set_targets(self, indices: Any, targets: Any) -> np.ndarray:
+        """New targets [m] for sub-envs at the start of their episodes; every observation
+        (:meth:`MicroConveyorVectorEnv.set_targets`)."""
+        return self.venv.set_targets(indices, targets)
+
     def close(self) -> None:
         self.venv.close()
 

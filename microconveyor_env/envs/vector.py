@@ -107,6 +107,23 @@ class MicroConveyorVectorEnv(OwnsConveyor, VectorEnv):
             self.conveyor.set_state(i, state)
         self.done[i] = False
 
+    def set_targets(self, indices: Any, targets: Any) -> np.ndarray:
+        """Give the parts of sub-envs ``indices`` new targets [m] (checked as reset's ``target``
+        option) in place of the ones their reset drew; each must be at the start of its
+        episode (no actuator fired). Returns every sub-env's observation (a copy). The rest of
+        the episode is the one the reset drew; a training-time target distribution uses it
+        (agents/rl/targets.py)."""
+        idx = np.atleast_1d(np.asarray(indices, dtype=np.int64))
+        tv = np.broadcast_to(np.asarray(targets, dtype=float), idx.shape)
+        for i, t in zip(idx.tolist(), tv.tolist(), strict=True):
+            if not 0 <= i < self.num_envs:
+                raise IndexError(f"sub-env {i} of {self.num_envs}")
+            if self.fired[i] or self.t[i]:
+                raise ValueError(f"sub-env {i} is in its episode ({self.fired[i]} actuator(s) "
+                                 "fired): a target can be set only at an episode's start")
+            self.conveyor.parts.target[i] = check_target(t)
+        return self._obs()
+
     def get_state(self, i: int) -> PartState:
         """Sub-env ``i``'s part state now (:class:`~.part_state.PartState`)."""
         return self.conveyor.get_state(int(i))

@@ -1,10 +1,12 @@
 """Recipe options beyond SB3's keyword arguments: the training-only log-error shaping
-(agents/rl/shaping.py), PPO's exploration restart, raw observations (norm_obs false)."""
+(agents/rl/shaping.py), the training-time target mixture (agents/rl/targets.py), PPO's exploration
+restart and frozen observation statistics (agents/rl/phases.py), raw observations (norm_obs
+false)."""
 import numpy as np
 import pytest
 from stable_baselines3.common.vec_env import VecMonitor
 
-from agents.rl import hyperparams, shaping
+from agents.rl import hyperparams, wrappers
 from agents.rl.shaping import LogErrorShaping
 from microconveyor_env.envs.sb3 import MicroConveyorSB3VecEnv
 
@@ -74,7 +76,7 @@ def test_potential_is_log_of_relative_error_and_saturates():
 def test_a_recipe_names_only_known_wrappers(spec, message):
     venv = VecMonitor(MicroConveyorSB3VecEnv(2, env_id="MicroConveyor-v1", num_threads=1))
     with pytest.raises(ValueError, match=message):
-        shaping.wrap(venv, spec)
+        wrappers.wrap(venv, spec)
 
 
 def test_the_wrapper_key_is_the_trainers_not_ppos():
@@ -82,9 +84,54 @@ def test_the_wrapper_key_is_the_trainers_not_ppos():
     hp["vec_env_wrapper"] = [{"agents.rl.shaping.LogErrorShaping": {"weight": 1.0}}]
     assert "vec_env_wrapper" not in hyperparams.algo_kwargs(hp)
     venv = VecMonitor(MicroConveyorSB3VecEnv(2, env_id="MicroConveyor-v1", num_threads=1))
-    wrapped = shaping.wrap(venv, hp["vec_env_wrapper"])
+    wrapped = wrappers.wrap(venv, hp["vec_env_wrapper"])
     assert isinstance(wrapped, LogErrorShaping) and wrapped.weight == 1.0
-    assert shaping.wrap(venv, None) is venv
+    assert wrappers.wrap(venv, None) is venv
+
+
+def _targets_seen(env, resets=1, steps=60):
+    """The targets [m] of every episode the env starts (observation 5 is target / 10 mm)."""
+    seen = [env.reset()[:, 5] * 10e-3]
+    rng = np.random.default_rng(1)
+    for _ in range(steps):
+        obs, _, dones, _ = env.step(rng.uniform(-1, 1, (env.num_envs, 3)).astype(np.float32))
+        seen.append(obs[dones, 5] * 10e-3)
+    return np.concatenate(seen)
+
+
+def test_target_mixture_draws_the_share_it_is_given_and_leaves_the_rest_to_the_env():
+    from agents.rl.targets import TargetMixture
+
+    def mixed(p, seed=5):
+        env = TargetMixture(VecMonitor(MicroConveyorSB3VecEnv(64, env_id="MicroConveyor-v1",
+                                                              num_threads=1)),
+                            p=p, range_m=[1e-3, 2e-3])
+        env.seed(seed)
+        return _targets_seen(env)
+
+    every = mixed(1.0)
+    assert every.size > 500 and every.min() >= 1e-3 and every.max() <= 2e-3
+    some = mixed(0.5)
+    inside = np.mean((some >= 1e-3) & (some <= 2e-3))
+    expect = 0.5 + 0.5 * 1e-3 / 9.5e-3          # the env's own draw lands there too
+    sd = np.sqrt(expect * (1 - expect) / some.size)
+    assert abs(inside - expect) < 4 * sd, (inside, expect, some.size)
+    assert some.min() >= 0.5e-3 and some.max() <= 10e-3 and np.mean(some > 2e-3) > 0.3
+    np.testing.assert_array_equal(some, mixed(0.5))          # seeded: the same run twice
+    assert not np.array_equal(some, mixed(0.5, seed=6))
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"p": 0.0}, "p must be a probability"),
+    ({"p": 1.5}, "p must be a probability"),
+    ({"range_m": [3e-3, 1e-3]}, "must be an interval within"),
+    ({"range_m": [0.1e-3, 3e-3]}, "must be an interval within"),
+    ({"range_m": "near"}, "range_m must be"),
+])
+def test_target_mixture_refuses_what_it_cannot_draw(kwargs, message):
+    venv = VecMonitor(MicroConveyorSB3VecEnv(2, env_id="MicroConveyor-v1", num_threads=1))
+    with pytest.raises(ValueError, match=message):
+        wrappers.wrap(venv, {"agents.rl.targets.TargetMixture": kwargs})
 
 
 def _tiny_ppo(out, steps, **overrides):

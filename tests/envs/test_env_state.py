@@ -76,3 +76,21 @@ def test_a_load_beyond_the_table_raises(num_threads):
     _shrink_table(venv.conveyor, 2)
     with pytest.raises(TableRangeError, match="left the contact table"):
         venv.step(np.tile([0.5, 1.0, -1.0], (4, 1)))
+
+
+def test_set_targets_gives_the_observation_a_reset_with_that_target_gives():
+    from microconveyor_env.envs import env_config
+
+    cfg = env_config("MicroConveyor-v1", num_threads=1)
+    a = MicroConveyorVectorEnv(3, config=cfg)
+    b = MicroConveyorVectorEnv(3, config=cfg)
+    a.reset(seed=2)
+    obs_b, _ = b.reset(seed=2, options={"target": np.array([1e-3, 4e-3, 7e-3])})
+    np.testing.assert_array_equal(a.set_targets([0, 1, 2], [1e-3, 4e-3, 7e-3]), obs_b)
+    a.step(np.zeros((3, 3), np.float32))
+    with pytest.raises(ValueError, match="only at an episode's start"):
+        a.set_targets([1], [2e-3])
+    with pytest.raises(ValueError, match="invalid"):
+        b.set_targets([0], [np.nan])
+    with pytest.raises(IndexError):
+        b.set_targets([3], [1e-3])
