@@ -32,10 +32,12 @@ def budgeted(base: type) -> type:
         # PPO's exploration restart (set by train() from the recipe's exploration_restart):
         # once the run's progress (steps or wall budget, whichever is further) reaches the
         # fraction restart_at, the log std of every action component is set to
-        # restart_log_std, once (restart_pending); None: no restart
+        # restart_log_std, once (restart_pending, saved with the model: a resume knows
+        # whether it fired; None: a new model or a checkpoint from before it was saved);
+        # restart_at None: no restart
         restart_at: float | None = None
         restart_log_std: float = 0.0
-        restart_pending = False
+        restart_pending: bool | None = None
         # VecNormalize's observation statistics stop updating once the run's progress reaches
         # freeze_obs_at (set by train() from the recipe's freeze_obs_stats_at); None: never
         freeze_obs_at: float | None = None
@@ -43,7 +45,7 @@ def budgeted(base: type) -> type:
 
         def _excluded_save_params(self) -> list:
             return [*super()._excluded_save_params(), "budget_clock", "update_threads",
-                    "restart_at", "restart_log_std", "restart_pending", "freeze_obs_at"]
+                    "restart_at", "restart_log_std", "freeze_obs_at"]
 
         def train(self, *args: Any, **kwargs: Any) -> None:
             import torch
@@ -58,9 +60,9 @@ def budgeted(base: type) -> type:
                     and 1.0 - self._current_progress_remaining >= self.restart_at):
                 # after this update, before the next rollout: the next rollout explores
                 # with the restarted noise and its log-probabilities are computed with it
-                with torch.no_grad():
-                    self.policy.log_std.fill_(self.restart_log_std)
-                self.restart_pending = False
+                from .phases import restart_log_std_now
+
+                restart_log_std_now(self)
 
         def _update_current_progress_remaining(self, num_timesteps: int,
                                                total_timesteps: int) -> None:
@@ -77,12 +79,15 @@ def budgeted(base: type) -> type:
             if (self.freeze_obs_at is None
                     or 1.0 - self._current_progress_remaining < self.freeze_obs_at):
                 return False
-            from stable_baselines3.common.vec_env import VecNormalize
+            return self.freeze_obs_now()
 
+        def freeze_obs_now(self) -> bool:
+            """Freeze the observation statistics of the VecNormalize the model trains in (once;
+            True if they were frozen now)."""
             from .normalization import freeze_obs_stats
 
-            env = self.get_env()
-            return isinstance(env, VecNormalize) and freeze_obs_stats(env)
+            vn = getattr(self, "_vec_normalize_env", None)
+            return vn is not None and freeze_obs_stats(vn)
 
     Budgeted.__name__ = Budgeted.__qualname__ = f"Budget{base.__name__}"
     Budgeted.__module__ = __name__

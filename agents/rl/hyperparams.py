@@ -40,6 +40,20 @@ def load(path: str | None = None, env_id: str = ENV_ID, algo: str = "ppo") -> di
     return hp
 
 
+def normalize_kwargs(hp: dict) -> dict | None:
+    """VecNormalize's keyword arguments from a recipe's ``normalize`` (``true`` or ``{}``: the
+    defaults; absent, null or ``false``: no normalisation, None)."""
+    norm = hp.get("normalize")
+    if norm is None or norm is False:
+        return None
+    if norm is True:
+        return {}
+    if not isinstance(norm, dict):
+        raise ValueError(f"normalize must be true, false or a mapping of VecNormalize's "
+                         f"arguments, got {norm!r}")
+    return norm
+
+
 def changed_keys(old: dict, new: dict) -> list[str]:
     """Top-level keys whose values differ between two configs (compared as sorted JSON)."""
     keys = sorted(set(old) | set(new))

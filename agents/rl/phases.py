@@ -8,9 +8,12 @@
   observation through one normalisation.
 
 Progress is the run's (steps or the wall budget, whichever is further, :mod:`.algos`), so
-``--steps``, ``--max-minutes`` and resumes scale both. A resumed run continues from the progress
-its checkpoint saved: a restart that already happened is not repeated, and statistics frozen
-before the checkpoint are frozen again at once. Why the v1 recipe uses both: docs/agents.md,
+``--steps``, ``--max-minutes`` and resumes scale both. A resumed run takes its progress from its
+steps and wall time under the budgets it is given: past ``freeze_obs_stats_at`` it freezes the
+statistics at once; past ``at`` a restart the checkpoint had not yet made is made at once and
+one it had made is not repeated; a resume with a larger budget that puts the run back before a
+fraction makes that change again when it gets there (as the learning rate re-enters its first
+phase). Why the v1 recipe uses both: docs/agents.md,
 "PPO on MicroConveyor-v1".
 """
 from __future__ import annotations
@@ -29,8 +32,9 @@ def done_fraction(model: Any) -> float:
     return 1.0 - float(getattr(model, "_current_progress_remaining", 1.0))
 
 
-def exploration_restart(model: Any, hp: dict, algo: str) -> None:
-    """Arm the recipe's ``exploration_restart`` on ``model`` (see the module docstring)."""
+def exploration_restart(model: Any, hp: dict, algo: str, done_now: float) -> None:
+    """Arm the recipe's ``exploration_restart`` on ``model`` (see the module docstring), the
+    run being at progress ``done_now`` under this call's budgets."""
     spec = hp.get("exploration_restart")
     if spec is None:
         return
@@ -50,21 +54,45 @@ def exploration_restart(model: Any, hp: dict, algo: str) -> None:
 
     model.lr_schedule = schedule
     model.restart_at, model.restart_log_std = at, log_std
-    # it fires in the update after the first rollout past ``at``; a checkpoint written after
-    # that rollout has saved a progress >= at
-    model.restart_pending = done_fraction(model) < at
+    # not yet fired: as the model saved it; a model that never saved it (new, or a checkpoint
+    # of an earlier version) by the progress it saved (it fires in the update after the first
+    # rollout past ``at``, and a checkpoint is written inside a rollout)
+    saved = getattr(model, "restart_pending", None)
+    unfired = done_fraction(model) < at if saved is None else bool(saved)
+    if done_now < at:
+        # before the point (a resume with a larger budget can put a fired restart ahead again,
+        # as it puts the learning rate back in the first phase)
+        model.restart_pending = True
+    elif unfired:
+        # past the point but not fired (a checkpoint from the rollout that crossed it): now,
+        # as the run that wrote it did after that rollout
+        restart_log_std_now(model)
+    else:
+        model.restart_pending = False
 
 
-def freeze_obs_stats(model: Any, hp: dict) -> None:
-    """Arm the recipe's ``freeze_obs_stats_at`` on ``model``, and freeze now if a resumed run
-    is already past it."""
+def restart_log_std_now(model: Any) -> None:
+    """Set PPO's log std to the restart value in every action component, once."""
+    import torch
+
+    with torch.no_grad():
+        model.policy.log_std.fill_(model.restart_log_std)
+    model.restart_pending = False
+
+
+def freeze_obs_stats(model: Any, hp: dict, done_now: float) -> None:
+    """Arm the recipe's ``freeze_obs_stats_at`` on ``model``, and freeze now if the run, at
+    progress ``done_now`` under this call's budgets, is already past it (a resume)."""
+    from .hyperparams import normalize_kwargs
+
     at = hp.get("freeze_obs_stats_at")
     if at is None:
         return
     at = _fraction("freeze_obs_stats_at", at)
-    norm = hp.get("normalize") or {}
-    if not norm or not norm.get("norm_obs", True):
+    norm = normalize_kwargs(hp)
+    if norm is None or not norm.get("norm_obs", True):
         raise ValueError("freeze_obs_stats_at needs normalised observations (normalize with "
                          "norm_obs true): there are no statistics to freeze")
     model.freeze_obs_at = at
-    model.freeze_obs_if_due()
+    if done_now >= at:
+        model.freeze_obs_now()

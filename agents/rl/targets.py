@@ -16,7 +16,7 @@ import math
 from typing import Any
 
 import numpy as np
-from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
+from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, VecMonitor
 
 
 class TargetMixture(VecEnvWrapper):
@@ -26,6 +26,11 @@ class TargetMixture(VecEnvWrapper):
     training seed), apart from the env's own streams."""
 
     def __init__(self, venv: VecEnv, p: float = 0.35, range_m: Any = (0.5e-3, 3e-3)) -> None:
+        inner = venv.venv if isinstance(venv, VecMonitor) else venv
+        if isinstance(inner, VecEnvWrapper):
+            raise ValueError(f"TargetMixture must be the innermost wrapper (first in "
+                             f"vec_env_wrapper): {type(inner).__name__} inside it would see "
+                             "each episode start before its target is redrawn")
         super().__init__(venv)
         if (isinstance(p, bool) or not isinstance(p, (int, float)) or not math.isfinite(p)
                 or not 0 < p <= 1):

@@ -180,7 +180,7 @@ def _check_generation(algo: str, need_stats: bool) -> Callable[[Path, dict], Non
 
 def _resumable(out: Path, chash: str, hp: dict, allow_config_change: bool,
                log: Log | None, algo: str) -> checkpoint.Generation:
-    need_stats = bool(hp.get("normalize"))
+    need_stats = hyperparams.normalize_kwargs(hp) is not None
     try:
         gen = checkpoint.latest(out, _check_generation(algo, need_stats))
     except ModelFileError as exc:  # pragma: no cover - latest() turns these into skips
@@ -210,7 +210,7 @@ def _resumable(out: Path, chash: str, hp: dict, allow_config_change: bool,
 
 
 def _new_model(env: VecEnv, hp: dict, seed: int, tb: str | None, algo: str) -> Any:
-    norm = hp.get("normalize") or None
+    norm = hyperparams.normalize_kwargs(hp)
     if norm is not None:
         env = VecNormalize(env, **{"gamma": hp.get("gamma", 0.99), **norm})
     return algo_class(algo)(hp.get("policy", "MlpPolicy"), env, seed=seed, device="cpu",
@@ -294,8 +294,11 @@ def train(out: str | Path, steps: int | None = None, seed: int = 0, conf_file: s
             _refuse_used_folder(out)
             model = _new_model(env, hp, seed, tb, algo)
         total = int(steps if steps is not None else hp.get("n_timesteps", 1e6))
-        phases.exploration_restart(model, hp, algo)
-        phases.freeze_obs_stats(model, hp)
+        # the run's progress now, under this call's budgets (a resume may extend them)
+        done_now = max(model.num_timesteps / total,
+                       wall_before / (60.0 * max_minutes) if max_minutes else 0.0)
+        phases.exploration_restart(model, hp, algo, done_now)
+        phases.freeze_obs_stats(model, hp, done_now)
         if resume:
             _check_budget_left(model.num_timesteps, total, wall_before, max_minutes, log)
             if log and hasattr(model, "replay_buffer"):

@@ -95,7 +95,11 @@ class MicroConveyorSB3VecEnv(VecEnv):
     def set_targets(self, indices: Any, targets: Any) -> np.ndarray:
         """New targets [m] for sub-envs at the start of their episodes; every observation
         (:meth:`MicroConveyorVectorEnv.set_targets`)."""
-        return self.venv.set_targets(indices, targets)
+        obs = self.venv.set_targets(indices, targets)
+        for i in np.atleast_1d(np.asarray(indices, dtype=np.int64)).tolist():
+            if "position_error_m" in self.reset_infos[i]:
+                self.reset_infos[i]["position_error_m"] = float(self.venv.x[i] - self.venv.target[i])
+        return obs
 
     def close(self) -> None:
         self.venv.close()

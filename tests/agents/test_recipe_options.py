@@ -134,6 +134,17 @@ def test_target_mixture_refuses_what_it_cannot_draw(kwargs, message):
         wrappers.wrap(venv, {"agents.rl.targets.TargetMixture": kwargs})
 
 
+def test_target_mixture_must_be_the_innermost_wrapper():
+    """A wrapper inside it (the shaping) would see each episode's start before the redraw."""
+    venv = VecMonitor(MicroConveyorSB3VecEnv(2, env_id="MicroConveyor-v1", num_threads=1))
+    mix = {"agents.rl.targets.TargetMixture": {"p": 0.5}}
+    shaped = "agents.rl.shaping.LogErrorShaping"
+    with pytest.raises(ValueError, match="innermost"):
+        wrappers.wrap(venv, [shaped, mix])
+    both = wrappers.wrap(venv, [mix, shaped])
+    assert type(both).__name__ == "LogErrorShaping"
+
+
 def _tiny_ppo(out, steps, **overrides):
     from agents.rl.train import train
 
@@ -170,7 +181,7 @@ def test_exploration_restart_fires_once_and_restarts_the_schedule():
     model = algo_class("ppo")("MlpPolicy", env, n_steps=16, batch_size=64, n_epochs=2, seed=0,
                               learning_rate=linear_schedule(1e-3), device="cpu",
                               policy_kwargs={"net_arch": [16], "log_std_init": -3.0})
-    exploration_restart(model, {"exploration_restart": {"at": 0.5, "log_std": -0.7}}, "ppo")
+    exploration_restart(model, {"exploration_restart": {"at": 0.5, "log_std": -0.7}}, "ppo", 0.0)
     model.learn(1024, callback=Record())
     steps = [s for s, _, _ in seen]
     exact = [s for s, ls, _ in seen if torch.all(ls == -0.7)]
@@ -182,27 +193,53 @@ def test_exploration_restart_fires_once_and_restarts_the_schedule():
     assert lrs[896] == pytest.approx(1e-3 * (1024 - 896) / 512)
 
 
-def test_exploration_restart_is_not_repeated_on_resume(tmp_path):
-    """Pending or not follows the progress the checkpoint saved, not its step count: under
-    --max-minutes the wall budget can be further along than the steps (here 30 % of the steps
-    but 70 % of the run), and a restart that fired then must not fire again."""
+def test_exploration_restart_on_resume_fires_once_by_what_the_checkpoint_saved():
+    """A resume arms the restart from the run's progress under its budgets (``done_now``) and
+    whether the checkpoint's model had fired it (saved with the model; for older checkpoints,
+    the progress they saved): a fired restart is not repeated, one the checkpoint had not yet
+    made is made at once (the checkpoint came from the rollout that crossed the point, or the
+    wall budget ran ahead of the steps), and a larger budget that puts the run back before the
+    point arms it again."""
+    import torch
+
     from agents.rl.algos import algo_class
     from agents.rl.phases import exploration_restart
 
-    class Fake:
-        lr_schedule = staticmethod(lambda p: 3e-4 * p)
-
     hp = {"exploration_restart": {"at": 0.5, "log_std": -2.0}}
-    for done, steps, pending in ((0.0, 0, True), (0.499, 499, True), (0.5, 500, False),
-                                 (0.9, 900, False), (0.7, 300, False), (0.3, 700, True)):
-        model = Fake()
-        model.num_timesteps, model._current_progress_remaining = steps, 1.0 - done
-        exploration_restart(model, hp, "ppo")
-        assert model.restart_pending is pending and model.restart_at == 0.5
-    new = Fake()  # a model that never learnt has no progress yet
-    exploration_restart(new, hp, "ppo")
-    assert new.restart_pending is True
-    assert "restart_at" in algo_class("ppo")("MlpPolicy", "Pendulum-v1")._excluded_save_params()
+    cases = [  # saved pending (None: never saved), saved progress, done now -> pending, filled
+        (None, 0.0, 0.0, True, False),      # a new model
+        (None, 0.499, 0.499, True, False),  # an older checkpoint before the point
+        (None, 0.7, 0.7, False, False),     # an older checkpoint after it fired
+        (True, 0.45, 0.55, False, True),    # crossed but not fired: fire now
+        (True, 0.3, 0.7, False, True),      # wall budget ahead of the steps: fire now
+        (False, 0.9, 0.9, False, False),    # fired: not again
+        (False, 0.9, 0.3, True, False),     # a larger budget: before the point again
+    ]
+    for saved, progress, done_now, pending, filled in cases:
+        model = algo_class("ppo")("MlpPolicy", "Pendulum-v1", device="cpu",
+                                  policy_kwargs={"log_std_init": -3.0})
+        if saved is not None:
+            model.restart_pending = saved
+        model._current_progress_remaining = 1.0 - progress
+        exploration_restart(model, hp, "ppo", done_now)
+        assert model.restart_pending is pending, (saved, progress, done_now)
+        assert bool(torch.all(model.policy.log_std == (-2.0 if filled else -3.0))), \
+            (saved, progress, done_now)
+    excluded = algo_class("ppo")("MlpPolicy", "Pendulum-v1")._excluded_save_params()
+    assert "restart_at" in excluded and "restart_pending" not in excluded
+
+
+def test_whether_the_restart_fired_survives_a_checkpoint(tmp_path):
+    from agents.rl.algos import algo_class
+    from agents.rl.sb3_files import safe_load
+
+    for fired in (False, True):
+        model = algo_class("ppo")("MlpPolicy", "Pendulum-v1", device="cpu")
+        model.restart_pending = not fired
+        model.save(tmp_path / "m.zip")
+        back = safe_load(tmp_path / "m.zip", "ppo", model.observation_space, model.action_space,
+                         cls=algo_class("ppo"))
+        assert back.restart_pending is (not fired)
 
 
 def test_obs_stats_freeze_at_the_fraction_and_stay_frozen_across_a_resume(tmp_path):
@@ -247,9 +284,13 @@ def test_obs_stats_freeze_at_the_fraction_and_stay_frozen_across_a_resume(tmp_pa
 
 
 def test_obs_stats_freeze_needs_normalised_observations(tmp_path):
+    assert hyperparams.normalize_kwargs({"normalize": True}) == {}   # VecNormalize's defaults
+    assert hyperparams.normalize_kwargs({"normalize": False}) is None
+    _tiny_ppo(tmp_path / "t", 64, normalize=True, freeze_obs_stats_at=0.5)
+    assert (tmp_path / "t" / "normalization.json").is_file()
     for raw in ({"normalize": None}, {"normalize": {"norm_obs": False, "norm_reward": True}}):
         with pytest.raises(ValueError, match="needs normalised observations"):
-            _tiny_ppo(tmp_path, 64, freeze_obs_stats_at=0.5, **raw)
+            _tiny_ppo(tmp_path / "r", 64, freeze_obs_stats_at=0.5, **raw)
 
 
 @pytest.mark.parametrize("overrides, message", [
