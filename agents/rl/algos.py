@@ -39,7 +39,8 @@ def budgeted(base: type) -> type:
         restart_log_std: float = 0.0
         restart_pending: bool | None = None
         # VecNormalize's observation statistics stop updating once the run's progress reaches
-        # freeze_obs_at (set by train() from the recipe's freeze_obs_stats_at); None: never
+        # freeze_obs_at (set by train() from the recipe's freeze_obs_stats_at); None: never, or
+        # already frozen in this run
         freeze_obs_at: float | None = None
         _current_progress_remaining: float
 
@@ -79,6 +80,7 @@ def budgeted(base: type) -> type:
             if (self.freeze_obs_at is None
                     or 1.0 - self._current_progress_remaining < self.freeze_obs_at):
                 return False
+            self.freeze_obs_at = None  # done for this run (off-policy calls this every step)
             return self.freeze_obs_now()
 
         def freeze_obs_now(self) -> bool:
