@@ -21,7 +21,9 @@ def _train_args(p: argparse.ArgumentParser) -> None:
                    help="run folder (model, stats, checkpoints, logs) (default: runs/ALGO)")
     p.add_argument("--steps", type=count(1), default=None,
                    help="total environment steps (default: n_timesteps of the conf file)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=None,
+                   help="training seed (default 0); --resume continues the run's own seed and "
+                        "refuses another")
     p.add_argument("--conf-file", default=None,
                    help="rl-zoo3 style YAML (default: the shipped configs/ALGO.yml)")
     p.add_argument("--resume", action="store_true",

@@ -209,6 +209,17 @@ def _resumable(out: Path, chash: str, hp: dict, allow_config_change: bool,
     return gen
 
 
+def _resumed_seed(model: Any, seed: int | None) -> int:
+    """The seed a resumed run trains on: its own (SB3 reseeds the envs, torch and numpy from the
+    checkpoint's ``seed`` as it loads), which the metadata records; another one is refused
+    rather than recorded while the run goes on under its own."""
+    own = int(model.seed)
+    if seed is not None and int(seed) != own:
+        raise ValueError(f"seed {seed}: this run trains with seed {own} and a resume continues "
+                         f"it; drop the seed (or give {own})")
+    return own
+
+
 def _new_model(env: VecEnv, hp: dict, seed: int, tb: str | None, algo: str) -> Any:
     norm = hyperparams.normalize_kwargs(hp)
     if norm is not None:
@@ -239,7 +250,7 @@ def _resumed_model(gen: checkpoint.Generation, env: VecEnv, hp: dict, tb: str | 
     return model
 
 
-def train(out: str | Path, steps: int | None = None, seed: int = 0, conf_file: str | None = None,
+def train(out: str | Path, steps: int | None = None, seed: int | None = None, conf_file: str | None = None,
           config: EnvConfig | None = None, resume: bool = False, checkpoint_freq: int = 200_000,
           eval_freq: int = 250_000, eval_targets: int = 100, eval_seed: int = 12345,
           progress_bar: bool = True, tensorboard: bool = True, overrides: dict | None = None,
@@ -255,7 +266,9 @@ def train(out: str | Path, steps: int | None = None, seed: int = 0, conf_file: s
     ``config`` if given; the metadata records ``env_id`` and the merged ``env_kwargs``.
     ``on_eval``: called with each periodic evaluation's result (as written to
     ``evaluations.jsonl``); an exception it raises stops the run there and propagates (a tuner's
-    pruning), the checkpoints written so far stay."""
+    pruning), the checkpoints written so far stay. ``seed``: a new run's training seed (default
+    0); a resume continues the run's own seed (SB3 reseeds from the checkpoint), so another
+    ``seed`` is refused."""
     import torch
 
     check_budgets(steps, max_minutes, checkpoint_freq, eval_freq, eval_targets)
@@ -270,16 +283,18 @@ def train(out: str | Path, steps: int | None = None, seed: int = 0, conf_file: s
             hp["env_kwargs"] = {**(hp.get("env_kwargs") or {}), **env_kwargs}
         cfg = config or env_config(env_id, **(hp.get("env_kwargs") or {}))
         chash = config_hash(cfg, hp, algo)
+        run_seed = 0 if seed is None else int(seed)  # a resume: the run's own (below)
         run_meta = {"format": FORMAT, "env_id": env_id, "algo": algo,
                     "env_kwargs": dict(hp.get("env_kwargs") or {}),
-                    "config_hash": chash, "seed": seed, "hyperparams": hp,
+                    "config_hash": chash, "seed": run_seed, "hyperparams": hp,
                     "env_config": dataclasses.asdict(cfg)}
         tb = str(out / "tb") if tensorboard else None
-        env = make_env(cfg, hp, seed, env_id)
+        env = make_env(cfg, hp, run_seed, env_id)
         wall_before = 0.0
         if resume:
             gen = _resumable(out, chash, hp, allow_config_change, log, algo)
             model = _resumed_model(gen, env, hp, tb, algo)
+            run_meta["seed"] = _resumed_seed(model, seed)
             wall_before = float(gen.meta.get("wall_time_s", 0.0))
             changes = list(gen.meta.get("config_changes", []))
             if gen.meta.get("config_hash") != chash:
@@ -288,11 +303,11 @@ def train(out: str | Path, steps: int | None = None, seed: int = 0, conf_file: s
             if changes:
                 run_meta["config_changes"] = changes
             if log:
-                log(f"resume: from step {gen.steps} ({gen.folder.name}), {wall_before:.0f} s "
-                    "of wall time already spent")
+                log(f"resume: from step {gen.steps} ({gen.folder.name}), seed "
+                    f"{run_meta['seed']}, {wall_before:.0f} s of wall time already spent")
         else:
             _refuse_used_folder(out)
-            model = _new_model(env, hp, seed, tb, algo)
+            model = _new_model(env, hp, run_seed, tb, algo)
         total = int(steps if steps is not None else hp.get("n_timesteps", 1e6))
         # the run's progress now, under this call's budgets (a resume may extend them)
         done_now = max(model.num_timesteps / total,

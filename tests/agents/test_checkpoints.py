@@ -137,6 +137,33 @@ def test_resume_continues_the_whole_runs_budgets_and_schedule(tmp_path, monkeypa
     assert any("continuing at step 512 of 2048" in line for line in lines)
 
 
+def test_resume_continues_the_runs_own_seed_and_records_it(tmp_path):
+    """SB3 reseeds a loaded model from its checkpoint, so a resume trains on the run's seed
+    whatever it is given: the metadata says that seed, and another one is refused instead of
+    being recorded while the run goes on under its own."""
+    import zipfile
+
+    from agents.rl.train import train
+
+    kw = dict(overrides=SMALL, checkpoint_freq=512, eval_freq=0, eval_targets=0,
+              progress_bar=False, tensorboard=False)
+    train(tmp_path / "a", steps=512, seed=3, **kw)
+    shutil.copytree(tmp_path / "a", tmp_path / "b")
+    with pytest.raises(ValueError, match="seed 9: this run trains with seed 3"):
+        train(tmp_path / "a", steps=1024, seed=9, resume=True, **kw)
+    lines: list[str] = []
+    meta_a = train(tmp_path / "a", steps=1024, resume=True, log=lines.append, **kw)
+    meta_b = train(tmp_path / "b", steps=1024, seed=3, resume=True, **kw)
+    assert meta_a["seed"] == meta_b["seed"] == 3
+    assert any("seed 3" in line for line in lines if line.startswith("resume: from step"))
+
+    def weights(run):
+        with zipfile.ZipFile(run / "model.zip") as z:
+            return z.read("policy.pth")
+    assert weights(tmp_path / "a") == weights(tmp_path / "b")
+    assert train(tmp_path / "c", steps=512, **kw)["seed"] == 0       # a new run: seed 0
+
+
 @pytest.mark.parametrize("bad", [{"max_minutes": math.nan}, {"max_minutes": -1.0},
                                  {"max_minutes": 0}, {"steps": 0}, {"steps": 1.5},
                                  {"checkpoint_freq": 0}, {"eval_freq": -1}])
