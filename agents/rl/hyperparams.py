@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Callable
 from importlib import resources
 from typing import Any
@@ -12,6 +13,18 @@ ENV_ID = "MicroConveyor-v1"  # what `train` trains on unless told (v0: --env Mic
 # keys the trainer handles itself (the rest go to PPO(...))
 RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs", "vec_env_wrapper",
             "exploration_restart", "freeze_obs_stats_at")
+
+
+def number_in(name: str, val: Any, lo: float = -math.inf, hi: float = math.inf, *,
+              what: str = "a number", closed_hi: bool = False) -> float:
+    """A recipe value as a float: a finite number (a bool is not one) in ``(lo, hi)`` (``(lo,
+    hi]`` with ``closed_hi``); otherwise a ValueError naming ``name``."""
+    ok = (not isinstance(val, bool) and isinstance(val, (int, float)) and math.isfinite(val)
+          and lo < val and (val <= hi if closed_hi else val < hi))
+    if not ok:
+        raise ValueError(f"{name} must be {what} in ({lo:g}, {hi:g}{']' if closed_hi else ')'}"
+                         f", got {val!r}")
+    return float(val)
 
 
 def load(path: str | None = None, env_id: str = ENV_ID, algo: str = "ppo") -> dict:

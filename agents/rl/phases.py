@@ -20,11 +20,7 @@ from __future__ import annotations
 
 from typing import Any
 
-
-def _fraction(name: str, val: Any, lo: float = 0.0, hi: float = 1.0) -> float:
-    if isinstance(val, bool) or not isinstance(val, (int, float)) or not lo < val < hi:
-        raise ValueError(f"{name} must be a number in ({lo:g}, {hi:g}), got {val!r}")
-    return float(val)
+from .hyperparams import number_in
 
 
 def done_fraction(model: Any) -> float:
@@ -44,8 +40,8 @@ def exploration_restart(model: Any, hp: dict, algo: str, done_now: float) -> Non
     if not isinstance(spec, dict) or set(spec) != {"at", "log_std"}:
         raise ValueError(f"exploration_restart must be {{at: FRACTION, log_std: VALUE}}, got "
                          f"{spec!r}")
-    at = _fraction("exploration_restart: at", spec["at"])
-    log_std = _fraction("exploration_restart: log_std", spec["log_std"], -20.0, 2.0)
+    at = number_in("exploration_restart: at", spec["at"], 0.0, 1.0)
+    log_std = number_in("exploration_restart: log_std", spec["log_std"], -20.0, 2.0)
     base = model.lr_schedule
 
     def schedule(remaining: float) -> float:
@@ -88,7 +84,7 @@ def freeze_obs_stats(model: Any, hp: dict, done_now: float) -> None:
     at = hp.get("freeze_obs_stats_at")
     if at is None:
         return
-    at = _fraction("freeze_obs_stats_at", at)
+    at = number_in("freeze_obs_stats_at", at, 0.0, 1.0)
     norm = normalize_kwargs(hp)
     if norm is None or not norm.get("norm_obs", True):
         raise ValueError("freeze_obs_stats_at needs normalised observations (normalize with "

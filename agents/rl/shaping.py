@@ -20,13 +20,14 @@ before VecNormalize; :mod:`.wrappers` builds only the wrappers it lists).
 """
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
 from microconveyor_env.envs.task import LENGTH_SCALE
+
+from .hyperparams import number_in
 
 
 class LogErrorShaping(VecEnvWrapper):
@@ -43,14 +44,11 @@ class LogErrorShaping(VecEnvWrapper):
                 horizon_m = venv.get_attr("config")[0].progress_horizon
             except (AttributeError, IndexError):
                 horizon_m = None
-        for name, val in (("weight", weight), ("scale_m", scale_m), ("horizon_m", horizon_m)):
-            if (val is None or isinstance(val, bool) or not isinstance(val, (int, float))
-                    or not math.isfinite(val) or val <= 0):
-                raise ValueError(f"LogErrorShaping: {name} must be a positive number, got "
-                                 f"{val!r}" + (" (the env has no progress_horizon: pass "
-                                               "horizon_m)" if name == "horizon_m" else ""))
-        assert horizon_m is not None  # checked above
-        self.weight, self.scale, self.horizon = float(weight), float(scale_m), float(horizon_m)
+        if horizon_m is None:
+            raise ValueError("LogErrorShaping: the env has no progress_horizon: pass horizon_m")
+        self.weight, self.scale, self.horizon = (
+            number_in(f"LogErrorShaping: {name}", val, 0.0, what="a positive number")
+            for name, val in (("weight", weight), ("scale_m", scale_m), ("horizon_m", horizon_m)))
         self._psi = np.zeros(self.num_envs)
 
     def potential(self, error_m: np.ndarray) -> np.ndarray:

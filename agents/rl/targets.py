@@ -12,11 +12,12 @@ are unchanged (a policy trained with it is evaluated on the env's uniform target
 """
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, VecMonitor
+
+from .hyperparams import number_in
 
 
 class TargetMixture(VecEnvWrapper):
@@ -32,9 +33,7 @@ class TargetMixture(VecEnvWrapper):
                              f"vec_env_wrapper): {type(inner).__name__} inside it would see "
                              "each episode start before its target is redrawn")
         super().__init__(venv)
-        if (isinstance(p, bool) or not isinstance(p, (int, float)) or not math.isfinite(p)
-                or not 0 < p <= 1):
-            raise ValueError(f"TargetMixture: p must be a probability in (0, 1], got {p!r}")
+        p = number_in("TargetMixture: p", p, 0.0, 1.0, what="a probability", closed_hi=True)
         try:
             lo, hi = (float(v) for v in range_m)
         except (TypeError, ValueError):

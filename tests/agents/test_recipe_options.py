@@ -70,6 +70,8 @@ def test_potential_is_log_of_relative_error_and_saturates():
 @pytest.mark.parametrize("spec, message", [
     ("os.system", "is not one this package builds"),
     ({"agents.rl.shaping.LogErrorShaping": {"weight": -1}}, "weight must be a positive"),
+    ({"agents.rl.shaping.LogErrorShaping": {"scale_m": float("inf")}}, "scale_m must be a pos"),
+    ({"agents.rl.shaping.LogErrorShaping": {"weight": True}}, "weight must be a positive"),
     ({"agents.rl.shaping.LogErrorShaping": {"wieght": 1}}, "unexpected keyword"),
     ([1], "expected a name"),
 ])
@@ -124,6 +126,8 @@ def test_target_mixture_draws_the_share_it_is_given_and_leaves_the_rest_to_the_e
 @pytest.mark.parametrize("kwargs, message", [
     ({"p": 0.0}, "p must be a probability"),
     ({"p": 1.5}, "p must be a probability"),
+    ({"p": float("nan")}, "p must be a probability"),
+    ({"p": True}, "p must be a probability"),
     ({"range_m": [3e-3, 1e-3]}, "must be an interval within"),
     ({"range_m": [0.1e-3, 3e-3]}, "must be an interval within"),
     ({"range_m": "near"}, "range_m must be"),
@@ -300,6 +304,8 @@ def test_obs_stats_freeze_needs_normalised_observations(tmp_path):
     ({"vec_env_wrapper": "builtins.eval"}, "is not one this package builds"),
     ({"freeze_obs_stats_at": 1.0}, "freeze_obs_stats_at must be a number in"),
     ({"freeze_obs_stats_at": "late"}, "freeze_obs_stats_at must be a number in"),
+    ({"freeze_obs_stats_at": float("nan")}, "freeze_obs_stats_at must be a number in"),
+    ({"exploration_restart": {"at": True, "log_std": -2.0}}, "at must be a number in"),
 ])
 def test_bad_recipe_keys_are_refused_by_name(tmp_path, overrides, message):
     with pytest.raises(ValueError, match=message):
