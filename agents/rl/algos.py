@@ -38,6 +38,11 @@ def budgeted(base: type) -> type:
         restart_at: float | None = None
         restart_log_std: float = 0.0
         restart_pending: bool | None = None
+        # PPO's exploration shift (the recipe's exploration_shift): at progress shift_at the
+        # log std is shifted by shift_by, once (shift_pending saved with the model, as above)
+        shift_at: float | None = None
+        shift_by: float = 0.0
+        shift_pending: bool | None = None
         # VecNormalize's observation statistics stop updating once the run's progress reaches
         # freeze_obs_at (set by train() from the recipe's freeze_obs_stats_at); None: never, or
         # already frozen in this run
@@ -46,7 +51,7 @@ def budgeted(base: type) -> type:
 
         def _excluded_save_params(self) -> list:
             return [*super()._excluded_save_params(), "budget_clock", "update_threads",
-                    "restart_at", "restart_log_std", "freeze_obs_at"]
+                    "restart_at", "restart_log_std", "shift_at", "shift_by", "freeze_obs_at"]
 
         def train(self, *args: Any, **kwargs: Any) -> None:
             import torch
@@ -64,6 +69,11 @@ def budgeted(base: type) -> type:
                 from .phases import restart_log_std_now
 
                 restart_log_std_now(self)
+            if (self.shift_pending and self.shift_at is not None
+                    and 1.0 - self._current_progress_remaining >= self.shift_at):
+                from .phases import shift_log_std_now
+
+                shift_log_std_now(self)
 
         def _update_current_progress_remaining(self, num_timesteps: int,
                                                total_timesteps: int) -> None:

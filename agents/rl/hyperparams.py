@@ -12,7 +12,7 @@ import yaml
 ENV_ID = "MicroConveyor-v1"  # what `train` trains on unless told (v0: --env MicroConveyor-v0)
 # keys the trainer handles itself (the rest go to PPO(...))
 RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs", "vec_env_wrapper",
-            "exploration_restart", "freeze_obs_stats_at")
+            "exploration_restart", "exploration_shift", "freeze_obs_stats_at")
 
 
 def number_in(name: str, val: Any, lo: float = -math.inf, hi: float = math.inf, *,

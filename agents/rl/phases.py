@@ -3,6 +3,11 @@
 * ``exploration_restart: {at: FRACTION, log_std: VALUE}`` (PPO): when the run's progress reaches
   ``at``, PPO's log std is set to ``log_std`` in every action component, once, and the
   learning-rate schedule restarts, decaying in each phase from its initial value to 0.
+* ``exploration_shift: {at: FRACTION, by: VALUE}`` (PPO): when the run's progress reaches
+  ``at``, PPO's log std is shifted by ``by`` (natural-log units; negative: less noise) in every
+  action component, once; the learning rate is not touched. Less action noise late in a run
+  keeps the last updates' steps small in action units (PPO's clipped ratio bounds how far the
+  mean moves per update to a fraction of the noise).
 * ``freeze_obs_stats_at: FRACTION``: from that progress on, VecNormalize's observation
   statistics stop updating (the reward statistics go on), so the last updates see every
   observation through one normalisation.
@@ -11,13 +16,14 @@ Progress is the run's (steps or the wall budget, whichever is further, :mod:`.al
 ``--steps``, ``--max-minutes`` and resumes scale both. A resumed run takes its progress from its
 steps and wall time under the budgets it is given: past ``freeze_obs_stats_at`` it freezes the
 statistics at once; past ``at`` a restart the checkpoint had not yet made is made at once and
-one it had made is not repeated; a resume with a larger budget that puts the run back before a
+one it had made is not repeated (the same for the shift); a resume with a larger budget that puts the run back before a
 fraction makes that change again when it gets there (as the learning rate re-enters its first
 phase). Why the v1 recipe uses both: docs/agents.md,
 "PPO on MicroConveyor-v1".
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 from .hyperparams import number_in
@@ -50,21 +56,44 @@ def exploration_restart(model: Any, hp: dict, algo: str, done_now: float) -> Non
 
     model.lr_schedule = schedule
     model.restart_at, model.restart_log_std = at, log_std
-    # not yet fired: as the model saved it; a model that never saved it (new, or a checkpoint
-    # of an earlier version) by the progress it saved (it fires in the update after the first
-    # rollout past ``at``, and a checkpoint is written inside a rollout)
-    saved = getattr(model, "restart_pending", None)
+    _arm_once(model, "restart_pending", at, done_now, restart_log_std_now)
+
+
+def exploration_shift(model: Any, hp: dict, algo: str, done_now: float) -> None:
+    """Arm the recipe's ``exploration_shift`` on ``model`` (see the module docstring), the run
+    being at progress ``done_now`` under this call's budgets."""
+    spec = hp.get("exploration_shift")
+    if spec is None:
+        return
+    if algo != "ppo":
+        raise ValueError(f"exploration_shift is a PPO setting (its state-independent log std); "
+                         f"the {algo} recipe cannot use it")
+    if not isinstance(spec, dict) or set(spec) != {"at", "by"}:
+        raise ValueError(f"exploration_shift must be {{at: FRACTION, by: VALUE}}, got {spec!r}")
+    model.shift_at = number_in("exploration_shift: at", spec["at"], 0.0, 1.0)
+    model.shift_by = number_in("exploration_shift: by", spec["by"], -10.0, 10.0)
+    _arm_once(model, "shift_pending", model.shift_at, done_now, shift_log_std_now)
+
+
+def _arm_once(model: Any, flag: str, at: float, done_now: float,
+              fire: Callable[[Any], None]) -> None:
+    """Set ``model.<flag>`` (a change made once at progress ``at``: pending or not), or make
+    the change now with ``fire``."""
+    # not yet made: as the model saved it; a model that never saved it (new, or a checkpoint
+    # of an earlier version) by the progress it saved (the change is made in the update after
+    # the first rollout past ``at``, and a checkpoint is written inside a rollout)
+    saved = getattr(model, flag, None)
     unfired = done_fraction(model) < at if saved is None else bool(saved)
     if done_now < at:
-        # before the point (a resume with a larger budget can put a fired restart ahead again,
+        # before the point (a resume with a larger budget can put a change made ahead again,
         # as it puts the learning rate back in the first phase)
-        model.restart_pending = True
+        setattr(model, flag, True)
     elif unfired:
-        # past the point but not fired (a checkpoint from the rollout that crossed it): now,
+        # past the point but not made (a checkpoint from the rollout that crossed it): now,
         # as the run that wrote it did after that rollout
-        restart_log_std_now(model)
+        fire(model)
     else:
-        model.restart_pending = False
+        setattr(model, flag, False)
 
 
 def restart_log_std_now(model: Any) -> None:
@@ -74,6 +103,15 @@ def restart_log_std_now(model: Any) -> None:
     with torch.no_grad():
         model.policy.log_std.fill_(model.restart_log_std)
     model.restart_pending = False
+
+
+def shift_log_std_now(model: Any) -> None:
+    """Shift PPO's log std by the recipe's ``exploration_shift: by`` in every component, once."""
+    import torch
+
+    with torch.no_grad():
+        model.policy.log_std.add_(model.shift_by)
+    model.shift_pending = False
 
 
 def freeze_obs_stats(model: Any, hp: dict, done_now: float) -> None:

@@ -313,6 +313,7 @@ def train(out: str | Path, steps: int | None = None, seed: int | None = None, co
         done_now = max(model.num_timesteps / total,
                        wall_before / (60.0 * max_minutes) if max_minutes else 0.0)
         phases.exploration_restart(model, hp, algo, done_now)
+        phases.exploration_shift(model, hp, algo, done_now)
         phases.freeze_obs_stats(model, hp, done_now)
         if resume:
             _check_budget_left(model.num_timesteps, total, wall_before, max_minutes, log)

@@ -233,17 +233,97 @@ def test_exploration_restart_on_resume_fires_once_by_what_the_checkpoint_saved()
     assert "restart_at" in excluded and "restart_pending" not in excluded
 
 
+def test_exploration_shift_moves_the_log_std_once_and_leaves_the_schedule():
+    """exploration_shift {at, by}: the first rollout past ``at`` explores with the log std the
+    update before it left, shifted by ``by``; the learning-rate schedule is the recipe's
+    (only the restart restarts it); with both keys the shift applies to the restarted noise."""
+    import torch
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    from agents.rl.algos import algo_class
+    from agents.rl.hyperparams import linear_schedule
+    from agents.rl.phases import exploration_restart, exploration_shift
+
+    class Record(BaseCallback):
+        def __init__(self):
+            super().__init__()
+            self.seen = []
+
+        def _on_rollout_start(self) -> None:
+            m = self.model
+            self.seen.append((m.num_timesteps, m.policy.log_std.detach().clone(),
+                              m.lr_schedule(m._current_progress_remaining)))
+
+        def _on_step(self) -> bool:
+            return True
+
+    def run(hp):
+        env = MicroConveyorSB3VecEnv(8, env_id="MicroConveyor-v1", num_threads=1)
+        model = algo_class("ppo")("MlpPolicy", env, n_steps=16, batch_size=64, n_epochs=2,
+                                  seed=0, learning_rate=linear_schedule(1e-3), device="cpu",
+                                  policy_kwargs={"net_arch": [16], "log_std_init": -3.0})
+        exploration_restart(model, hp, "ppo", 0.0)
+        exploration_shift(model, hp, "ppo", 0.0)
+        rec = Record()
+        model.learn(1024, callback=rec)
+        return rec.seen
+
+    plain, shifted = run({}), run({"exploration_shift": {"at": 0.5, "by": -1.5}})
+    assert [s for s, _, _ in plain] == [s for s, _, _ in shifted]
+    for (s, ls0, lr0), (_, ls1, lr1) in zip(plain, shifted, strict=True):
+        assert lr1 == pytest.approx(lr0) and lr1 == pytest.approx(1e-3 * (1 - s / 1024))
+        if s < 512:            # the same run before the point
+            assert torch.equal(ls0, ls1), s
+    first = min(s for s, _, _ in shifted if s >= 512)
+    # at the first rollout past the point the log std is 1.5 lower than the update left it
+    before = {s: ls for s, ls, _ in plain}[first]
+    after = {s: ls for s, ls, _ in shifted}[first]
+    torch.testing.assert_close(after, before - 1.5)
+    # with the restart at the same point: the restarted value, shifted
+    both = run({"exploration_restart": {"at": 0.5, "log_std": -0.7},
+                "exploration_shift": {"at": 0.75, "by": -1.0}})
+    at_shift = min(s for s, _, _ in both if s >= 768)
+    ls = {s: v for s, v, _ in both}
+    assert torch.all(ls[min(s for s in ls if s >= 512)] == -0.7)
+    torch.testing.assert_close(ls[at_shift], ls[at_shift - 128] - 1.0, atol=0.05, rtol=0)
+
+
+def test_exploration_shift_on_resume_is_made_once():
+    """The shift arms on resume as the restart does: made at once when the checkpoint crossed
+    the point without making it, never twice, again after a larger budget."""
+    import torch
+
+    from agents.rl.algos import algo_class
+    from agents.rl.phases import exploration_shift
+
+    hp = {"exploration_shift": {"at": 0.5, "by": -1.0}}
+    for saved, progress, done_now, pending, shifted in [
+            (None, 0.0, 0.0, True, False), (None, 0.7, 0.7, False, False),
+            (True, 0.45, 0.55, False, True), (False, 0.9, 0.9, False, False),
+            (False, 0.9, 0.3, True, False)]:
+        model = algo_class("ppo")("MlpPolicy", "Pendulum-v1", device="cpu",
+                                  policy_kwargs={"log_std_init": -3.0})
+        if saved is not None:
+            model.shift_pending = saved
+        model._current_progress_remaining = 1.0 - progress
+        exploration_shift(model, hp, "ppo", done_now)
+        assert model.shift_pending is pending, (saved, progress, done_now)
+        assert bool(torch.all(model.policy.log_std == (-4.0 if shifted else -3.0)))
+    excluded = algo_class("ppo")("MlpPolicy", "Pendulum-v1")._excluded_save_params()
+    assert "shift_by" in excluded and "shift_pending" not in excluded
+
+
 def test_whether_the_restart_fired_survives_a_checkpoint(tmp_path):
     from agents.rl.algos import algo_class
     from agents.rl.sb3_files import safe_load
 
     for fired in (False, True):
         model = algo_class("ppo")("MlpPolicy", "Pendulum-v1", device="cpu")
-        model.restart_pending = not fired
+        model.restart_pending = model.shift_pending = not fired
         model.save(tmp_path / "m.zip")
         back = safe_load(tmp_path / "m.zip", "ppo", model.observation_space, model.action_space,
                          cls=algo_class("ppo"))
-        assert back.restart_pending is (not fired)
+        assert back.restart_pending is (not fired) and back.shift_pending is (not fired)
 
 
 def test_obs_stats_freeze_at_the_fraction_and_stay_frozen_across_a_resume(tmp_path):
@@ -306,19 +386,24 @@ def test_obs_stats_freeze_needs_normalised_observations(tmp_path):
     ({"freeze_obs_stats_at": "late"}, "freeze_obs_stats_at must be a number in"),
     ({"freeze_obs_stats_at": float("nan")}, "freeze_obs_stats_at must be a number in"),
     ({"exploration_restart": {"at": True, "log_std": -2.0}}, "at must be a number in"),
+    ({"exploration_shift": {"at": 0.5}}, "must be {at: FRACTION, by: VALUE}"),
+    ({"exploration_shift": {"at": 0.0, "by": -1.0}}, "exploration_shift: at must be"),
+    ({"exploration_shift": {"at": 0.5, "by": float("inf")}}, "exploration_shift: by must be"),
 ])
 def test_bad_recipe_keys_are_refused_by_name(tmp_path, overrides, message):
     with pytest.raises(ValueError, match=message):
         _tiny_ppo(tmp_path, 64, **overrides)
 
 
-def test_exploration_restart_is_a_ppo_setting(tmp_path):
+@pytest.mark.parametrize("key", [{"exploration_restart": {"at": 0.5, "log_std": -2.0}},
+                                 {"exploration_shift": {"at": 0.5, "by": -1.0}}])
+def test_exploration_restart_and_shift_are_ppo_settings(tmp_path, key):
     from agents.rl.train import train
 
     with pytest.raises(ValueError, match="PPO setting"):
         train(tmp_path, steps=64, algo="sac", env_id="MicroConveyor-v1",
-              overrides={"exploration_restart": {"at": 0.5, "log_std": -2.0}, "n_envs": 2},
-              eval_freq=0, progress_bar=False, tensorboard=False)
+              overrides={**key, "n_envs": 2}, eval_freq=0, progress_bar=False,
+              tensorboard=False)
 
 
 def test_raw_observations_train_save_resume_and_load(tmp_path):
