@@ -32,6 +32,9 @@ def _train_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--allow-config-change", action="store_true",
                    help="with --resume: continue under a different config (recorded in the "
                         "metadata)")
+    p.add_argument("--fork-seed", type=int, default=None,
+                   help="with --resume: continue the checkpoint under this seed instead of the "
+                        "run's (a fork: the same state, other samples; recorded in the metadata)")
     p.add_argument("--checkpoint-freq", type=count(1), default=200_000,
                    help="steps between checkpoints (a kill loses at most this many)")
     p.add_argument("--eval-freq", type=count(0), default=250_000, help="0: no periodic evaluation")
@@ -69,7 +72,7 @@ def cmd_train(args: argparse.Namespace) -> None:
                  eval_freq=args.eval_freq, eval_targets=args.eval_targets,
                  progress_bar=not args.no_progress, max_minutes=args.max_minutes,
                  allow_config_change=args.allow_config_change, log=log, env_id=args.env,
-                 env_kwargs=env_kwargs_of(args))
+                 env_kwargs=env_kwargs_of(args), fork_seed=args.fork_seed)
     meta["out"] = args.out
     ev = meta["evaluation"]
     text = (f"{meta['env_id']} {meta.get('env_kwargs') or ''}: {meta['steps']} steps in "

@@ -257,7 +257,7 @@ def train(out: str | Path, steps: int | None = None, seed: int | None = None, co
           max_minutes: float | None = None, allow_config_change: bool = False,
           log: Log | None = None, env_id: str = hyperparams.ENV_ID,
           env_kwargs: dict | None = None, algo: str = "ppo",
-          on_eval: Callable[[dict], None] | None = None) -> dict:
+          on_eval: Callable[[dict], None] | None = None, fork_seed: int | None = None) -> dict:
     """Train (or resume) ``algo`` (:data:`.algos.ALGO_NAMES`; hyperparameters from
     ``conf_file``, default ``configs/<algo>.yml``) into ``out`` for ``steps`` (or until ``max_minutes`` of wall time,
     resumed runs included); returns the metadata written there. The env: ``env_id`` (a
@@ -268,10 +268,15 @@ def train(out: str | Path, steps: int | None = None, seed: int | None = None, co
     ``evaluations.jsonl``); an exception it raises stops the run there and propagates (a tuner's
     pruning), the checkpoints written so far stay. ``seed``: a new run's training seed (default
     0); a resume continues the run's own seed (SB3 reseeds from the checkpoint), so another
-    ``seed`` is refused."""
+    ``seed`` is refused. ``fork_seed`` (with ``resume``): continue the checkpoint under that
+    seed instead (a fork: the same state, other samples; the metadata's ``forks`` records it
+    and ``seed`` becomes it); how much of a run's final figure its last updates decide is
+    measured this way (docs/agents.md)."""
     import torch
 
     check_budgets(steps, max_minutes, checkpoint_freq, eval_freq, eval_targets)
+    if fork_seed is not None and not resume:
+        raise ValueError("fork_seed forks a checkpoint: it needs resume (a new run takes seed)")
     if algo not in ALGO_NAMES:
         raise ValueError(f"unknown algorithm {algo!r}; choose from {', '.join(ALGO_NAMES)}")
     torch.set_num_threads(1)  # small nets: one thread is fastest, and 2 cores are shared with the env
@@ -295,6 +300,14 @@ def train(out: str | Path, steps: int | None = None, seed: int | None = None, co
             gen = _resumable(out, chash, hp, allow_config_change, log, algo)
             model = _resumed_model(gen, env, hp, tb, algo)
             run_meta["seed"] = _resumed_seed(model, seed)
+            if fork_seed is not None:
+                run_meta["forks"] = [*gen.meta.get("forks", []), {
+                    "at_steps": gen.steps, "from_seed": run_meta["seed"], "seed": fork_seed}]
+                model.seed = run_meta["seed"] = int(fork_seed)
+                model.set_random_seed(model.seed)   # torch, numpy, the envs' next reset
+                model._last_obs = None               # new episodes under the fork's seed
+            elif gen.meta.get("forks"):
+                run_meta["forks"] = gen.meta["forks"]
             wall_before = float(gen.meta.get("wall_time_s", 0.0))
             changes = list(gen.meta.get("config_changes", []))
             if gen.meta.get("config_hash") != chash:

@@ -150,10 +150,12 @@ def test_resume_continues_the_runs_own_seed_and_records_it(tmp_path):
     train(tmp_path / "a", steps=512, seed=3, **kw)
     shutil.copytree(tmp_path / "a", tmp_path / "b")
     with pytest.raises(ValueError, match="seed 9: this run trains with seed 3"):
-        train(tmp_path / "a", steps=1024, seed=9, resume=True, **kw)
+        train(tmp_path / "a", steps=2048, seed=9, resume=True, **kw)
     lines: list[str] = []
-    meta_a = train(tmp_path / "a", steps=1024, resume=True, log=lines.append, **kw)
-    meta_b = train(tmp_path / "b", steps=1024, seed=3, resume=True, **kw)
+    # 2,048 steps: the last update of a run has a learning rate of 0, so a resume for one
+    # rollout would leave any weights as they were
+    meta_a = train(tmp_path / "a", steps=2048, resume=True, log=lines.append, **kw)
+    meta_b = train(tmp_path / "b", steps=2048, seed=3, resume=True, **kw)
     assert meta_a["seed"] == meta_b["seed"] == 3
     assert any("seed 3" in line for line in lines if line.startswith("resume: from step"))
 
@@ -162,6 +164,37 @@ def test_resume_continues_the_runs_own_seed_and_records_it(tmp_path):
             return z.read("policy.pth")
     assert weights(tmp_path / "a") == weights(tmp_path / "b")
     assert train(tmp_path / "c", steps=512, **kw)["seed"] == 0       # a new run: seed 0
+
+
+def test_a_fork_continues_a_checkpoint_under_another_seed(tmp_path):
+    """--fork-seed: the same checkpoint continued under another seed trains on other samples
+    (the same fork seed twice: the same weights), the metadata records the fork, and a later
+    resume continues the fork's seed."""
+    import zipfile
+
+    from agents.rl.train import train
+
+    kw = dict(overrides=SMALL, checkpoint_freq=512, eval_freq=0, eval_targets=0,
+              progress_bar=False, tensorboard=False)
+    with pytest.raises(ValueError, match="needs resume"):
+        train(tmp_path / "x", steps=512, fork_seed=5, **kw)
+    train(tmp_path / "a", steps=512, seed=3, **kw)
+    for name in ("f5", "f5b", "f6"):
+        shutil.copytree(tmp_path / "a", tmp_path / name)
+    # 2,048 steps: two updates with a learning rate above 0 (the run's last one has 0)
+    metas = {name: train(tmp_path / name, steps=2048, resume=True, fork_seed=fs, **kw)
+             for name, fs in (("f5", 5), ("f5b", 5), ("f6", 6))}
+    plain = train(tmp_path / "a", steps=2048, resume=True, **kw)
+
+    def weights(run):
+        with zipfile.ZipFile(run / "model.zip") as z:
+            return z.read("policy.pth")
+    assert weights(tmp_path / "f5") == weights(tmp_path / "f5b")
+    assert len({weights(tmp_path / n) for n in ("f5", "f6", "a")}) == 3
+    assert metas["f5"]["seed"] == 5 and plain["seed"] == 3 and "forks" not in plain
+    assert metas["f6"]["forks"] == [{"at_steps": 512, "from_seed": 3, "seed": 6}]
+    again = train(tmp_path / "f6", steps=2560, resume=True, **kw)
+    assert again["seed"] == 6 and again["forks"] == metas["f6"]["forks"]
 
 
 @pytest.mark.parametrize("bad", [{"max_minutes": math.nan}, {"max_minutes": -1.0},
