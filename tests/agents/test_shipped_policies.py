@@ -85,15 +85,16 @@ def test_randomised_policy_reproduces_its_metadata():
 
 
 def test_shipped_v1_policy_loads_and_reproduces_its_metadata():
-    """MicroConveyor-v1's PPO (seed 4 of the five-seed run of the recipe with its exploration
-    restart, the median seed): its scene, budget and evaluation on the monitored targets. It
-    does not meet issue 20's bar, and the test does not pretend it does: it protects the
-    recorded figures (docs/agents.md)."""
+    """MicroConveyor-v1's PPO (seed 0 of the five-seed run of the recipe with its exploration
+    restart and shift, the median seed; re-run alone without periodic evaluations, bit-identical):
+    its scene, budget and evaluation on the monitored targets. It does not meet issue 20's bar,
+    and the test does not pretend it does: it protects the recorded figures (docs/agents.md)."""
     meta = load_policy(shipped_path("ppo", "MicroConveyor-v1")).metadata
     assert meta["env_id"] == "MicroConveyor-v1" and meta["algo"] == "ppo"
     assert meta["steps"] >= 6_000_000 and meta["wall_time_s"] <= 15 * 60
     assert meta["hyperparams"]["n_envs"] == 256 and meta["files"]
     assert meta["hyperparams"]["exploration_restart"] == {"at": 0.667, "log_std": -2.0}
+    assert meta["hyperparams"]["exploration_shift"] == {"at": 0.833, "by": -1.0}
     res = assert_reproduces("ppo", "evaluation", "MicroConveyor-v1")
     assert res["n_targets"] == 100 and res["detach_rate"] == 0.0
 
