@@ -37,15 +37,9 @@ def done_fraction(model: Any) -> float:
 def exploration_restart(model: Any, hp: dict, algo: str, done_now: float) -> None:
     """Arm the recipe's ``exploration_restart`` on ``model`` (see the module docstring), the
     run being at progress ``done_now`` under this call's budgets."""
-    spec = hp.get("exploration_restart")
+    spec = _log_std_spec(hp, "exploration_restart", "log_std", algo)
     if spec is None:
         return
-    if algo != "ppo":
-        raise ValueError(f"exploration_restart is a PPO setting (its state-independent log "
-                         f"std); the {algo} recipe cannot use it")
-    if not isinstance(spec, dict) or set(spec) != {"at", "log_std"}:
-        raise ValueError(f"exploration_restart must be {{at: FRACTION, log_std: VALUE}}, got "
-                         f"{spec!r}")
     at = number_in("exploration_restart: at", spec["at"], 0.0, 1.0)
     log_std = number_in("exploration_restart: log_std", spec["log_std"], -20.0, 2.0)
     base = model.lr_schedule
@@ -62,17 +56,26 @@ def exploration_restart(model: Any, hp: dict, algo: str, done_now: float) -> Non
 def exploration_shift(model: Any, hp: dict, algo: str, done_now: float) -> None:
     """Arm the recipe's ``exploration_shift`` on ``model`` (see the module docstring), the run
     being at progress ``done_now`` under this call's budgets."""
-    spec = hp.get("exploration_shift")
+    spec = _log_std_spec(hp, "exploration_shift", "by", algo)
     if spec is None:
         return
-    if algo != "ppo":
-        raise ValueError(f"exploration_shift is a PPO setting (its state-independent log std); "
-                         f"the {algo} recipe cannot use it")
-    if not isinstance(spec, dict) or set(spec) != {"at", "by"}:
-        raise ValueError(f"exploration_shift must be {{at: FRACTION, by: VALUE}}, got {spec!r}")
     model.shift_at = number_in("exploration_shift: at", spec["at"], 0.0, 1.0)
     model.shift_by = number_in("exploration_shift: by", spec["by"], -10.0, 10.0)
     _arm_once(model, "shift_pending", model.shift_at, done_now, shift_log_std_now)
+
+
+def _log_std_spec(hp: dict, key: str, value: str, algo: str) -> dict | None:
+    """The recipe's ``key: {at: FRACTION, <value>: VALUE}`` (None if absent), refused for
+    algorithms without PPO's state-independent log std or in another shape."""
+    spec = hp.get(key)
+    if spec is None:
+        return None
+    if algo != "ppo":
+        raise ValueError(f"{key} is a PPO setting (its state-independent log std); the {algo} "
+                         "recipe cannot use it")
+    if not isinstance(spec, dict) or set(spec) != {"at", value}:
+        raise ValueError(f"{key} must be {{at: FRACTION, {value}: VALUE}}, got {spec!r}")
+    return spec
 
 
 def _arm_once(model: Any, flag: str, at: float, done_now: float,
