@@ -25,10 +25,13 @@ def budgeted(base: type) -> type:
 
     class Budgeted(base):
         budget_clock: Callable[[], float] | None = None  # set by train(); not saved
-        # torch threads for the gradient updates (rollouts keep one). 2 gain 15 % on an idle
-        # 2-core machine but fall to ~450 steps/s when the cores are busy
-        # (benchmarks/train_speed.py)
+        # torch threads for the gradient updates (rollouts keep one). On v1's recipe 2 gave
+        # no gain in a same-state A/B on the idle 2-core machine, and ~500 steps/s when the
+        # cores are busy (docs/agents.md, "Where PPO's time goes on v1")
         update_threads = 1
+        # where phase changes are reported (the restart, the shift, the frozen statistics;
+        # set by train(), not saved); None: silent
+        phase_log: Callable[[str], None] | None = None
         # PPO's exploration restart (set by train() from the recipe's exploration_restart):
         # once the run's progress (steps or wall budget, whichever is further) reaches the
         # fraction restart_at, the log std of every action component is set to
@@ -50,7 +53,7 @@ def budgeted(base: type) -> type:
         _current_progress_remaining: float
 
         def _excluded_save_params(self) -> list:
-            return [*super()._excluded_save_params(), "budget_clock", "update_threads",
+            return [*super()._excluded_save_params(), "budget_clock", "update_threads", "phase_log",
                     "restart_at", "restart_log_std", "shift_at", "shift_by", "freeze_obs_at"]
 
         def train(self, *args: Any, **kwargs: Any) -> None:
@@ -98,8 +101,13 @@ def budgeted(base: type) -> type:
             True if they were frozen now)."""
             from .normalization import freeze_obs_stats
 
+            from .phases import tell
+
             vn = getattr(self, "_vec_normalize_env", None)
-            return vn is not None and freeze_obs_stats(vn)
+            frozen = vn is not None and freeze_obs_stats(vn)
+            if frozen:
+                tell(self, f"observation statistics frozen at step {self.num_timesteps}")
+            return frozen
 
     Budgeted.__name__ = Budgeted.__qualname__ = f"Budget{base.__name__}"
     Budgeted.__module__ = __name__

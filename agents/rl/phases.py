@@ -106,6 +106,9 @@ def restart_log_std_now(model: Any) -> None:
     with torch.no_grad():
         model.policy.log_std.fill_(model.restart_log_std)
     model.restart_pending = False
+    tell(model, f"exploration restart at step {model.num_timesteps}: log std set to "
+                f"{model.restart_log_std:g} in every action component; the learning rate "
+                "decays again from its initial value")
 
 
 def shift_log_std_now(model: Any) -> None:
@@ -115,6 +118,16 @@ def shift_log_std_now(model: Any) -> None:
     with torch.no_grad():
         model.policy.log_std.add_(model.shift_by)
     model.shift_pending = False
+    now = ", ".join(f"{v:.2f}" for v in model.policy.log_std.detach().tolist())
+    tell(model, f"exploration shift at step {model.num_timesteps}: log std shifted by "
+                f"{model.shift_by:+g}, now [{now}]")
+
+
+def tell(model: Any, text: str) -> None:
+    """Report a phase change through the model's ``phase_log`` (set by train(); None: silent)."""
+    log = getattr(model, "phase_log", None)
+    if log is not None:
+        log(text)
 
 
 def freeze_obs_stats(model: Any, hp: dict, done_now: float) -> None:

@@ -325,6 +325,7 @@ def train(out: str | Path, steps: int | None = None, seed: int | None = None, co
         # the run's progress now, under this call's budgets (a resume may extend them)
         done_now = max(model.num_timesteps / total,
                        wall_before / (60.0 * max_minutes) if max_minutes else 0.0)
+        model.phase_log = log  # the restart, the shift and the frozen statistics say when
         phases.exploration_restart(model, hp, algo, done_now)
         phases.exploration_shift(model, hp, algo, done_now)
         phases.freeze_obs_stats(model, hp, done_now)

@@ -18,10 +18,13 @@ def _check_resume_cases(arm, hp, flag, cases, changed_log_std):
         if saved is not None:
             setattr(model, flag, saved)
         model._current_progress_remaining = 1.0 - progress
+        said: list[str] = []
+        model.phase_log = said.append
         arm(model, hp, "ppo", done_now)
         assert getattr(model, flag) is pending, (saved, progress, done_now)
         assert bool(torch.all(model.policy.log_std == (changed_log_std if made else -3.0))), \
             (saved, progress, done_now)
+        assert len(said) == int(made), (saved, progress, done_now, said)  # said when made
 
 
 def test_exploration_restart_fires_once_and_restarts_the_schedule():
@@ -111,11 +114,15 @@ def test_exploration_shift_moves_the_log_std_once_and_leaves_the_schedule():
         def _on_step(self) -> bool:
             return True
 
+    said: list[str] = []
+
     def run(hp):
         env = MicroConveyorSB3VecEnv(8, env_id="MicroConveyor-v1", num_threads=1)
         model = algo_class("ppo")("MlpPolicy", env, n_steps=16, batch_size=64, n_epochs=2,
                                   seed=0, learning_rate=linear_schedule(1e-3), device="cpu",
                                   policy_kwargs={"net_arch": [16], "log_std_init": -3.0})
+        said.clear()
+        model.phase_log = said.append
         exploration_restart(model, hp, "ppo", 0.0)
         exploration_shift(model, hp, "ppo", 0.0)
         rec = Record()
@@ -140,6 +147,13 @@ def test_exploration_shift_moves_the_log_std_once_and_leaves_the_schedule():
     ls = {s: v for s, v, _ in both}
     assert torch.all(ls[min(s for s in ls if s >= 512)] == -0.7)
     torch.testing.assert_close(ls[at_shift], ls[at_shift - 128] - 1.0, atol=0.05, rtol=0)
+    # each change is reported once, at the step it was made, with its value
+    restart_at = min(s for s in ls if s >= 512)
+    assert said == [
+        f"exploration restart at step {restart_at}: log std set to -0.7 in every action "
+        "component; the learning rate decays again from its initial value",
+        f"exploration shift at step {at_shift}: log std shifted by -1, now ["
+        + ", ".join(f"{v:.2f}" for v in ls[at_shift].tolist()) + "]"]
 
 
 def test_exploration_shift_on_resume_is_made_once():
@@ -188,10 +202,13 @@ def test_obs_stats_freeze_at_the_fraction_and_stay_frozen_across_a_resume(tmp_pa
     def stop(res):
         raise Stop
 
+    said: list[str] = []
+
     def run(out, **extra):
+        said.clear()
         kw = dict(seed=0, env_id="MicroConveyor-v1", overrides={**tiny, **extra},
                   checkpoint_freq=128, eval_freq=512, eval_targets=2, progress_bar=False,
-                  tensorboard=False)
+                  tensorboard=False, log=said.append)
         # killed at step 512 by its evaluation (before that step's checkpoint): the two
         # newest checkpoints, 256 and 384, stay
         with pytest.raises(Stop):
@@ -207,7 +224,11 @@ def test_obs_stats_freeze_at_the_fraction_and_stay_frozen_across_a_resume(tmp_pa
     # 0.1 of 2,048 steps: frozen after the 2nd rollout (256 steps, progress 0.125 >= 0.1)
     assert frozen_end["obs_rms"] == frozen_gens[0]["obs_rms"] == frozen_gens[1]["obs_rms"]
     assert frozen_end["ret_rms"] != frozen_gens[1]["ret_rms"]
+    # said when: in the run, and at once in the resumed one (from the 384-step checkpoint)
+    assert [m for m in said if "statistics frozen" in m] == [
+        "observation statistics frozen at step 256", "observation statistics frozen at step 384"]
     (live_gens, live_end) = run(tmp_path / "l")
+    assert not [m for m in said if "frozen" in m]
     assert live_end["obs_rms"]["mean"] != live_gens[1]["obs_rms"]["mean"]
     assert live_gens[0]["obs_rms"]["mean"] != live_gens[1]["obs_rms"]["mean"]
 
