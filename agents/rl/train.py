@@ -316,8 +316,10 @@ def train(out: str | Path, steps: int | None = None, seed: int | None = None, co
             if changes:
                 run_meta["config_changes"] = changes
             if log:
-                log(f"resume: from step {gen.steps} ({gen.folder.name}), seed "
-                    f"{run_meta['seed']}, {wall_before:.0f} s of wall time already spent")
+                how = (f"forked to seed {fork_seed} from seed {run_meta['forks'][-1]['from_seed']}"
+                       if fork_seed is not None else f"seed {run_meta['seed']}")
+                log(f"resume: from step {gen.steps} ({gen.folder.name}), {how}, "
+                    f"{wall_before:.0f} s of wall time already spent")
         else:
             _refuse_used_folder(out)
             model = _new_model(env, hp, run_seed, tb, algo)

@@ -182,8 +182,12 @@ def test_a_fork_continues_a_checkpoint_under_another_seed(tmp_path):
     for name in ("f5", "f5b", "f6"):
         shutil.copytree(tmp_path / "a", tmp_path / name)
     # 2,048 steps: two updates with a learning rate above 0 (the run's last one has 0)
-    metas = {name: train(tmp_path / name, steps=2048, resume=True, fork_seed=fs, **kw)
+    lines: list[str] = []
+    metas = {name: train(tmp_path / name, steps=2048, resume=True, fork_seed=fs,
+                         log=lines.append, **kw)
              for name, fs in (("f5", 5), ("f5b", 5), ("f6", 6))}
+    said = [x for x in lines if x.startswith("resume: from step 512")]
+    assert len(said) == 3 and "forked to seed 6 from seed 3" in said[-1]
     plain = train(tmp_path / "a", steps=2048, resume=True, **kw)
 
     def weights(run):
