@@ -299,10 +299,10 @@ def train(out: str | Path, steps: int | None = None, seed: int | None = None, co
         if resume:
             gen = _resumable(out, chash, hp, allow_config_change, log, algo)
             model = _resumed_model(gen, env, hp, tb, algo)
-            run_meta["seed"] = _resumed_seed(model, seed)
+            run_meta["seed"] = own_seed = _resumed_seed(model, seed)
             if fork_seed is not None:
                 run_meta["forks"] = [*gen.meta.get("forks", []), {
-                    "at_steps": gen.steps, "from_seed": run_meta["seed"], "seed": fork_seed}]
+                    "at_steps": gen.steps, "from_seed": own_seed, "seed": fork_seed}]
                 model.seed = run_meta["seed"] = int(fork_seed)
                 model.set_random_seed(model.seed)   # torch, numpy, the envs' next reset
                 model._last_obs = None               # new episodes under the fork's seed
@@ -316,8 +316,8 @@ def train(out: str | Path, steps: int | None = None, seed: int | None = None, co
             if changes:
                 run_meta["config_changes"] = changes
             if log:
-                how = (f"forked to seed {fork_seed} from seed {run_meta['forks'][-1]['from_seed']}"
-                       if fork_seed is not None else f"seed {run_meta['seed']}")
+                how = (f"forked to seed {fork_seed} from seed {own_seed}"
+                       if fork_seed is not None else f"seed {own_seed}")
                 log(f"resume: from step {gen.steps} ({gen.folder.name}), {how}, "
                     f"{wall_before:.0f} s of wall time already spent")
         else:
