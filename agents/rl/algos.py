@@ -100,7 +100,6 @@ def budgeted(base: type) -> type:
             """Freeze the observation statistics of the VecNormalize the model trains in (once;
             True if they were frozen now)."""
             from .normalization import freeze_obs_stats
-
             from .phases import tell
 
             vn = getattr(self, "_vec_normalize_env", None)
