@@ -65,18 +65,11 @@ def budgeted(base: type) -> type:
                 super().train(*args, **kwargs)
             finally:
                 torch.set_num_threads(before)
-            if (self.restart_pending and self.restart_at is not None
-                    and 1.0 - self._current_progress_remaining >= self.restart_at):
-                # after this update, before the next rollout: the next rollout explores
-                # with the restarted noise and its log-probabilities are computed with it
-                from .phases import restart_log_std_now
+            # after this update, before the next rollout: the next rollout explores with the
+            # changed noise and its log-probabilities are computed with it
+            from .phases import make_due_changes
 
-                restart_log_std_now(self)
-            if (self.shift_pending and self.shift_at is not None
-                    and 1.0 - self._current_progress_remaining >= self.shift_at):
-                from .phases import shift_log_std_now
-
-                shift_log_std_now(self)
+            make_due_changes(self, 1.0 - self._current_progress_remaining)
 
         def _update_current_progress_remaining(self, num_timesteps: int,
                                                total_timesteps: int) -> None:

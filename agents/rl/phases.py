@@ -123,6 +123,20 @@ def shift_log_std_now(model: Any) -> None:
                 f"{model.shift_by:+g}, now [{now}]")
 
 
+# the log-std changes made once in a run: (pending flag, fraction attribute, change)
+_ONCE = (("restart_pending", "restart_at", restart_log_std_now),
+         ("shift_pending", "shift_at", shift_log_std_now))
+
+
+def make_due_changes(model: Any, done: float) -> None:
+    """Make each armed change (the restart, then the shift) whose fraction the run's progress
+    ``done`` has reached and that is still pending (called after every update)."""
+    for flag, at_attr, fire in _ONCE:
+        at = getattr(model, at_attr, None)
+        if getattr(model, flag, None) and at is not None and done >= at:
+            fire(model)
+
+
 def tell(model: Any, text: str) -> None:
     """Report a phase change through the model's ``phase_log`` (set by train(); None: silent)."""
     log = getattr(model, "phase_log", None)
