@@ -285,11 +285,11 @@ def test_sb3_adapter_passes_the_options_and_reports_the_factors():
     assert "friction_factor" not in plain.reset_infos[0]
 
 
-def test_checkers_and_pickle_with_randomisation_on():
+def test_checkers_and_pickle_with_randomisation_on(monkeypatch):
     import pickle
     import warnings
 
-    from gymnasium.utils.env_checker import check_env
+    from support.checkers import gymnasium_check_env
 
     with warnings.catch_warnings():  # Gymnasium's note that v0 has a successor is expected here
         warnings.filterwarnings("ignore", message=".*MicroConveyor-v0 is out of date",
@@ -297,7 +297,7 @@ def test_checkers_and_pickle_with_randomisation_on():
         env = gym.make("MicroConveyor-v0", **RAND).unwrapped
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        check_env(env)
+        gymnasium_check_env(env, monkeypatch)
     env = MicroConveyorEnv(**RAND)
     env.reset(seed=3)
     _, _, te, tr, _ = env.step(np.array([0.1, 0.5, -0.9], np.float32))
