@@ -66,18 +66,30 @@ class Policy:
     def act(self, obs: np.ndarray) -> np.ndarray:
         """Deterministic actions in [-1, 1]^k (k = 3 in 1-D, 5 in the plane) for a batch of raw
         observations of the Box env (a policy trained on the goal-conditioned env gets them as
-        its Dict observations)."""
+        its Dict observations).
+
+        Each row is computed on its own, so a row's action does not depend on the batch it came
+        in: torch's CPU kernels round float32 products differently by batch size on some CPUs
+        (AVX-512: up to ~2e-7 in action units between a batch of 64 and single rows), which
+        would make a target's result depend on how many targets were evaluated together and
+        MPC's plan from a policy (one state at a time) differ from the policy's own episode."""
+        obs = np.asarray(obs)
+        if obs.ndim < 2:
+            raise ValueError(f"act takes a batch of observations (n, d), got shape {obs.shape}")
+        return np.concatenate([self._act_rows(obs[i:i + 1]) for i in range(len(obs))])
+
+    def _act_rows(self, obs: np.ndarray) -> np.ndarray:
         from gymnasium import spaces
 
         if isinstance(self.model.observation_space, spaces.Dict):
             from microconveyor_env.envs.goal import goal_observations
 
             action, _ = self.model.predict(goal_observations(obs), deterministic=True)
-            return action
+            return np.asarray(action)
         if self.normalizer is not None:
             obs = self.normalizer(obs)
         action, _ = self.model.predict(obs, deterministic=True)
-        return action
+        return np.asarray(action)
 
 
 def _locate(path: Path) -> tuple[Path, Path]:

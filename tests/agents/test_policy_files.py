@@ -255,3 +255,23 @@ def test_policy_with_observation_history_loads_and_evaluates(tmp_path):
     (folder / "metadata.json").write_text(json.dumps(meta))
     with pytest.raises(PolicyError, match=r"observation"):
         load_policy(folder)
+
+
+@pytest.mark.parametrize("env_id", ["MicroConveyor-v0", "MicroConveyor-v1"])
+def test_a_rows_action_does_not_depend_on_its_batch(env_id):
+    """Policy.act computes each row alone: on CPUs whose float32 kernels round by batch size
+    (AVX-512 here: up to ~2e-7 in action units between a batch of 64 and single rows) a
+    target's result would otherwise depend on how many were evaluated with it, and MPC's plan
+    from the policy (one state at a time) would differ from the policy's own episode."""
+    import numpy as np
+
+    pol = load_policy(shipped_path("ppo", env_id))
+    rng = np.random.default_rng(0)
+    spread = 3 * np.sqrt(pol.normalizer.var)
+    lo, hi = pol.normalizer.mean - spread, pol.normalizer.mean + spread
+    obs = rng.uniform(lo, hi, (64, len(lo))).astype(np.float32)
+    batch = pol.act(obs)
+    for n in (1, 2, 7, 64):
+        np.testing.assert_array_equal(pol.act(obs[:n]), batch[:n])
+    with pytest.raises(ValueError, match="batch of observations"):
+        pol.act(obs[0])
