@@ -203,9 +203,20 @@ def cmd_seeds(args: argparse.Namespace) -> None:
     res["curves"] = curves(args.runs)
     if args.plot:
         res["plot"] = plot_curves(res["curves"], args.plot)
-    lines = [f"{k}: IQM {v['iqm']:.4g}, 95 % CI [{v['ci95'][0]:.4g}, {v['ci95'][1]:.4g}], per "
-             f"seed {', '.join(f'{x:.4g}' for x in v['per_seed'])}"
-             for k, v in res.items() if isinstance(v, dict) and "iqm" in v]
-    emit(args, res, "\n".join(lines))
+    emit(args, res, "\n".join(iqm_lines(res, per_seed=True)))
+
+
+def iqm_lines(agg: dict[str, Any], per_seed: bool) -> list[str]:
+    """One line per aggregated figure of :func:`agents.rl.seeds.aggregate` (IQM, 95 % CI and,
+    with ``per_seed``, each run's value), in the units people read (%, µm)."""
+    from microconveyor_env.cli.human import format_value
+
+    def show(key: str, x: float) -> str:
+        return format_value(key, x)[1]
+
+    return [f"{format_value(k, 0.0)[0]}: IQM {show(k, v['iqm'])}, 95 % CI [{show(k, v['ci95'][0])}, "
+            f"{show(k, v['ci95'][1])}]"
+            + (f", per seed {', '.join(show(k, x) for x in v['per_seed'])}" if per_seed else "")
+            for k, v in agg.items() if isinstance(v, dict) and "iqm" in v]
 
 

@@ -7,6 +7,7 @@ import argparse
 from microconveyor_env.cli.base import command, count, emit, plot_path
 
 from .args import add_env_args, env_kwarg, env_kwargs_of, minutes
+from .rl import iqm_lines
 
 
 def _budget_args(p: argparse.ArgumentParser, steps_help: str) -> None:
@@ -135,8 +136,7 @@ def cmd_train_seeds(args: argparse.Namespace) -> None:
             from ..rl.seeds import curves
 
             res["plot"] = plot_curves(curves(agg["runs"]), args.plot)
-        lines += [f"{k}: IQM {v['iqm']:.4g}, 95 % CI [{v['ci95'][0]:.4g}, {v['ci95'][1]:.4g}]"
-                  for k, v in agg.items() if isinstance(v, dict) and "iqm" in v]
+        lines += iqm_lines(agg, per_seed=False)
     emit(args, res, "\n".join(lines))
     if any(r["status"] == "failed" for r in res["runs"]):
         raise ValueError(f"{sum(r['status'] == 'failed' for r in res['runs'])} seed(s) failed "

@@ -164,6 +164,12 @@ def test_seeds_command_reports_curves_and_plots(tmp_path):
     assert out["success_rate_50um"]["per_seed"] == [0.2, 0.5, 0.8]
     assert out["curves"][str(tmp_path / "1")]["steps"] == [1000, 2000]
     assert (tmp_path / "curves.png").stat().st_size > 10_000
+    r = run("seeds", *(str(tmp_path / str(i)) for i in range(3)))   # human: %, µm
+    assert r.returncode == 0, r.stderr
+    assert "success_rate_50um: IQM 50.0 %" in r.stdout and "per seed 20.0 %, 50.0 %, 80.0 %" \
+        in r.stdout, r.stdout
+    line = next(ln for ln in r.stdout.splitlines() if ln.startswith("median_abs_error:"))
+    assert line.count("µm") == 6 and "e-0" not in line, line
     r = run("seeds", str(tmp_path / "nope"), "--json")
     assert r.returncode == 2 and "error" in json.loads(r.stdout)
 
