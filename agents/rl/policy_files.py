@@ -76,6 +76,8 @@ class Policy:
         obs = np.asarray(obs)
         if obs.ndim < 2:
             raise ValueError(f"act takes a batch of observations (n, d), got shape {obs.shape}")
+        if not len(obs):
+            return np.zeros((0, *self.model.action_space.shape), np.float32)
         return np.concatenate([self._act_rows(obs[i:i + 1]) for i in range(len(obs))])
 
     def _act_rows(self, obs: np.ndarray) -> np.ndarray:

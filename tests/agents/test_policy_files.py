@@ -273,5 +273,6 @@ def test_a_rows_action_does_not_depend_on_its_batch(env_id):
     batch = pol.act(obs)
     for n in (1, 2, 7, 64):
         np.testing.assert_array_equal(pol.act(obs[:n]), batch[:n])
+    assert pol.act(obs[:0]).shape == (0, 3)
     with pytest.raises(ValueError, match="batch of observations"):
         pol.act(obs[0])
