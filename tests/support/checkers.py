@@ -1,6 +1,6 @@
 """Gymnasium's env checker as the tests run it: headless, and without the ``human`` render mode
-when pygame (the ``render`` extra, which the README's test command does not install) is absent,
-since the checker makes the env once in every mode its metadata lists."""
+when pygame (the ``render`` extra; the README's test command installs it, a core install does
+not) is absent, since the checker makes the env once in every mode its metadata lists."""
 from __future__ import annotations
 
 import importlib.util
