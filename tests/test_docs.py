@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from support.scripts import load_script
 from support.snippets import assert_snippet_runs
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -16,13 +17,6 @@ EXAMPLE_PAGES = ("examples.md", "getting-started.md")
 BLOCKS = [(page, code) for page in EXAMPLE_PAGES
           for code in re.findall(r"```python\n(.*?)```", (ROOT / "docs" / page).read_text(),
                                  flags=re.S)]
-
-
-def _script(name: str):
-    spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 @pytest.fixture(scope="module")
@@ -67,7 +61,7 @@ def test_cli_reference_has_every_command(site):
 def test_cli_reference_does_not_depend_on_the_terminal(monkeypatch):
     from microconveyor_env.cli import COMMANDS
 
-    gen = _script("gen_cli_reference")
+    gen = load_script("gen_cli_reference")
     monkeypatch.setenv("COLUMNS", "40")
     narrow = gen.reference()
     monkeypatch.setenv("COLUMNS", "200")
@@ -77,7 +71,7 @@ def test_cli_reference_does_not_depend_on_the_terminal(monkeypatch):
 
 
 def test_role_hook_shortens_as_sphinx_does():
-    strip = _script("docs_sphinx_roles").strip_roles
+    strip = load_script("docs_sphinx_roles").strip_roles
     assert strip(":class:<code>~.physics.simulator.Simulator</code>") == "<code>Simulator</code>"
     assert strip(":mod:<code>.threads</code> and :func:<code>a.b</code>") == (
         "<code>threads</code> and <code>a.b</code>")

@@ -1,20 +1,9 @@
 """scripts/fork_outcomes.py: the per-seed bar counted from run metadata, forks traced to the
 state they came from, runs off the chart kept in the JSON."""
-import importlib.util
 import json
-from pathlib import Path
 
 import pytest
-
-ROOT = Path(__file__).resolve().parents[2]
-
-
-def _script():
-    spec = importlib.util.spec_from_file_location("fork_outcomes",
-                                                  ROOT / "scripts" / "fork_outcomes.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+from support.scripts import load_script
 
 
 def _run(tmp_path, name, seed, success, median_m, forks=None):
@@ -36,7 +25,7 @@ def test_counts_the_bar_and_traces_forks(tmp_path):
             _run(tmp_path, "d", 3, 0.89, 5e-6),             # success just under
             _run(tmp_path, "e", 4, 0.13, 1.5e-3)]           # far off the chart
     out = tmp_path / "fig" / "forks"
-    assert _script().main(["recipe=" + ",".join(map(str, runs[:3])),
+    assert load_script("fork_outcomes").main(["recipe=" + ",".join(map(str, runs[:3])),
                            "other=" + ",".join(map(str, runs[3:])), "--out", str(out)]) == 0
     data = json.loads(out.with_suffix(".json").read_text())
     rec, other = data["variants"]
@@ -51,7 +40,7 @@ def test_refuses_unfinished_runs_and_bad_specs(tmp_path):
     d = tmp_path / "unfinished"
     d.mkdir()
     (d / "metadata.json").write_text(json.dumps({"seed": 0}))
-    script = _script()
+    script = load_script("fork_outcomes")
     with pytest.raises(SystemExit, match="no final evaluation"):
         script.main([f"x={d}", "--out", str(tmp_path / "o")])
     with pytest.raises(SystemExit, match="LABEL=FOLDER"):

@@ -1,6 +1,5 @@
 """MEMS material presets (docs/physics.md §9): their tables, forces and windows, the validity bounds
 of the contact inputs (§2.1), and what a preset file with unknown or missing keys is told."""
-import importlib.util
 import math
 import re
 import warnings
@@ -15,17 +14,10 @@ from microconveyor_env.physics.rough_surface import Normalised, SurfaceIntegrals
 from microconveyor_env.presets import (PresetError, PresetWarning, available_presets, load_preset,
                                        params_from_dict)
 from support.ke_reference import reference_integrals
+from support.scripts import load_script
 
 ROOT = Path(__file__).resolve().parents[2]
 MEMS = ("silicon", "polysilicon", "silicon_oxide", "silicon_nitride", "gold")
-
-
-def _script():
-    spec = importlib.util.spec_from_file_location("materials_table",
-                                                  ROOT / "scripts" / "materials_table.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def _doc_rows():
@@ -80,7 +72,7 @@ def test_mems_preset_builds_its_table_with_finite_positive_forces(name):
 def test_mems_preset_window_or_reason_is_the_documented_one(name):
     """The window of the table's sweep (100 Hz-10 kHz, 25 Hz steps), or the reason there is none,
     is what docs/physics.md §9 says; and the force columns match Preset.forces()."""
-    script = _script()
+    script = load_script("materials_table")
     row = script.row(name)
     doc = _doc_rows()[name]
     assert doc[4:9] == script.force_cells(row)

@@ -3,7 +3,8 @@
 (the plane's simulators and scenes), ``support.lockstep``
 (batched env against SyncVectorEnv), ``support.fingerprint_child`` (table and rollout hashes in a
 child process), ``support.checkers`` (Gymnasium's env checker, headless, without pygame),
-``support.snippets`` (documentation code blocks run as tests). ``DATA`` is the folder of stored
+``support.snippets`` (documentation code blocks run as tests), ``support.scripts``
+(``scripts/*.py`` loaded as modules). ``DATA`` is the folder of stored
 test data."""
 from pathlib import Path
 
