@@ -4,6 +4,11 @@ a stuck part breaks away (:func:`_illinois_stick` on the disc test), and a pull-
 two nodes (:func:`_hidden_pull_off`, a golden-section search on the Hermite path). The 2-D
 counterparts of :mod:`.events`, whose root finders (Illinois, secant) and constants they reuse;
 :mod:`.plane_kernel` calls them.
+
+The loops of the Illinois and golden-section searches are written out here as in :mod:`.events`
+rather than shared: a compiled search taking the searched function as an argument gives the
+same numbers bit for bit, but numba then refuses to cache every kernel that calls it ("uses
+dynamic globals"), so each process would compile the kernels afresh (tried 2026-11-25).
 """
 from __future__ import annotations
 
