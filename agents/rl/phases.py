@@ -12,6 +12,9 @@
   statistics stop updating (the reward statistics go on), so the last updates see every
   observation through one normalisation.
 
+The two log-std keys are refused with ``use_sde``: gSDE's log std is a matrix over the policy's
+latent features, and a value of it is not the action noise the keys' numbers mean.
+
 Progress is the run's (steps or the wall budget, whichever is further, :mod:`.algos`), so
 ``--steps``, ``--max-minutes`` and resumes scale both. A resumed run takes its progress from its
 steps and wall time under the budgets it is given: past ``freeze_obs_stats_at`` it freezes the
@@ -75,6 +78,12 @@ def _log_std_spec(hp: dict, key: str, value: str, algo: str) -> dict | None:
                          "recipe cannot use it")
     if not isinstance(spec, dict) or set(spec) != {"at", value}:
         raise ValueError(f"{key} must be {{at: FRACTION, {value}: VALUE}}, got {spec!r}")
+    if hp.get("use_sde"):
+        # gSDE's log std is a matrix (latent features x actions) whose noise scales with the
+        # features: a value of it is not the action noise the key's number means
+        raise ValueError(f"{key} sets PPO's state-independent log std; with use_sde the noise "
+                         "is gSDE's (a log std per latent feature and action), which it does not "
+                         f"handle: drop {key} or use_sde")
     return spec
 
 

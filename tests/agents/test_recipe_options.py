@@ -182,6 +182,11 @@ def test_obs_stats_freeze_needs_normalised_observations(tmp_path):
     ({"exploration_shift": {"at": 0.5}}, "must be {at: FRACTION, by: VALUE}"),
     ({"exploration_shift": {"at": 0.0, "by": -1.0}}, "exploration_shift: at must be"),
     ({"exploration_shift": {"at": 0.5, "by": float("inf")}}, "exploration_shift: by must be"),
+    # gSDE's log std is per latent feature: the keys would set or shift another quantity
+    ({"use_sde": True, "exploration_restart": None, "exploration_shift": {"at": 0.5, "by": -1.0}},
+     "exploration_shift .*use_sde"),
+    ({"use_sde": True, "exploration_restart": {"at": 0.5, "log_std": -2.0}},
+     "exploration_restart .*use_sde"),
 ])
 def test_bad_recipe_keys_are_refused_by_name(tmp_path, overrides, message):
     with pytest.raises(ValueError, match=message):
