@@ -6,7 +6,9 @@ import argparse
 import json
 import os
 import re
+import signal
 import sys
+import threading
 import traceback
 from typing import Any, NoReturn, TypeVar
 from collections.abc import Callable
@@ -182,6 +184,43 @@ def fail(argv: list[str], command: str, exc: BaseException) -> int:
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, the shells' convention for Ctrl-C
 
 
+# A Ctrl-C whose KeyboardInterrupt is raised while Python runs a finalizer (``__del__``: numba's
+# compiler objects free their LLVM handles there) is printed as "Exception ignored" and lost, and
+# the command would run on and write its outputs (seen once in the Ctrl-C test, 2026-11-25).
+# main() therefore latches every SIGINT; raise_if_interrupted() turns a lost one back into a
+# KeyboardInterrupt where a command commits its outputs.
+_sigint_seen = False
+
+
+def _latch_sigint(signum: int, frame: Any) -> None:
+    global _sigint_seen
+    _sigint_seen = True
+    raise KeyboardInterrupt
+
+
+def raise_if_interrupted() -> None:
+    """KeyboardInterrupt if a Ctrl-C reached this command (under :func:`main`), even one whose
+    exception something swallowed."""
+    if _sigint_seen:
+        raise KeyboardInterrupt
+
+
+def _install_sigint_latch() -> Callable[[], None]:
+    """Latch SIGINT for this command (only over Python's own handler, in the main thread: an
+    ignored SIGINT, as in a background job, stays ignored); returns the undo."""
+    global _sigint_seen
+    _sigint_seen = False
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGINT) is not signal.default_int_handler):
+        return lambda: None
+    previous = signal.signal(signal.SIGINT, _latch_sigint)
+
+    def undo() -> None:
+        signal.signal(signal.SIGINT, previous)
+
+    return undo
+
+
 def interrupted(argv: list[str], command: str) -> int:
     """Ctrl-C (``KeyboardInterrupt``): ``--json``: one ``{"error": "interrupted", "error_type":
     "KeyboardInterrupt"}`` object on stdout; one line on stderr; exit status 130."""
@@ -218,6 +257,7 @@ def main(argv: list[str] | None = None) -> int:
     """Run the command line (``argv``: the arguments, default ``sys.argv[1:]``); exit status."""
     argv = list(sys.argv[1:] if argv is None else argv)
     command = ""
+    undo_latch = _install_sigint_latch()
     try:
         args = build_parser().parse_args(attach_negative_values(argv))
         command = args.command
@@ -226,5 +266,7 @@ def main(argv: list[str] | None = None) -> int:
         return interrupted(argv, command)
     except Exception as exc:  # noqa: BLE001 - the error contract covers every failure
         return fail(argv, command, exc)
+    finally:
+        undo_latch()
     return 0
 

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 from collections.abc import Callable
 
-from .base import command, count, emit, plot_path
+from .base import command, count, emit, plot_path, raise_if_interrupted
 
 
 def table_path(text: str) -> str:
@@ -150,10 +150,12 @@ class Outputs:
 
 @contextmanager
 def outputs() -> Iterator[Outputs]:
-    """Staged output files (:class:`Outputs`): committed on a clean exit, discarded otherwise."""
+    """Staged output files (:class:`Outputs`): committed on a clean exit, discarded otherwise
+    (also after a Ctrl-C whose exception was swallowed: :func:`.base.raise_if_interrupted`)."""
     files = Outputs()
     try:
         yield files
+        raise_if_interrupted()
         files.commit()
     except BaseException:
         files.discard()

@@ -218,6 +218,55 @@ def test_staged_outputs_all_or_nothing(tmp_path):
     assert os.listdir(tmp_path) == ["a.csv"]
 
 
+class _InterruptedFinalizer:
+    """An object whose ``__del__`` receives the Ctrl-C (as numba's compiler objects can)."""
+
+    def __del__(self):
+        os.kill(os.getpid(), signal.SIGINT)
+        for _ in range(10_000):  # bytecodes for the handler to run (and raise) in here
+            pass
+
+
+def test_a_ctrl_c_lost_in_a_finalizer_still_discards_the_outputs(tmp_path, monkeypatch):
+    """Python hands an exception raised in ``__del__`` to ``sys.unraisablehook`` (it prints
+    "Exception ignored") and goes on; the latch main() installs remembers the SIGINT, and the
+    staged outputs are discarded, not committed."""
+    from microconveyor_env.cli import base
+
+    lost = []
+    monkeypatch.setattr(sys, "unraisablehook", lambda u: lost.append(u.exc_type))
+    previous = signal.signal(signal.SIGINT, base._latch_sigint)  # main()'s latch, forced here
+    try:
+        base._sigint_seen = False
+        obj = _InterruptedFinalizer()
+        del obj                                       # the KeyboardInterrupt is lost in __del__
+        assert lost == [KeyboardInterrupt]
+        assert base._sigint_seen
+        with pytest.raises(KeyboardInterrupt), outputs() as files:
+            files.table([{"x_m": 1.0}], str(tmp_path / "a.csv"))
+        assert os.listdir(tmp_path) == []
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        base._sigint_seen = False
+
+
+def test_main_latches_sigint_only_over_pythons_own_handler():
+    """An ignored SIGINT (a background job) stays ignored; the handler is restored after."""
+    from microconveyor_env.cli import base
+
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        undo = base._install_sigint_latch()
+        assert signal.getsignal(signal.SIGINT) is base._latch_sigint
+        undo()
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        base._install_sigint_latch()()
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 # ----------------------------------------------------------------------------- Ctrl-C
 def _sigint_default() -> None:
     """In the child before exec: SIGINT back to its default. A shell that starts a command in
