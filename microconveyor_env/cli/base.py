@@ -207,16 +207,24 @@ def raise_if_interrupted() -> None:
 
 def _install_sigint_latch() -> Callable[[], None]:
     """Latch SIGINT for this command (only over Python's own handler, in the main thread: an
-    ignored SIGINT, as in a background job, stays ignored); returns the undo."""
+    ignored SIGINT, as in a background job, stays ignored), and keep a latched interrupt that a
+    finalizer dropped off stderr (the command reports it in its one line); returns the undo."""
     global _sigint_seen
     _sigint_seen = False
     if (threading.current_thread() is not threading.main_thread()
             or signal.getsignal(signal.SIGINT) is not signal.default_int_handler):
         return lambda: None
-    previous = signal.signal(signal.SIGINT, _latch_sigint)
+    previous, previous_hook = signal.signal(signal.SIGINT, _latch_sigint), sys.unraisablehook
+
+    def quiet_lost_interrupt(unraisable: Any) -> None:
+        if not (_sigint_seen and unraisable.exc_type is KeyboardInterrupt):
+            previous_hook(unraisable)
+
+    sys.unraisablehook = quiet_lost_interrupt
 
     def undo() -> None:
         signal.signal(signal.SIGINT, previous)
+        sys.unraisablehook = previous_hook
 
     return undo
 

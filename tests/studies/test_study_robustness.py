@@ -227,24 +227,36 @@ class _InterruptedFinalizer:
             pass
 
 
+class _FailingFinalizer:
+    def __del__(self):
+        raise ValueError("a finalizer's own error")
+
+
 def test_a_ctrl_c_lost_in_a_finalizer_still_discards_the_outputs(tmp_path, monkeypatch):
-    """Python hands an exception raised in ``__del__`` to ``sys.unraisablehook`` (it prints
-    "Exception ignored") and goes on; the latch main() installs remembers the SIGINT, and the
-    staged outputs are discarded, not committed."""
+    """Python hands an exception raised in ``__del__`` to ``sys.unraisablehook`` (by default it
+    prints "Exception ignored") and goes on. Under main()'s latch the SIGINT is remembered, the
+    lost KeyboardInterrupt is kept off stderr (the command's one line reports it), other lost
+    errors still reach the hook, and the staged outputs are discarded, not committed."""
     from microconveyor_env.cli import base
 
     lost = []
     monkeypatch.setattr(sys, "unraisablehook", lambda u: lost.append(u.exc_type))
-    previous = signal.signal(signal.SIGINT, base._latch_sigint)  # main()'s latch, forced here
+    collector = sys.unraisablehook
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
-        base._sigint_seen = False
+        undo = base._install_sigint_latch()               # what main() does first
         obj = _InterruptedFinalizer()
-        del obj                                       # the KeyboardInterrupt is lost in __del__
-        assert lost == [KeyboardInterrupt]
-        assert base._sigint_seen
+        del obj                                           # the KeyboardInterrupt is lost in __del__
+        assert base._sigint_seen and lost == []
+        obj = _FailingFinalizer()
+        del obj
+        assert lost == [ValueError]
         with pytest.raises(KeyboardInterrupt), outputs() as files:
             files.table([{"x_m": 1.0}], str(tmp_path / "a.csv"))
         assert os.listdir(tmp_path) == []
+        undo()
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        assert sys.unraisablehook is collector
     finally:
         signal.signal(signal.SIGINT, previous)
         base._sigint_seen = False
