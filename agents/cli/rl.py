@@ -1,4 +1,4 @@
-"""The RL commands: ``train``, ``evaluate``, ``seeds`` and ``convert-stats``."""
+"""The RL commands: ``train``, ``refine``, ``evaluate``, ``seeds`` and ``convert-stats``."""
 from __future__ import annotations
 
 import argparse
@@ -82,6 +82,59 @@ def cmd_train(args: argparse.Namespace) -> None:
                  f"{ev['success_rate_100um']:.2f} / {ev['success_rate_250um']:.2f}, median "
                  f"|error| {ev['median_abs_error_m'] * 1e6:.1f} um")
     emit(args, meta, text)
+
+
+def _refine_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("policy", help="a trained PPO policy folder of the 1-D conveyor (model.zip, "
+                                  "normalization.json, metadata.json; e.g. a `train` run folder)")
+    p.add_argument("--out", required=True, help="the refined policy folder to write (must not "
+                                                "exist or be empty)")
+    p.add_argument("--targets", type=count(1), default=1000,
+                   help="training targets per round, drawn from the policy's target range "
+                        "(default 1000)")
+    p.add_argument("--rounds", type=count(1), default=4, help="correct-and-fit rounds (default 4)")
+    p.add_argument("--fit-iterations", type=count(1), default=300,
+                   help="L-BFGS iterations of each fit (default 300)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the training targets (default 0)")
+    p.add_argument("--eval-targets", type=count(0), default=100,
+                   help="targets of the evaluation written to the metadata, drawn with the "
+                        "policy's own evaluation seed (0: none; default 100)")
+
+
+@command("refine", "refine a trained policy's aim: Newton corrections of its last firing on the "
+                   "simulator, fitted back into the actor (docs/agents.md, 'Refining the last "
+                   "firing')", _refine_args)
+def cmd_refine(args: argparse.Namespace) -> None:
+    from pathlib import Path
+
+    import torch
+
+    from ..rl.evaluate import evaluate, load_policy
+    from ..rl.refine import RefineSettings, refine, write_refined
+
+    out = Path(args.out)
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise ValueError(f"--out {args.out!r} exists and is not an empty folder")
+    settings = RefineSettings(targets=args.targets, rounds=args.rounds,
+                              fit_iterations=args.fit_iterations, seed=args.seed)
+    pol = load_policy(args.policy)
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)   # as in training: one core, the same arithmetic on every run
+    try:
+        report = refine(pol, settings, log=lambda line: print(line, file=sys.stderr, flush=True))
+    finally:
+        torch.set_num_threads(threads)
+    before = pol.metadata.get("evaluation") or {}
+    ev = (evaluate(pol, args.eval_targets, int(before.get("seed", 12345)))
+          if args.eval_targets else None)
+    write_refined(pol, report, out, ev)
+    res = {"out": str(out), "refinement": report, "evaluation": ev, "evaluation_before": before}
+    text = f"refined policy -> {out} ({report['wall_time_s']:.0f} s, kept round {report['kept_round']})"
+    if ev:
+        text += (f"\nsuccess +-50/100/250 um: {ev['success_rate_50um']:.2f} / "
+                 f"{ev['success_rate_100um']:.2f} / {ev['success_rate_250um']:.2f}, median "
+                 f"|error| {ev['median_abs_error_m'] * 1e6:.1f} um on {ev['n_targets']} targets")
+    emit(args, res, text)
 
 
 def _convert_args(p: argparse.ArgumentParser) -> None:

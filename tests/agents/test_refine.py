@@ -1,0 +1,136 @@
+"""`refine`: Newton corrections of a policy's last firing, fitted back into the actor."""
+import json
+import subprocess
+import sys
+import zipfile
+
+import numpy as np
+import pytest
+
+pytest.importorskip("stable_baselines3")
+
+from agents.rl.evaluate import load_policy  # noqa: E402
+from agents.rl.refine import (Actor, RefineSettings, correct_last_firing, play, refine,  # noqa: E402
+                              write_refined)
+from agents.rl.shipped import shipped_path  # noqa: E402
+
+
+def _shipped():
+    return load_policy(shipped_path("ppo", "MicroConveyor-v1"))
+
+
+def test_newton_lands_the_last_firing_and_touches_nothing_else():
+    pol = _shipped()
+    # far targets, where the shipped policy ends 30-55 um past them (a smooth bias, measured)
+    targets = np.linspace(6.0e-3, 9.0e-3, 16)
+    ep = play(pol.config, targets, actor=Actor(pol))
+    assert np.all(ep.rest) and np.nanmin(np.abs(ep.error_m)) > 10e-6
+    plans, keep = correct_last_firing(pol.config, targets, ep, RefineSettings(newton_iterations=4))
+    assert keep.mean() >= 0.9
+    again = play(pol.config, targets, plans=plans)
+    assert np.all(np.abs(again.error_m[keep]) <= 10e-6)
+    last = ep.taken.sum(1) - 1
+    changed = np.any(plans != ep.actions, axis=2)
+    for i in range(len(targets)):   # only the last firing taken moved
+        assert not changed[i, :last[i]].any() and not changed[i, last[i] + 1:].any()
+    assert changed[keep, last[keep]].all()
+
+
+def test_refine_keeps_its_best_round_and_writes_a_policy_folder(tmp_path):
+    pol = _shipped()
+    state0 = {k: v.clone() for k, v in pol.model.policy.state_dict().items()}
+    lines = []
+    rep = refine(pol, RefineSettings(targets=64, rounds=2, newton_iterations=3,
+                                     fit_iterations=30), log=lines.append)
+    scores = [r["training_score"] for r in rep["rounds"]]
+    kept = scores[rep["kept_round"]]
+    assert all((kept["success_rate"], -kept["median_abs_error_m"])
+               >= (s["success_rate"], -s["median_abs_error_m"]) for s in scores)
+    assert rep["rounds"][1]["corrected"] > 0 and len(lines) == 4
+    # the weights left in the policy are the kept round's: scoring them again gives its score
+    from agents.rl.refine import _score
+    targets = np.random.default_rng([0, 0x5EF1]).uniform(*pol.config.target_range, 64)
+    assert _score(pol.config, targets, Actor(pol)) == kept
+    moved = any(not np.array_equal(v.numpy(), pol.model.policy.state_dict()[k].numpy())
+                for k, v in state0.items())
+    assert moved == (rep["kept_round"] > 0)
+    # the value net is never touched
+    for k, v in state0.items():
+        if "value" in k:
+            assert np.array_equal(v.numpy(), pol.model.policy.state_dict()[k].numpy())
+
+    out = write_refined(pol, rep, tmp_path / "refined", evaluation={"success_rate": 1.0})
+    loaded = load_policy(out)   # data-only loader, hashes verified
+    obs = np.random.default_rng(1).uniform(-1, 1, (8, 6)).astype(np.float32)
+    assert np.array_equal(loaded.act(obs), pol.act(obs))
+    meta = json.loads((out / "metadata.json").read_text())
+    assert meta["refinement"]["kept_round"] == rep["kept_round"] and "note" not in meta
+    assert meta["refined_from"]["evaluation"] == pol.metadata["evaluation"]
+    src, new = (zipfile.ZipFile(p / "model.zip") for p in (shipped_path("ppo", "MicroConveyor-v1"), out))
+    assert src.namelist() == new.namelist()
+    for name in src.namelist():
+        if name != "policy.pth":
+            assert src.read(name) == new.read(name)
+    with pytest.raises(FileExistsError, match="not an empty folder"):
+        write_refined(pol, rep, out)
+    assert [p.name for p in tmp_path.iterdir()] == ["refined"]   # no staging folder left
+
+
+def test_a_later_worse_round_is_dropped(monkeypatch):
+    """Round 1 scores best, round 2 worse: the weights left are round 1's fit."""
+    import agents.rl.refine as mod
+
+    pol = _shipped()
+    scores = iter([(0.5, 30e-6), (0.9, 10e-6), (0.7, 5e-6)])
+    def fake_score(*a):
+        rate, median = next(scores)
+        return {"success_rate": rate, "median_abs_error_m": median}
+
+    monkeypatch.setattr(mod, "_score", fake_score)
+    after_fit, real_fit = [], mod.fit
+
+    def recording_fit(actor, *a):
+        out = real_fit(actor, *a)
+        after_fit.append({k: v.clone() for k, v in actor.net.state_dict().items()})
+        return out
+
+    monkeypatch.setattr(mod, "fit", recording_fit)
+    rep = refine(pol, RefineSettings(targets=32, rounds=2, newton_iterations=2, fit_iterations=20))
+    assert rep["kept_round"] == 1 and len(after_fit) == 2
+    final = pol.model.policy.state_dict()
+    assert all(np.array_equal(after_fit[0][k].numpy(), final[k].numpy()) for k in final)
+    assert not all(np.array_equal(after_fit[1][k].numpy(), final[k].numpy()) for k in final)
+
+
+@pytest.mark.parametrize("kw", [{"targets": 0}, {"rounds": 0}, {"fit_iterations": 1.5},
+                                {"step": 0.0}, {"accept_m": float("nan")}])
+def test_bad_settings_are_refused(kw):
+    with pytest.raises(ValueError, match="refine: "):
+        RefineSettings(**kw)
+
+
+def test_a_randomised_policy_is_refused():
+    pol = load_policy(shipped_path("ppo_randomised", "MicroConveyor-v1"))
+    with pytest.raises(ValueError, match="per-episode randomisation"):
+        refine(pol, RefineSettings(targets=8, rounds=1))
+
+
+def _cli(*args):
+    return subprocess.run([sys.executable, "-m", "microconveyor_env.cli", *args],
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_refine_command_writes_an_evaluated_folder_and_refuses_an_occupied_one(tmp_path):
+    out = tmp_path / "r"
+    src = str(shipped_path("ppo", "MicroConveyor-v1"))
+    res = _cli("refine", src, "--out", str(out), "--targets", "32", "--rounds", "1",
+               "--fit-iterations", "10", "--eval-targets", "10", "--json")
+    assert res.returncode == 0, res.stderr
+    doc = json.loads(res.stdout)
+    assert doc["evaluation"]["n_targets"] == 10 and doc["refinement"]["settings"]["targets"] == 32
+    assert "refine round 1/1" in res.stderr
+    ev = _cli("evaluate", "--policy", str(out), "--targets", "10", "--json")
+    assert ev.returncode == 0, ev.stderr
+    assert json.loads(ev.stdout)["env_id"] == "MicroConveyor-v1"
+    again = _cli("refine", src, "--out", str(out))
+    assert again.returncode != 0 and "not an empty folder" in again.stderr
