@@ -41,6 +41,7 @@ from microconveyor_env.envs import EnvConfig, MicroConveyorVectorEnv
 
 from .policy_files import Policy, policy_scene
 
+CURVE = "evaluations.jsonl"   # a train run's learning curve (agents.rl.train)
 TARGET_SEED_SALT = 0x5EF1  # training targets: default_rng([seed, salt]), never an evaluation set
 
 
@@ -266,7 +267,8 @@ def write_refined(policy: Policy, report: dict[str, Any], out: str | Path,
     empty): its model zip with the new ``policy.pth`` (every other entry copied byte for byte;
     the optimizer state is the training's and is not used by evaluation), its
     ``normalization.json`` unchanged, and ``metadata.json`` with ``refinement`` (``report``),
-    ``refined_from`` (the source's evaluation and file hashes) and ``evaluation``. Written in a
+    ``refined_from`` (the source's evaluation and file hashes) and ``evaluation``; a train run's
+    ``evaluations.jsonl`` is copied with the refined evaluation appended. Written in a
     temporary folder beside ``out``, verified and renamed into place: a kill leaves no half folder."""
     import io
     import json
@@ -294,6 +296,14 @@ def write_refined(policy: Policy, report: dict[str, Any], out: str | Path,
                 zout.writestr(item, data)
         if (src / NORMALIZATION).is_file():
             shutil.copyfile(src / NORMALIZATION, tmp / NORMALIZATION)
+        if (src / CURVE).is_file() and evaluation is not None:
+            # a train run's learning curve, ending with the refined policy's point: the same
+            # steps, the training's wall time plus the refinement's (`microconveyor seeds`)
+            row = {**evaluation, "steps": policy.metadata.get("steps"), "refined": True,
+                   "wall_time_s": float(policy.metadata.get("wall_time_s") or 0.0)
+                   + float(report["wall_time_s"])}
+            (tmp / CURVE).write_text((src / CURVE).read_text().rstrip("\n") + "\n"
+                                     + json.dumps(row) + "\n")
         old = dict(policy.metadata)
         for key in ("note", "evaluation_fresh", "evaluation_provenance"):
             old.pop(key, None)   # they describe the weights before refinement

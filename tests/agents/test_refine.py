@@ -37,7 +37,13 @@ def test_newton_lands_the_last_firing_and_touches_nothing_else():
 
 
 def test_refine_keeps_its_best_round_and_writes_a_policy_folder(tmp_path):
-    pol = _shipped()
+    import shutil
+
+    src = tmp_path / "run"   # a train run's folder: the shipped files and a learning curve
+    shutil.copytree(shipped_path("ppo", "MicroConveyor-v1"), src)
+    first = {**json.loads((src / "metadata.json").read_text())["evaluation"], "steps": 1}
+    (src / "evaluations.jsonl").write_text(json.dumps(first) + "\n")
+    pol = load_policy(src)
     state0 = {k: v.clone() for k, v in pol.model.policy.state_dict().items()}
     lines = []
     rep = refine(pol, RefineSettings(targets=64, rounds=2, newton_iterations=3,
@@ -66,14 +72,17 @@ def test_refine_keeps_its_best_round_and_writes_a_policy_folder(tmp_path):
     meta = json.loads((out / "metadata.json").read_text())
     assert meta["refinement"]["kept_round"] == rep["kept_round"] and "note" not in meta
     assert meta["refined_from"]["evaluation"] == pol.metadata["evaluation"]
-    src, new = (zipfile.ZipFile(p / "model.zip") for p in (shipped_path("ppo", "MicroConveyor-v1"), out))
+    src, new = (zipfile.ZipFile(p / "model.zip") for p in (src, out))
     assert src.namelist() == new.namelist()
     for name in src.namelist():
         if name != "policy.pth":
             assert src.read(name) == new.read(name)
     with pytest.raises(FileExistsError, match="not an empty folder"):
         write_refined(pol, rep, out)
-    assert [p.name for p in tmp_path.iterdir()] == ["refined"]   # no staging folder left
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["refined", "run"]   # no staging left
+    curve = [json.loads(line) for line in (out / "evaluations.jsonl").read_text().splitlines()]
+    assert curve[0] == first and curve[1]["refined"] and curve[1]["success_rate"] == 1.0
+    assert curve[1]["wall_time_s"] == pol.metadata["wall_time_s"] + rep["wall_time_s"]
 
 
 def test_a_later_worse_round_is_dropped(monkeypatch):
