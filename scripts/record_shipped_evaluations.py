@@ -26,6 +26,7 @@ from agents.rl.shipped import shipped_path
 # policy name -> {evaluation key: which env config ("nominal": the trained scene without
 # randomisation, "trained": with the run's randomisation)}
 EVALUATIONS = {"ppo": {"evaluation": "nominal", "evaluation_fresh": "nominal"},
+               "ppo_refined": {"evaluation": "nominal", "evaluation_fresh": "nominal"},
                "ppo_randomised": {"evaluation": "trained", "evaluation_nominal": "nominal"}}
 EPISODES = "episodes.json"
 

@@ -99,6 +99,24 @@ def test_shipped_v1_policy_loads_and_reproduces_its_metadata():
     assert res["n_targets"] == 100 and res["detach_rate"] == 0.0
 
 
+def test_shipped_v1_refined_policy_meets_the_bar_and_reproduces_its_metadata():
+    """MicroConveyor-v1's PPO refined by `microconveyor refine` (issue 20): the shipped ppo with
+    its last firing corrected on the simulator and fitted back. It names the policy it came from
+    (by file hashes), keeps its scene and hyperparameters, and meets the bar on the monitored
+    targets."""
+    meta = load_policy(shipped_path("ppo_refined", "MicroConveyor-v1")).metadata
+    src = load_policy(shipped_path("ppo", "MicroConveyor-v1")).metadata
+    assert meta["refined_from"]["files"] == src["files"] != meta["files"]
+    assert meta["refined_from"]["evaluation"]["success_rate"] == src["evaluation"]["success_rate"]
+    assert meta["env_config"] == src["env_config"] and meta["hyperparams"] == src["hyperparams"]
+    rep = meta["refinement"]
+    assert rep["settings"]["targets"] == 1000 and rep["kept_round"] >= 1
+    assert meta["wall_time_s"] + rep["wall_time_s"] <= 15 * 60
+    res = assert_reproduces("ppo_refined", "evaluation", "MicroConveyor-v1")
+    assert res["n_targets"] == 100 and res["detach_rate"] == 0.0
+    assert res["success_rate_50um"] >= 0.9 and res["median_abs_error_m"] <= 20e-6
+
+
 def test_shipped_v1_randomised_policy_reproduces_its_metadata():
     """MicroConveyor-v1's robust PPO baseline (issue 21): trained at the goal's perturbation
     level (sigma = 3e-3, r = 5 %); its evaluations there and nominally reproduce. It does not
@@ -116,6 +134,14 @@ def test_shipped_v1_randomised_policy_reproduces_its_metadata():
 def test_shipped_v1_policy_full_evaluation():
     res = assert_reproduces("ppo", "evaluation_fresh", "MicroConveyor-v1")
     assert res["n_targets"] == 1000
+
+
+@pytest.mark.slow
+def test_shipped_v1_refined_policy_full_evaluation():
+    """1,000 fresh targets: the refined policy holds the bar there too (90.7 %, 8.4 um)."""
+    res = assert_reproduces("ppo_refined", "evaluation_fresh", "MicroConveyor-v1")
+    assert res["n_targets"] == 1000 and res["detach_rate"] == 0.0
+    assert res["success_rate_50um"] >= 0.9 and res["median_abs_error_m"] <= 20e-6
 
 
 @pytest.mark.slow
