@@ -22,7 +22,7 @@ corrections taught back to the network. Each round:
    median |error|).
 
 The round with the best training score is kept, "round 0" being the policy as given, so a
-refinement never leaves the policy worse on the targets it saw. Measured on five seeds:
+refinement never leaves the policy worse on the targets it saw. Measured on ten seeds:
 docs/agents.md, "Refining the last firing".
 """
 from __future__ import annotations
