@@ -36,6 +36,32 @@ def test_newton_lands_the_last_firing_and_touches_nothing_else():
     assert changed[keep, last[keep]].all()
 
 
+def test_a_correction_that_changes_the_episode_length_is_not_kept(monkeypatch):
+    """The states after a corrected firing are only valid labels if the episode still ends
+    there: the final replay of episode 0 is given another length, and its correction is dropped."""
+    import agents.rl.refine as mod
+
+    pol = _shipped()
+    targets = np.linspace(6.0e-3, 9.0e-3, 4)
+    ep = play(pol.config, targets, actor=Actor(pol))
+    settings = RefineSettings(newton_iterations=3)
+    calls, real_play = [], mod.play
+
+    def longer_final(config, t, actor=None, plans=None):
+        out = real_play(config, t, actor=actor, plans=plans)
+        calls.append(1)
+        if len(calls) == 3 * 4 + 1:   # 3 iterations x (base + 3 probes), then the final replay
+            taken = out.taken.copy()
+            taken[0, :] = True
+            taken[0, -1] = not ep.taken[0, -1]
+            out = out._replace(taken=taken)
+        return out
+
+    monkeypatch.setattr(mod, "play", longer_final)
+    _, keep = correct_last_firing(pol.config, targets, ep, settings)
+    assert len(calls) == 13 and not keep[0] and keep[1:].all()
+
+
 def test_refine_keeps_its_best_round_and_writes_a_policy_folder(tmp_path):
     import shutil
 
