@@ -93,17 +93,18 @@ def _refine_args(p: argparse.ArgumentParser) -> None:
                    help="training targets per round, drawn from the policy's target range "
                         "(default 1000)")
     p.add_argument("--rounds", type=count(1), default=4, help="correct-and-fit rounds (default 4)")
-    p.add_argument("--fit-iterations", type=count(1), default=300,
-                   help="L-BFGS iterations of each fit (default 300)")
+    p.add_argument("--fit-iterations", type=count(1), default=1000,
+                   help="L-BFGS iterations of each fit (default 1000)")
     p.add_argument("--seed", type=int, default=0, help="seed of the training targets (default 0)")
     p.add_argument("--eval-targets", type=count(0), default=100,
                    help="targets of the evaluation written to the metadata, drawn with the "
                         "policy's own evaluation seed (0: none; default 100)")
 
 
-@command("refine", "refine a trained policy's aim: Newton corrections of its last firing on the "
-                   "simulator, fitted back into the actor (docs/agents.md, 'Refining the last "
-                   "firing')", _refine_args)
+@command("refine", "refine a trained policy's aim: Newton corrections of its last firing (and, "
+                   "for near targets it overshoots, of its first firing alone) on the simulator, "
+                   "fitted back into the actor (docs/agents.md, 'Refining the aim')",
+         _refine_args)
 def cmd_refine(args: argparse.Namespace) -> None:
     from pathlib import Path
 

@@ -10,7 +10,8 @@ import pytest
 pytest.importorskip("stable_baselines3")
 
 from agents.rl.evaluate import load_policy  # noqa: E402
-from agents.rl.refine import (Actor, RefineSettings, correct_last_firing, play, refine,  # noqa: E402
+from agents.rl.refine import (NOOP, Actor, RefineSettings, correct_first_firing,  # noqa: E402
+                              correct_last_firing, fit, labelled_episodes, play, refine,
                               write_refined)
 from agents.rl.shipped import shipped_path  # noqa: E402
 
@@ -60,6 +61,56 @@ def test_a_correction_that_changes_the_episode_length_is_not_kept(monkeypatch):
     monkeypatch.setattr(mod, "play", longer_final)
     _, keep = correct_last_firing(pol.config, targets, ep, settings)
     assert len(calls) == 13 and not keep[0] and keep[1:].all()
+
+
+def test_the_first_firing_alone_lands_near_targets_the_policy_overshoots():
+    """Near targets (0.5-0.8 mm) the shipped policy's first firing carries the part past
+    (measured: 150-540 um); Newton on the first firing alone, inside the box, stops it there."""
+    pol = _shipped()
+    cfg = pol.config
+    targets = np.array([0.52e-3, 0.6e-3, 0.7e-3, 0.8e-3, 5.0e-3])
+    ep = play(cfg, targets, actor=Actor(pol))
+    failed = ~(ep.rest & (np.abs(ep.error_m) <= cfg.tolerance))
+    assert failed[:4].all()
+    plans, keep = correct_first_firing(cfg, targets, ep, RefineSettings())
+    assert keep[:4].all() and not keep[4]   # 5 mm: not failed, and beyond one firing's reach
+    again = play(cfg, targets[:4], plans=plans[:4])
+    assert np.all(again.taken.sum(1) == 1) and np.all(np.abs(again.error_m) <= 10e-6)
+    assert np.all(np.abs(plans[:, 0]) < 1.0) and np.all(plans[:, 1:] == NOOP)
+
+
+def test_labels_sit_at_the_states_of_the_corrected_episodes():
+    pol = _shipped()
+    cfg = pol.config
+    targets = np.array([0.6e-3, 7.5e-3, 8.5e-3])
+    ep = play(cfg, targets, actor=Actor(pol))
+    lab, last_kept, first_kept = labelled_episodes(cfg, targets, ep, RefineSettings())
+    assert first_kept.tolist() == [True, False, False] and last_kept[1:].all()
+    assert lab.taken[0].sum() == 1 and np.abs(lab.error_m[0]) <= 10e-6   # one firing, landed
+    for i in (1, 2):   # a corrected last firing: the same states, another last action
+        n = ep.taken[i].sum()
+        assert np.array_equal(lab.taken[i], ep.taken[i])
+        assert np.array_equal(lab.obs[i, :n], ep.obs[i, :n])
+        assert np.array_equal(lab.actions[i, :n - 1], ep.actions[i, :n - 1])
+        assert not np.array_equal(lab.actions[i, n - 1], ep.actions[i, n - 1])
+
+
+def test_the_fit_compares_actions_as_the_env_fires_them():
+    """A mean beyond the box with a label beyond it costs nothing (the env clips both); the
+    weights come back in float32."""
+    import torch
+
+    pol = _shipped()
+    actor = Actor(pol)
+    obs = play(pol.config, np.array([2e-3, 6e-3]), actor=actor).obs[:, 0]
+    raw = actor.raw(obs)
+    assert (np.abs(raw) > 1).any()
+    labels = np.where(np.abs(raw) > 1, 3.0 * np.sign(raw), raw)   # same side of the box
+    before, after = fit(actor, obs, labels, 5)
+    assert before < 1e-12 and after <= before
+    assert all(p.dtype == torch.float32 for p in actor.net.parameters())
+    inside = np.where(np.abs(raw) > 1, 0.5 * np.sign(raw), raw)   # pulled inside: it costs
+    assert fit(actor, obs, inside, 1)[0] > 0.1
 
 
 def test_refine_keeps_its_best_round_and_writes_a_policy_folder(tmp_path):
