@@ -92,7 +92,7 @@ def _refine_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--targets", type=count(1), default=1000,
                    help="training targets per round, drawn from the policy's target range "
                         "(default 1000)")
-    p.add_argument("--rounds", type=count(1), default=4, help="correct-and-fit rounds (default 4)")
+    p.add_argument("--rounds", type=count(1), default=8, help="correct-and-fit rounds (default 8)")
     p.add_argument("--fit-iterations", type=count(1), default=1000,
                    help="L-BFGS iterations of each fit (default 1000)")
     p.add_argument("--seed", type=int, default=0, help="seed of the training targets (default 0)")

@@ -61,7 +61,7 @@ class RefineSettings:
     training targets."""
 
     targets: int = 1000
-    rounds: int = 4
+    rounds: int = 8
     newton_iterations: int = 6
     first_iterations: int = 12
     step: float = 1e-3

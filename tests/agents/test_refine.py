@@ -77,6 +77,25 @@ def test_the_first_firing_alone_lands_near_targets_the_policy_overshoots():
     again = play(cfg, targets[:4], plans=plans[:4])
     assert np.all(again.taken.sum(1) == 1) and np.all(np.abs(again.error_m) <= 10e-6)
     assert np.all(np.abs(plans[:, 0]) < 1.0) and np.all(plans[:, 1:] == NOOP)
+    # an episode that already succeeded is left alone, however well one firing would do
+    done = ep._replace(error_m=np.where(np.arange(5) == 0, 0.0, ep.error_m),
+                       rest=np.where(np.arange(5) == 0, True, ep.rest))
+    assert correct_first_firing(cfg, targets, done, RefineSettings())[1].tolist() == [
+        False, True, True, True, False]
+
+
+def test_a_first_firing_correction_replaces_a_last_firing_one(monkeypatch):
+    import agents.rl.refine as mod
+
+    pol = _shipped()
+    targets = np.array([0.6e-3, 7.5e-3])
+    ep = play(pol.config, targets, actor=Actor(pol))
+    real = mod.correct_last_firing
+    monkeypatch.setattr(mod, "correct_last_firing",
+                        lambda *a: (real(*a)[0], np.array([True, True])))   # both "kept"
+    lab, last_kept, first_kept = labelled_episodes(pol.config, targets, ep, RefineSettings())
+    assert first_kept.tolist() == [True, False] and last_kept.tolist() == [False, True]
+    assert lab.taken[0].sum() == 1
 
 
 def test_labels_sit_at_the_states_of_the_corrected_episodes():
@@ -85,7 +104,7 @@ def test_labels_sit_at_the_states_of_the_corrected_episodes():
     targets = np.array([0.6e-3, 7.5e-3, 8.5e-3])
     ep = play(cfg, targets, actor=Actor(pol))
     lab, last_kept, first_kept = labelled_episodes(cfg, targets, ep, RefineSettings())
-    assert first_kept.tolist() == [True, False, False] and last_kept[1:].all()
+    assert first_kept.tolist() == [True, False, False] and last_kept.tolist() == [False, True, True]
     assert lab.taken[0].sum() == 1 and np.abs(lab.error_m[0]) <= 10e-6   # one firing, landed
     for i in (1, 2):   # a corrected last firing: the same states, another last action
         n = ep.taken[i].sum()
