@@ -48,8 +48,57 @@ def _train_args(p: argparse.ArgumentParser) -> None:
                         "configs/ppo_quick.yml unless --conf-file is given, --max-minutes 3 "
                         "(unless given), an evaluation on 50 targets every 250,000 steps printed "
                         "as it goes (docs/agents.md, 'The quick look')")
+    p.add_argument("--refine", action="store_true",
+                   help="then refine the final PPO policy (`microconveyor refine` at its "
+                        "defaults, ~3 min) into OUT/refined, evaluated on --eval-targets; "
+                        "MicroConveyor-v0/v1 without randomisation")
     add_env_args(p, default="MicroConveyor-v1", goal=True,
                  what=" to train on (its entry in the conf file gives the hyperparameters)")
+
+
+def _check_refinable(args: argparse.Namespace) -> None:
+    """Refuse ``train --refine`` before training where refine would refuse after it."""
+    from pathlib import Path
+
+    from microconveyor_env.envs import env_config
+
+    if args.algo != "ppo" or args.env not in ("MicroConveyor-v0", "MicroConveyor-v1"):
+        raise ValueError("--refine refines a PPO policy of MicroConveyor-v0 or -v1; got "
+                         f"--algo {args.algo} --env {args.env}")
+    if env_config(args.env, **env_kwargs_of(args)).randomised:
+        raise ValueError("--refine corrects deterministic episodes; --env-kwargs asks for "
+                         "per-episode randomisation")
+    out = Path(args.out or "runs/ppo") / "refined"
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise ValueError(f"--refine writes {str(out)!r}, which exists and is not empty")
+
+
+def _refine_folder(policy: str, out: Any, settings: Any, eval_targets: int) -> dict[str, Any]:
+    """Refine the policy folder ``policy`` into ``out`` (one torch thread), evaluate it on
+    ``eval_targets`` targets of the policy's own evaluation seed (0: none); the command's
+    result: the folder, the refinement report and the evaluations after and before."""
+    import torch
+
+    from ..rl.evaluate import evaluate, load_policy
+    from ..rl.refine import refine, write_refined
+
+    pol = load_policy(policy)
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)   # as in training: one core, the same arithmetic on every run
+    try:
+        report = refine(pol, settings, log=lambda line: print(line, file=sys.stderr, flush=True))
+    finally:
+        torch.set_num_threads(threads)
+    before = pol.metadata.get("evaluation") or {}
+    ev = evaluate(pol, eval_targets, int(before.get("seed", 12345))) if eval_targets else None
+    write_refined(pol, report, out, ev)
+    return {"out": str(out), "refinement": report, "evaluation": ev, "evaluation_before": before}
+
+
+def _success_line(ev: dict[str, Any]) -> str:
+    return (f"success +-50/100/250 um: {ev['success_rate_50um']:.2f} / "
+            f"{ev['success_rate_100um']:.2f} / {ev['success_rate_250um']:.2f}, median "
+            f"|error| {ev['median_abs_error_m'] * 1e6:.1f} um")
 
 
 @command("train", "train PPO, SAC or TQC on the conveyor (checkpoints, evaluations, resume)",
@@ -66,6 +115,8 @@ def cmd_train(args: argparse.Namespace) -> None:
         if args.conf_file is None and args.algo == "ppo" and args.env == "MicroConveyor-v1":
             from importlib import resources
             args.conf_file = str(resources.files("microconveyor_env.configs") / "ppo_quick.yml")
+    if args.refine:
+        _check_refinable(args)
     args.out = args.out or f"runs/{args.algo}"
     meta = train(args.out, algo=args.algo, steps=args.steps, seed=args.seed, conf_file=args.conf_file,
                  resume=args.resume, checkpoint_freq=args.checkpoint_freq,
@@ -78,9 +129,19 @@ def cmd_train(args: argparse.Namespace) -> None:
     text = (f"{meta['env_id']} {meta.get('env_kwargs') or ''}: {meta['steps']} steps in "
             f"{meta['wall_time_s']:.0f} s -> {args.out}")
     if ev:
-        text += (f"\nsuccess +-50/100/250 um: {ev['success_rate_50um']:.2f} / "
-                 f"{ev['success_rate_100um']:.2f} / {ev['success_rate_250um']:.2f}, median "
-                 f"|error| {ev['median_abs_error_m'] * 1e6:.1f} um")
+        text += "\n" + _success_line(ev)
+    if args.refine:
+        from pathlib import Path
+
+        from ..rl.refine import RefineSettings
+
+        res = _refine_folder(args.out, Path(args.out) / "refined", RefineSettings(),
+                             args.eval_targets)
+        meta["refined"] = res
+        text += (f"\nrefined -> {res['out']} ({res['refinement']['wall_time_s']:.0f} s, kept "
+                 f"round {res['refinement']['kept_round']})")
+        if res["evaluation"]:
+            text += "\n" + _success_line(res["evaluation"])
     emit(args, meta, text)
 
 
@@ -108,33 +169,18 @@ def _refine_args(p: argparse.ArgumentParser) -> None:
 def cmd_refine(args: argparse.Namespace) -> None:
     from pathlib import Path
 
-    import torch
-
-    from ..rl.evaluate import evaluate, load_policy
-    from ..rl.refine import RefineSettings, refine, write_refined
+    from ..rl.refine import RefineSettings
 
     out = Path(args.out)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise ValueError(f"--out {args.out!r} exists and is not an empty folder")
     settings = RefineSettings(targets=args.targets, rounds=args.rounds,
                               fit_iterations=args.fit_iterations, seed=args.seed)
-    pol = load_policy(args.policy)
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)   # as in training: one core, the same arithmetic on every run
-    try:
-        report = refine(pol, settings, log=lambda line: print(line, file=sys.stderr, flush=True))
-    finally:
-        torch.set_num_threads(threads)
-    before = pol.metadata.get("evaluation") or {}
-    ev = (evaluate(pol, args.eval_targets, int(before.get("seed", 12345)))
-          if args.eval_targets else None)
-    write_refined(pol, report, out, ev)
-    res = {"out": str(out), "refinement": report, "evaluation": ev, "evaluation_before": before}
+    res = _refine_folder(args.policy, out, settings, args.eval_targets)
+    report, ev = res["refinement"], res["evaluation"]
     text = f"refined policy -> {out} ({report['wall_time_s']:.0f} s, kept round {report['kept_round']})"
     if ev:
-        text += (f"\nsuccess +-50/100/250 um: {ev['success_rate_50um']:.2f} / "
-                 f"{ev['success_rate_100um']:.2f} / {ev['success_rate_250um']:.2f}, median "
-                 f"|error| {ev['median_abs_error_m'] * 1e6:.1f} um on {ev['n_targets']} targets")
+        text += f"\n{_success_line(ev)} on {ev['n_targets']} targets"
     emit(args, res, text)
 
 

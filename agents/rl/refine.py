@@ -44,6 +44,7 @@ from collections.abc import Callable
 import numpy as np
 
 from microconveyor_env.envs import EnvConfig, MicroConveyorVectorEnv
+from microconveyor_env.envs.versions import GOAL_ENV_IDS
 
 from .policy_files import Policy, policy_scene
 
@@ -148,8 +149,7 @@ def play(config: EnvConfig, targets: np.ndarray, actor: Actor | None = None,
     return Episodes(err, rest, O, A, taken)
 
 
-NOOP = np.array([-1.0, -1.0, 1.0], np.float32)   # 200 Hz, 100 um after 0.1 s: leaves a resting
-#                                                 part in place (tests/envs/test_env_stop.py)
+NOOP = np.array([-1.0, -1.0, 1.0], np.float32)   # 200 Hz, 100 um after 0.1 s: a part stays put
 
 
 def _newton(config: EnvConfig, targets: np.ndarray, plans: np.ndarray, firing: np.ndarray,
@@ -185,10 +185,9 @@ def _newton(config: EnvConfig, targets: np.ndarray, plans: np.ndarray, firing: n
 
 def correct_last_firing(config: EnvConfig, targets: np.ndarray, episodes: Episodes,
                         settings: RefineSettings) -> tuple[np.ndarray, np.ndarray]:
-    """Gauss-Newton on the last firing of each episode (module docstring, step 2), in the
-    pre-clip actions: a component beyond the box has no derivative and stays. Returns the
-    corrected plans ``(B, n, 3)`` and a mask of the episodes whose correction is kept (step 3:
-    within ``accept_m``, better than the episode's own error, ending at the same firing)."""
+    """Gauss-Newton on the last firing of each episode in its pre-clip actions (module
+    docstring, step 2). Returns the corrected plans ``(B, n, 3)`` and a mask of the episodes
+    whose correction is kept (within ``accept_m``, better than its own, the same length)."""
     last = episodes.taken.sum(1) - 1
     plans = _newton(config, targets, episodes.actions, last, settings,
                     settings.newton_iterations, taken=episodes.taken)
@@ -222,10 +221,10 @@ def correct_first_firing(config: EnvConfig, targets: np.ndarray, episodes: Episo
 
 def labelled_episodes(config: EnvConfig, targets: np.ndarray, episodes: Episodes,
                       settings: RefineSettings) -> tuple[Episodes, np.ndarray, np.ndarray]:
-    """The episodes whose states and actions the actor is fitted to: a failed episode the first
-    firing alone lands replaced by that one-firing episode, else an episode whose last firing
-    was corrected by the corrected one, else the episode itself. Played open loop, so every
-    label sits at the state its episode visits. Returns them and the two kept masks."""
+    """The episodes the actor is fitted to: a failed episode the first firing alone lands
+    replaced by that one-firing episode, else one with a kept last-firing correction by the
+    corrected one, else itself; played open loop, so every label sits at the state its
+    episode visits. Returns them and the two kept masks."""
     last_plans, last_kept = correct_last_firing(config, targets, episodes, settings)
     first_plans, first_kept = correct_first_firing(config, targets, episodes, settings)
     last_kept &= ~first_kept
@@ -293,9 +292,10 @@ def refine(policy: Policy, settings: RefineSettings | None = None,
 
     s = settings or RefineSettings()
     cfg = policy.config
-    if not isinstance(cfg, EnvConfig) or not hasattr(policy.model.policy, "action_net"):
-        raise ValueError("refine needs a policy of the 1-D conveyor with a Gaussian actor (PPO "
-                         f"or A2C); {str(policy.path)!r} is not one")
+    if (not isinstance(cfg, EnvConfig) or not hasattr(policy.model.policy, "action_net")
+            or policy.metadata.get("env_id") in GOAL_ENV_IDS):   # Dict observations
+        raise ValueError("refine needs a policy of the 1-D conveyor (Box observations) with a "
+                         f"Gaussian actor (PPO or A2C); {str(policy.path)!r} is not one")
     scene = policy_scene(policy.metadata) if policy.metadata else cfg
     if isinstance(scene, EnvConfig) and scene.randomised:
         raise ValueError(f"{str(policy.path)!r} was trained under per-episode randomisation "

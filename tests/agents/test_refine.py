@@ -239,3 +239,49 @@ def test_refine_command_writes_an_evaluated_folder_and_refuses_an_occupied_one(t
     assert json.loads(ev.stdout)["env_id"] == "MicroConveyor-v1"
     again = _cli("refine", src, "--out", str(out))
     assert again.returncode != 0 and "not an empty folder" in again.stderr
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--algo", "sac"], "refines a PPO policy"),
+    (["--env", "MicroConveyorGoal-v1"], "refines a PPO policy"),
+    (["--env-kwargs", "action_noise:0.01"], "randomisation"),
+])
+def test_train_refine_refuses_before_training(tmp_path, capsys, extra, message):
+    from microconveyor_env.cli import main
+
+    out = tmp_path / "run"
+    assert main(["train", "--out", str(out), "--steps", "4096", "--refine", *extra]) != 0
+    assert message in capsys.readouterr().err and not out.exists()   # nothing trained
+
+
+def test_train_refine_refuses_an_occupied_refined_folder(tmp_path, capsys):
+    from microconveyor_env.cli import main
+
+    (tmp_path / "run" / "refined").mkdir(parents=True)
+    (tmp_path / "run" / "refined" / "x").write_text("mine")
+    assert main(["train", "--out", str(tmp_path / "run"), "--steps", "4096", "--refine"]) != 0
+    assert "not empty" in capsys.readouterr().err
+    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["refined"]
+
+
+def test_train_refine_writes_the_refined_policy_into_the_run(tmp_path, monkeypatch, capsys):
+    """One command: train, then refine the final policy into OUT/refined (tiny settings here;
+    the command uses refine's defaults)."""
+    import functools
+
+    import agents.rl.refine as mod
+    from microconveyor_env.cli import main
+
+    monkeypatch.setattr(mod, "RefineSettings", functools.partial(
+        mod.RefineSettings, targets=16, rounds=1, newton_iterations=1, first_iterations=1,
+        fit_iterations=5))
+    out = tmp_path / "run"
+    assert main(["train", "--out", str(out), "--steps", "4096", "--no-progress", "--eval-freq",
+                 "0", "--eval-targets", "10", "--refine", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["refined"]["out"] == str(out / "refined")
+    assert doc["refined"]["refinement"]["settings"]["targets"] == 16
+    assert doc["refined"]["evaluation"]["n_targets"] == 10
+    refined = load_policy(out / "refined")
+    assert refined.metadata["refinement"]["settings"]["rounds"] == 1
+    assert refined.metadata["refined_from"]["files"] == load_policy(out).metadata["files"]
