@@ -202,10 +202,10 @@ def correct_first_firing(config: EnvConfig, targets: np.ndarray, episodes: Episo
                          settings: RefineSettings) -> tuple[np.ndarray, np.ndarray]:
     """For each *failed* episode (not at rest within the scene's tolerance): Gauss-Newton on the
     first firing alone (the others no-ops, :data:`NOOP`), from its action clipped to the box, for
-    a firing that leaves the part at the target. Near targets (up to ~0.9 mm on v1's surface)
-    need a weaker first firing than the policy's, which carries the part past them before a
-    later firing can act. Returns the plans and a mask of the episodes kept: the episode ends
-    at the first firing (the env stops a delivered part) within ``accept_m``."""
+    a firing that leaves the part at the target (on v1's surface it lands targets up to
+    ~1.6 mm; nearer ones need a weaker first firing than the policy's, which carries the part
+    past them). Returns the plans and a mask of the episodes kept: the episode ends at the
+    first firing (the env stops a delivered part) within ``accept_m``."""
     b, n = len(targets), config.n_actuators
     plans = np.repeat(NOOP[None, None], b, 0).repeat(n, 1)
     box = 1.0 - settings.step   # forward differences stay inside the box
