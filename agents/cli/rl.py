@@ -62,6 +62,8 @@ def _check_refinable(args: argparse.Namespace) -> None:
 
     from microconveyor_env.envs import env_config
 
+    from ..rl.checkpoint import occupied
+
     if args.algo != "ppo" or args.env not in ("MicroConveyor-v0", "MicroConveyor-v1"):
         raise ValueError("--refine refines a PPO policy of MicroConveyor-v0 or -v1; got "
                          f"--algo {args.algo} --env {args.env}")
@@ -69,7 +71,7 @@ def _check_refinable(args: argparse.Namespace) -> None:
         raise ValueError("--refine corrects deterministic episodes; --env-kwargs asks for "
                          "per-episode randomisation")
     out = Path(args.out or "runs/ppo") / "refined"
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+    if occupied(out):
         raise ValueError(f"--refine writes {str(out)!r}, which exists and is not empty")
 
 
@@ -169,10 +171,11 @@ def _refine_args(p: argparse.ArgumentParser) -> None:
 def cmd_refine(args: argparse.Namespace) -> None:
     from pathlib import Path
 
+    from ..rl.checkpoint import occupied
     from ..rl.refine import RefineSettings
 
     out = Path(args.out)
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+    if occupied(out):
         raise ValueError(f"--out {args.out!r} exists and is not an empty folder")
     settings = RefineSettings(targets=args.targets, rounds=args.rounds,
                               fit_iterations=args.fit_iterations, seed=args.seed)

@@ -192,6 +192,12 @@ def prune(root: Path) -> None:
             pass
 
 
+def occupied(folder: str | Path) -> bool:
+    """Whether ``folder`` exists as anything but an empty folder (a new policy folder's check)."""
+    path = Path(folder)
+    return path.exists() and (not path.is_dir() or any(path.iterdir()))
+
+
 def replace_files(src: Path, dst: Path, names: tuple[str, ...]) -> None:
     """Copy ``names`` from ``src`` into ``dst``, each through a temporary file and an atomic
     rename, in the order given (put ``metadata.json`` last)."""

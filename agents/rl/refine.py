@@ -354,10 +354,10 @@ def write_refined(policy: Policy, report: dict[str, Any], out: str | Path,
 
     import torch
 
-    from .checkpoint import MODEL, META, NORMALIZATION, read_meta, sha256, verify_files
+    from .checkpoint import MODEL, META, NORMALIZATION, occupied, read_meta, sha256, verify_files
 
     out = Path(out)
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+    if occupied(out):
         raise FileExistsError(f"{str(out)!r} exists and is not an empty folder; refine writes a "
                               "new policy folder")
     src = Path(policy.path)
