@@ -99,10 +99,12 @@ def parse_yaml(text: str, what: str) -> Any:
 
 def _read(name_or_path: str) -> dict[str, Any]:
     p = Path(name_or_path)
-    if p.suffix in (".yaml", ".yml") and p.exists():
+    if p.suffix in (".yaml", ".yml") and (p.exists() or p.is_symlink()):
+        from .safe_files import UnsafeFileError, read_text
+
         try:
-            text = p.read_text()
-        except (OSError, UnicodeDecodeError) as exc:
+            text = read_text(p, MAX_PRESET_BYTES, follow_symlinks=True)
+        except UnsafeFileError as exc:
             raise PresetError(f"preset {name_or_path!r} cannot be read: {exc}") from None
     else:
         res = resources.files("microconveyor_env.configs") / f"{name_or_path}.yaml"

@@ -62,7 +62,7 @@ def _check_refinable(args: argparse.Namespace) -> None:
 
     from microconveyor_env.envs import env_config
 
-    from ..rl.checkpoint import occupied
+    from ..rl.checkpoint import check_new_folder
 
     if args.algo != "ppo" or args.env not in ("MicroConveyor-v0", "MicroConveyor-v1"):
         raise ValueError("--refine refines a PPO policy of MicroConveyor-v0 or -v1; got "
@@ -70,9 +70,7 @@ def _check_refinable(args: argparse.Namespace) -> None:
     if env_config(args.env, **env_kwargs_of(args)).randomised:
         raise ValueError("--refine corrects deterministic episodes; --env-kwargs asks for "
                          "per-episode randomisation")
-    out = Path(args.out or "runs/ppo") / "refined"
-    if occupied(out):
-        raise ValueError(f"--refine writes {str(out)!r}, which exists and is not empty")
+    check_new_folder(Path(args.out or "runs/ppo") / "refined", "--refine's folder")
 
 
 def _refine_folder(policy: str, out: Any, settings: Any, eval_targets: int) -> dict[str, Any]:
@@ -171,12 +169,11 @@ def _refine_args(p: argparse.ArgumentParser) -> None:
 def cmd_refine(args: argparse.Namespace) -> None:
     from pathlib import Path
 
-    from ..rl.checkpoint import occupied
+    from ..rl.checkpoint import check_new_folder
     from ..rl.refine import RefineSettings
 
     out = Path(args.out)
-    if occupied(out):
-        raise ValueError(f"--out {args.out!r} exists and is not an empty folder")
+    check_new_folder(out)   # before the refinement's minutes, not after them
     settings = RefineSettings(targets=args.targets, rounds=args.rounds,
                               fit_iterations=args.fit_iterations, seed=args.seed)
     res = _refine_folder(args.policy, out, settings, args.eval_targets)

@@ -32,6 +32,8 @@ TMP_PREFIX = ".tmp-"
 LOCK = ".lock"
 MODEL, NORMALIZATION, META = "model.zip", "normalization.json", "metadata.json"
 KEEP = 2  # complete generations kept: the newest and the one before it
+META_LIMIT = 16 << 20      # bytes of metadata.json read (a refinement report is ~100 kB)
+LISTED_LIMIT = 1 << 30     # bytes of a file metadata.json lists (hashed as it is read)
 
 
 class CheckpointError(RuntimeError):
@@ -64,24 +66,44 @@ def _fsync_dir(path: Path) -> None:
 def verify_files(folder: Path, meta: dict[str, Any]) -> None:
     """Check that every file ``meta["files"]`` lists exists in ``folder`` with its recorded
     sha256; one :class:`CheckpointError` naming the first file that does not."""
+    import stat
+
+    from microconveyor_env.safe_files import UnsafeFileError, kind_of, plain_name
+
     files = meta.get("files")
     if not isinstance(files, dict) or not files:
         raise CheckpointError(f"{str(folder / META)!r} lists no files with their sha256")
     for name, digest in files.items():
-        path = folder / str(name)
-        if not path.is_file():
-            raise CheckpointError(f"{str(path)!r} is missing (listed in {META})")
-        if sha256(path) != digest:
+        try:
+            plain_name(name, f"{META} lists a file")
+        except UnsafeFileError as exc:
+            raise CheckpointError(f"{str(folder / META)!r}: {exc}") from None
+        path = folder / name
+        try:
+            st = os.lstat(path)
+        except OSError:
+            raise CheckpointError(f"{str(path)!r} is missing (listed in {META})") from None
+        if not stat.S_ISREG(st.st_mode):
+            raise CheckpointError(f"{str(path)!r} is {kind_of(st.st_mode)}; only a regular "
+                                  f"file is read (listed in {META})")
+        if st.st_size > LISTED_LIMIT:
+            raise CheckpointError(f"{str(path)!r} is too large ({st.st_size:,} bytes; at most "
+                                  f"{LISTED_LIMIT:,}; listed in {META})")
+        if not isinstance(digest, str) or sha256(path) != digest:
             raise CheckpointError(f"{str(path)!r} is not the file {META} describes (sha256 "
                                   "differs): the folder was changed or written only in part")
 
 
 def read_meta(folder: Path) -> dict[str, Any]:
     """``folder/metadata.json`` as a dict; :class:`CheckpointError` if missing or damaged."""
+    from microconveyor_env.safe_files import UnsafeFileError, read_text
+
     path = folder / META
     try:
-        meta = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        meta = json.loads(read_text(META, META_LIMIT, folder))
+    except UnsafeFileError as exc:
+        raise CheckpointError(f"{str(path)!r} is missing or not JSON ({exc})") from None
+    except (json.JSONDecodeError, RecursionError) as exc:
         raise CheckpointError(f"{str(path)!r} is missing or not JSON ({exc})") from None
     if not isinstance(meta, dict):
         raise CheckpointError(f"{str(path)!r} is not a JSON object")
@@ -193,9 +215,54 @@ def prune(root: Path) -> None:
 
 
 def occupied(folder: str | Path) -> bool:
-    """Whether ``folder`` exists as anything but an empty folder (a new policy folder's check)."""
+    """Whether ``folder`` exists as anything but an empty folder (a new policy folder's check);
+    a symbolic link, dangling or not, counts as occupied."""
     path = Path(folder)
+    if path.is_symlink():
+        return True
     return path.exists() and (not path.is_dir() or any(path.iterdir()))
+
+
+def check_new_folder(folder: str | Path, option: str = "--out") -> None:
+    """Refuse, before any work, a folder a new policy cannot be written to: one that exists and
+    is not an empty folder, a symbolic link, or a place whose parent folder cannot be created
+    or written (checked by writing and removing a probe file). ValueError naming ``option``."""
+    path = Path(folder)
+    if occupied(path):
+        what = "is a symbolic link" if path.is_symlink() else "exists and is not empty"
+        raise ValueError(f"{option} {str(path)!r} {what}; give a new folder")
+    parent = path.parent
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        probe = parent / f".{path.name}.probe-{os.getpid()}"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        raise ValueError(f"{option} {str(path)!r} cannot be written: {str(parent)!r} "
+                         f"({exc.strerror or exc})") from None
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def stale_temporaries(parent: Path, prefix: str) -> list[Path]:
+    """Folders ``parent/<prefix><pid>`` left by writers that are no longer running."""
+    if not parent.is_dir():
+        return []
+    out = []
+    for p in parent.glob(f"{prefix}*"):
+        pid = p.name[len(prefix):]
+        if pid.isdigit() and int(pid) != os.getpid() and not _alive(int(pid)) and p.is_dir() \
+                and not p.is_symlink():
+            out.append(p)
+    return out
 
 
 def replace_files(src: Path, dst: Path, names: tuple[str, ...]) -> None:

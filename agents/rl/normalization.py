@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 NORMALIZATION = "normalization.json"
+NORMALIZATION_LIMIT = 1 << 20   # bytes: the statistics of an observation vector fit in far less
 LEGACY_PICKLE = "vecnormalize.pkl"
 FORMAT = 1
 _SETTINGS = ("norm_obs", "norm_reward", "clip_obs", "clip_reward", "gamma", "epsilon")
@@ -88,9 +89,15 @@ def read(path: Path, obs_shape: tuple[int, ...] | None = None) -> dict[str, Any]
     """The statistics in ``path``, checked: finite, variances >= 0, counts > 0, positive clips,
     and (with ``obs_shape``) observation statistics of that shape. One
     :class:`NormalizationError` naming the file otherwise."""
+    from microconveyor_env.safe_files import NotTextError, UnsafeFileError, read_text
+
     try:
-        data = json.loads(Path(path).read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        data = json.loads(read_text(path, NORMALIZATION_LIMIT))
+    except NotTextError as exc:
+        raise NormalizationError(f"{str(path)!r} is not readable JSON ({exc})") from None
+    except UnsafeFileError as exc:
+        raise NormalizationError(str(exc)) from None
+    except (json.JSONDecodeError, RecursionError) as exc:
         raise NormalizationError(f"{str(path)!r} is not readable JSON ({exc})") from None
     try:
         return _checked(data, obs_shape)

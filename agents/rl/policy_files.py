@@ -29,11 +29,13 @@ from microconveyor_env.envs import EnvConfig, env_config, scene_differences
 from microconveyor_env.envs.plane_config import PlaneEnvConfig
 from microconveyor_env.envs.versions import check_env_id, nominal
 from microconveyor_env.physics.materials import ParameterError
+from microconveyor_env.presets import PresetError
 
 from . import normalization
 from .checkpoint import META, MODEL, CheckpointError, read_meta, verify_files
 from .normalization import NORMALIZATION, NormalizationError, ObsNormalizer
-from .sb3_files import ALGOS, ModelFileError, algo_of, check_spaces, read_data, safe_load
+from .actor_net import ActorNet
+from .sb3_files import ALGOS, ModelFileError, algo_of, check_spaces, load_actor, read_data
 
 FIRST_ENV_ID = "MicroConveyor-v0"  # what a policy without an env id in its metadata was trained on
 # plane config fields that are not the scene: how the env runs, and how training scores an episode
@@ -49,10 +51,11 @@ class PolicyError(ValueError):
 
 @dataclass
 class Policy:
-    """A loaded policy: the SB3 model, its observation normaliser (None: raw observations), its
-    metadata and the folder it came from."""
+    """A loaded policy: its deterministic actor (:class:`~.actor_net.ActorNet`, rebuilt from the
+    saved tensors), its observation normaliser (None: raw observations), its metadata and the
+    folder it came from."""
 
-    model: Any
+    actor: ActorNet
     normalizer: ObsNormalizer | None
     metadata: dict[str, Any]
     path: Path
@@ -77,21 +80,17 @@ class Policy:
         if obs.ndim < 2:
             raise ValueError(f"act takes a batch of observations (n, d), got shape {obs.shape}")
         if not len(obs):
-            return np.zeros((0, *self.model.action_space.shape), np.float32)
+            return np.zeros((0, *self.actor.low.shape), np.float32)
         return np.concatenate([self._act_rows(obs[i:i + 1]) for i in range(len(obs))])
 
     def _act_rows(self, obs: np.ndarray) -> np.ndarray:
-        from gymnasium import spaces
-
-        if isinstance(self.model.observation_space, spaces.Dict):
+        if self.actor.obs_keys is not None:
             from microconveyor_env.envs.goal import goal_observations
 
-            action, _ = self.model.predict(goal_observations(obs), deterministic=True)
-            return np.asarray(action)
+            return self.actor.predict(goal_observations(obs))
         if self.normalizer is not None:
             obs = self.normalizer(obs)
-        action, _ = self.model.predict(obs, deterministic=True)
-        return np.asarray(action)
+        return self.actor.predict(obs)
 
 
 def _locate(path: Path) -> tuple[Path, Path]:
@@ -170,11 +169,15 @@ def policy_scene(meta: dict[str, Any], where: str = "metadata") -> AnyConfig:
     """The config of the env a policy was trained on: ``env_config(env_id, **env_kwargs)`` (an
     :class:`EnvConfig`), or for the plane ``PlaneEnvConfig.from_yaml(**env_kwargs)``."""
     env_id = str(meta.get("env_id", FIRST_ENV_ID))
+    kwargs = policy_env_kwargs(meta)
+    if "path" in kwargs:
+        raise PolicyError(f"{where}: env_kwargs name a file ('path'); a policy's scene is "
+                          "its env id and field values")
     try:
         if env_id in PLANE_ENV_IDS:
-            return PlaneEnvConfig.from_yaml(**policy_env_kwargs(meta))
-        return env_config(check_env_id(env_id), **policy_env_kwargs(meta))
-    except ParameterError as exc:
+            return PlaneEnvConfig.from_yaml(None, **kwargs)
+        return env_config(check_env_id(env_id), **kwargs)
+    except (ParameterError, PresetError) as exc:
         raise PolicyError(f"{where}: the env the policy was trained on cannot be made ({exc})") \
             from None
 
@@ -229,11 +232,15 @@ def load_policy(path: str | Path, config: AnyConfig | None = None) -> Policy:
         trained = nominal(trained)   # the plane has no per-episode randomisation to turn off
     cfg = config or trained or env_config(FIRST_ENV_ID)
     env_id = str(meta.get("env_id", FIRST_ENV_ID))
-    obs_space, act_space = _spaces(cfg, env_id)
+    try:
+        obs_space, act_space = _spaces(cfg, env_id)
+    except (ParameterError, PresetError) as exc:
+        raise PolicyError(f"{str(folder / META)!r}: the env the policy was trained on cannot be "
+                          f"made ({exc})") from None
     try:
         check_spaces(model_file, data, obs_space, act_space, env_id)
         normalizer = _normalizer(folder, model_file, meta, obs_space.shape)
-        model = safe_load(model_file, algo, obs_space, act_space)
+        actor = load_actor(model_file, algo, obs_space, act_space)
     except ModelFileError as exc:
         raise PolicyError(str(exc)) from None
-    return Policy(model, normalizer, meta, folder, trained)
+    return Policy(actor, normalizer, meta, folder, trained)

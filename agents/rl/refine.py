@@ -49,6 +49,7 @@ from microconveyor_env.envs.versions import GOAL_ENV_IDS
 from .policy_files import Policy, policy_scene
 
 CURVE = "evaluations.jsonl"   # a train run's learning curve (agents.rl.train)
+CURVE_LIMIT = 64 << 20        # bytes of it read from a source folder
 TARGET_SEED_SALT = 0x5EF1  # training targets: default_rng([seed, salt]), never an evaluation set
 
 
@@ -96,11 +97,12 @@ class Episodes(NamedTuple):
 
 
 class Actor:
-    """The mean action of an SB3 actor-critic policy *before* the env's clipping, for a batch of
-    raw observations (normalised as in training)."""
+    """The mean action of a Gaussian actor (PPO's) *before* the env's clipping, for a batch of
+    raw observations (normalised as in training); ``net`` is the torch module fitted."""
 
     def __init__(self, policy: Policy) -> None:
-        self.net = policy.model.policy
+        self.policy_actor = policy.actor
+        self.net = policy.actor.module
         self.normalizer = policy.normalizer
 
     def features(self, obs: np.ndarray) -> Any:
@@ -110,8 +112,7 @@ class Actor:
         return torch.as_tensor(x, dtype=torch.float32)
 
     def mean(self, x: Any) -> Any:
-        net = self.net
-        return net.action_net(net.mlp_extractor.forward_actor(x))
+        return self.policy_actor.mean(x)
 
     def raw(self, obs: np.ndarray) -> np.ndarray:
         import torch
@@ -242,7 +243,7 @@ def fit(actor: Actor, obs: np.ndarray, actions: np.ndarray, iterations: int) -> 
     import torch
 
     net = actor.net
-    params = list(net.mlp_extractor.policy_net.parameters()) + list(net.action_net.parameters())
+    params = list(net.parameters())
     net.to(torch.float64)
     try:
         x = actor.features(obs).to(torch.float64)
@@ -292,7 +293,8 @@ def refine(policy: Policy, settings: RefineSettings | None = None,
 
     s = settings or RefineSettings()
     cfg = policy.config
-    if (not isinstance(cfg, EnvConfig) or not hasattr(policy.model.policy, "action_net")
+    if (not isinstance(cfg, EnvConfig) or policy.actor.algo not in ("ppo", "a2c")
+            or policy.actor.squash or policy.actor.obs_keys is not None
             or policy.metadata.get("env_id") in GOAL_ENV_IDS):   # Dict observations
         raise ValueError("refine needs a policy of the 1-D conveyor (Box observations) with a "
                          f"Gaussian actor (PPO or A2C); {str(policy.path)!r} is not one")
@@ -341,12 +343,15 @@ def _line(score: dict[str, float], cfg: EnvConfig) -> str:
 def write_refined(policy: Policy, report: dict[str, Any], out: str | Path,
                   evaluation: dict[str, Any] | None = None) -> Path:
     """Write the refined ``policy`` as a policy folder ``out`` (which must not exist or be
-    empty): its model zip with the new ``policy.pth`` (every other entry copied byte for byte;
-    the optimizer state is the training's and is not used by evaluation), its
-    ``normalization.json`` unchanged, and ``metadata.json`` with ``refinement`` (``report``),
-    ``refined_from`` (the source's evaluation and file hashes) and ``evaluation``; a train run's
-    ``evaluations.jsonl`` is copied with the refined evaluation appended. Written in a
-    temporary folder beside ``out``, verified and renamed into place: a kill leaves no half folder."""
+    empty): its model zip with the new actor's tensors in ``policy.pth`` (every other tensor and
+    entry copied unchanged; the optimizer state is the training's and is not used by
+    evaluation), its ``normalization.json`` unchanged, and ``metadata.json`` with
+    ``refinement`` (``report``), ``refined_from`` (the source's evaluation and file hashes) and
+    ``evaluation``; a train run's ``evaluations.jsonl`` is copied with the refined evaluation
+    appended. The source's files are read as a received folder's are (regular files within
+    limits, plain entry names). Written in a temporary folder beside ``out``, verified and
+    renamed into place: a kill leaves no half folder, and a later write removes what a killed
+    one left."""
     import io
     import json
     import shutil
@@ -354,33 +359,48 @@ def write_refined(policy: Policy, report: dict[str, Any], out: str | Path,
 
     import torch
 
-    from .checkpoint import MODEL, META, NORMALIZATION, occupied, read_meta, sha256, verify_files
+    from microconveyor_env.safe_files import read_bytes, read_text
+
+    from .checkpoint import (META, MODEL, NORMALIZATION, check_new_folder, read_meta, sha256,
+                             stale_temporaries, verify_files)
+    from .normalization import NORMALIZATION_LIMIT
+    from .sb3_files import open_model, read_weights
 
     out = Path(out)
-    if occupied(out):
-        raise FileExistsError(f"{str(out)!r} exists and is not an empty folder; refine writes a "
-                              "new policy folder")
+    check_new_folder(out)
     src = Path(policy.path)
+    for old_tmp in stale_temporaries(out.parent, f".{out.name}.tmp-"):
+        shutil.rmtree(old_tmp, ignore_errors=True)
+    zin = open_model(src / MODEL)
+    state = read_weights(src / MODEL, "policy.pth", zin)
+    fitted = policy.actor.sb3_state()
+    missing = sorted(set(fitted) - set(state))
+    if missing:
+        raise ValueError(f"{str(src / MODEL)!r}: policy.pth has no {missing}")
+    state.update(fitted)
+    weights = io.BytesIO()
+    torch.save(state, weights)
+    curve = None
+    if (src / CURVE).exists() and evaluation is not None:
+        curve = read_text(CURVE, CURVE_LIMIT, src)
+    norm = (read_bytes(NORMALIZATION, NORMALIZATION_LIMIT, src)
+            if (src / NORMALIZATION).exists() or (src / NORMALIZATION).is_symlink() else None)
     tmp = out.parent / f".{out.name}.tmp-{os.getpid()}"
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir(parents=True)
     try:
-        weights = io.BytesIO()
-        torch.save(policy.model.policy.state_dict(), weights)
-        with zipfile.ZipFile(src / MODEL) as zin, zipfile.ZipFile(tmp / MODEL, "w") as zout:
-            for item in zin.infolist():
-                data = weights.getvalue() if item.filename == "policy.pth" else zin.read(item)
-                zout.writestr(item, data)
-        if (src / NORMALIZATION).is_file():
-            shutil.copyfile(src / NORMALIZATION, tmp / NORMALIZATION)
-        if (src / CURVE).is_file() and evaluation is not None:
+        with zipfile.ZipFile(tmp / MODEL, "w") as zout:
+            for name, item in zin.infos.items():
+                zout.writestr(item, weights.getvalue() if name == "policy.pth" else zin.read(name))
+        if norm is not None:
+            (tmp / NORMALIZATION).write_bytes(norm)
+        if curve is not None and evaluation is not None:
             # a train run's learning curve, ending with the refined policy's point: the same
             # steps, the training's wall time plus the refinement's (`microconveyor seeds`)
             row = {**evaluation, "steps": policy.metadata.get("steps"), "refined": True,
                    "wall_time_s": float(policy.metadata.get("wall_time_s") or 0.0)
                    + float(report["wall_time_s"])}
-            (tmp / CURVE).write_text((src / CURVE).read_text().rstrip("\n") + "\n"
-                                     + json.dumps(row) + "\n")
+            (tmp / CURVE).write_text(curve.rstrip("\n") + "\n" + json.dumps(row) + "\n")
         old = dict(policy.metadata)
         for key in ("note", "evaluation_fresh", "evaluation_provenance"):
             old.pop(key, None)   # they describe the weights before refinement

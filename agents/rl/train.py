@@ -35,7 +35,7 @@ from . import checkpoint, hyperparams, normalization, phases, wrappers
 from .algos import ALGO_NAMES, algo_class
 from .checkpoint import META, MODEL, NORMALIZATION, CheckpointError
 from .evaluate import Policy, evaluate
-from .sb3_files import ModelFileError, algo_of, read_data, safe_load
+from .sb3_files import ModelFileError, actor_of_model, algo_of, read_data, safe_load
 
 FORMAT = 2          # run-folder layout: checkpoints/gen-*, normalization.json (1: pickles)
 LEGACY_CHECKPOINT = "checkpoint"
@@ -95,7 +95,7 @@ class Periodic(BaseCallback):
         vn = self.model.get_env()
         norm = (normalization.obs_normalizer(normalization.stats_of(vn))
                 if isinstance(vn, VecNormalize) else None)
-        pol = Policy(self.model, norm, {}, self.out)
+        pol = Policy(actor_of_model(self.model), norm, {}, self.out)
         res = evaluate(pol, self.eval_targets, self.eval_seed, config=self.cfg)
         res.update(steps=int(self.model.num_timesteps), wall_time_s=self.wall())
         for k in ("success_rate_50um", "success_rate_100um", "success_rate_250um",

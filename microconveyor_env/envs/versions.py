@@ -56,7 +56,10 @@ def registered_kwargs(env_id: str) -> dict[str, Any]:
 
 def env_config(env_id: str = LATEST, **overrides: Any) -> EnvConfig:
     """The validated config of ``gym.make(env_id, **overrides)`` (SI units)."""
-    return EnvConfig.from_yaml(**{**registered_kwargs(env_id), **overrides})
+    if "path" in overrides:
+        raise ParameterError("EnvConfig: unknown key 'path' (an env is made from its id and "
+                             "field values; EnvConfig.from_yaml reads a file)")
+    return EnvConfig.from_yaml(None, **{**registered_kwargs(env_id), **overrides})
 
 
 def scene_differences(trained: EnvConfig, asked: EnvConfig) -> dict[str, tuple[Any, Any]]:

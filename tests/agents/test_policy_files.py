@@ -9,6 +9,7 @@ import subprocess
 import sys
 import zipfile
 
+import numpy as np
 import pytest
 
 pytest.importorskip("stable_baselines3")
@@ -148,11 +149,23 @@ def test_a2c_zip_is_never_evaluated_as_ppo(tmp_path):
     shutil.copy(folder / "model.zip", bare / "model.zip")
     with pytest.raises(PolicyError, match="has no normalization.json"):
         load_policy(bare / "model.zip")
-    # said to be raw-observation A2C, it is read as A2C, and refused for its pickled
-    # policy_kwargs (A2C's RMSprop optimizer class): never unpickled, never run as PPO
+    # said to be raw-observation A2C, it is read as A2C: its pickled policy_kwargs (A2C's
+    # RMSprop optimizer class) are read by name, never unpickled, and it acts as A2C's actor
     (bare / "metadata.json").write_text(json.dumps({"algo": "a2c",
                                                     "hyperparams": {"normalize": None}}))
-    with pytest.raises(PolicyError, match="'policy_kwargs' holds a pickled Python object"):
+    pol = load_policy(bare / "model.zip")
+    assert pol.actor.algo == "a2c" and pol.actor.activation == "Tanh"
+    model = A2C.load(bare / "model.zip", device="cpu")     # the test's own file: trusted here
+    obs = np.random.default_rng(0).uniform(-2, 2, (20, 6)).astype(np.float32)
+    want = np.concatenate([model.predict(obs[i:i + 1], deterministic=True)[0]
+                           for i in range(len(obs))])
+    assert np.array_equal(pol.act(obs), want)
+    # a pickled policy_kwargs naming anything but torch.nn activations and torch.optim classes
+    # is refused without being unpickled
+    naming_os_system = base64.b64encode(b"cos\nsystem\n.").decode()   # GLOBAL os.system
+    _rewrite_data(bare / "model.zip",
+                  lambda d: d["policy_kwargs"].__setitem__(":serialized:", naming_os_system))
+    with pytest.raises(PolicyError, match="policy_kwargs name \\['os.system'\\]"):
         load_policy(bare / "model.zip")
 
 
@@ -232,7 +245,7 @@ def test_policy_with_observation_history_loads_and_evaluates(tmp_path):
           tensorboard=False)
     pol = load_policy(folder)
     assert pol.config.observe_history == 2 and pol.config.action_noise == 0.0  # nominal
-    assert pol.model.observation_space.shape == (26,)
+    assert pol.actor.obs_dim == 26
     res = evaluate(pol, n_targets=3, seed=0)
     assert res["n_targets"] == 3
     rows = perturbation_table(policy_rollout(pol), pol.config, np.array([2e-3, 5e-3]),

@@ -135,12 +135,12 @@ def test_the_fit_compares_actions_as_the_env_fires_them():
 def test_refine_keeps_its_best_round_and_writes_a_policy_folder(tmp_path):
     import shutil
 
-    src = tmp_path / "run"   # a train run's folder: the shipped files and a learning curve
+    src = src_folder = tmp_path / "run"   # a train run's folder: shipped files, a curve
     shutil.copytree(shipped_path("ppo", "MicroConveyor-v1"), src)
     first = {**json.loads((src / "metadata.json").read_text())["evaluation"], "steps": 1}
     (src / "evaluations.jsonl").write_text(json.dumps(first) + "\n")
     pol = load_policy(src)
-    state0 = {k: v.clone() for k, v in pol.model.policy.state_dict().items()}
+    state0 = pol.actor.sb3_state()
     lines = []
     rep = refine(pol, RefineSettings(targets=64, rounds=2, newton_iterations=3,
                                      fit_iterations=30), log=lines.append)
@@ -153,13 +153,9 @@ def test_refine_keeps_its_best_round_and_writes_a_policy_folder(tmp_path):
     from agents.rl.refine import _score
     targets = np.random.default_rng([0, 0x5EF1]).uniform(*pol.config.target_range, 64)
     assert _score(pol.config, targets, Actor(pol)) == kept
-    moved = any(not np.array_equal(v.numpy(), pol.model.policy.state_dict()[k].numpy())
-                for k, v in state0.items())
+    after = pol.actor.sb3_state()
+    moved = any(not np.array_equal(v.numpy(), after[k].numpy()) for k, v in state0.items())
     assert moved == (rep["kept_round"] > 0)
-    # the value net is never touched
-    for k, v in state0.items():
-        if "value" in k:
-            assert np.array_equal(v.numpy(), pol.model.policy.state_dict()[k].numpy())
 
     out = write_refined(pol, rep, tmp_path / "refined", evaluation={"success_rate": 1.0})
     loaded = load_policy(out)   # data-only loader, hashes verified
@@ -173,7 +169,16 @@ def test_refine_keeps_its_best_round_and_writes_a_policy_folder(tmp_path):
     for name in src.namelist():
         if name != "policy.pth":
             assert src.read(name) == new.read(name)
-    with pytest.raises(FileExistsError, match="not an empty folder"):
+    # the written policy.pth holds the fitted actor and, unchanged, everything else (value net,
+    # log std)
+    from agents.rl.sb3_files import read_weights
+    old_w, new_w = (read_weights(p / "model.zip") for p in (src_folder, out))
+    assert list(old_w) == list(new_w)
+    for k in old_w:
+        want = after[k] if k in after else old_w[k]
+        assert np.array_equal(new_w[k].numpy(), want.numpy()), k
+    assert any("value" in k for k in old_w)
+    with pytest.raises(ValueError, match="exists and is not empty"):
         write_refined(pol, rep, out)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["refined", "run"]   # no staging left
     curve = [json.loads(line) for line in (out / "evaluations.jsonl").read_text().splitlines()]
@@ -202,7 +207,7 @@ def test_a_later_worse_round_is_dropped(monkeypatch):
     monkeypatch.setattr(mod, "fit", recording_fit)
     rep = refine(pol, RefineSettings(targets=32, rounds=2, newton_iterations=2, fit_iterations=20))
     assert rep["kept_round"] == 1 and len(after_fit) == 2
-    final = pol.model.policy.state_dict()
+    final = pol.actor.module.state_dict()
     assert all(np.array_equal(after_fit[0][k].numpy(), final[k].numpy()) for k in final)
     assert not all(np.array_equal(after_fit[1][k].numpy(), final[k].numpy()) for k in final)
 
@@ -238,7 +243,7 @@ def test_refine_command_writes_an_evaluated_folder_and_refuses_an_occupied_one(t
     assert ev.returncode == 0, ev.stderr
     assert json.loads(ev.stdout)["env_id"] == "MicroConveyor-v1"
     again = _cli("refine", src, "--out", str(out))
-    assert again.returncode != 0 and "not an empty folder" in again.stderr
+    assert again.returncode != 0 and "exists and is not empty" in again.stderr
 
 
 @pytest.mark.parametrize("extra, message", [

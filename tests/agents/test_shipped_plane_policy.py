@@ -40,7 +40,7 @@ def test_plane_policy_is_data_and_fits_the_plane_env(monkeypatch):
     monkeypatch.setattr(pickle, "loads", refuse)
     pol = load_policy(folder)
     assert isinstance(pol.config, PlaneEnvConfig) and pol.env_id == ENV_ID
-    assert pol.model.observation_space.shape == (10,) and pol.model.action_space.shape == (5,)
+    assert pol.actor.obs_dim == 10 and pol.actor.low.shape == (5,)
     a = pol.act(np.zeros((3, 10), np.float32))
     assert a.shape == (3, 5) and np.all(np.abs(a) <= 1)
     meta = pol.metadata

@@ -1,0 +1,198 @@
+"""The deterministic actor of a stable-baselines3 policy, rebuilt from its saved tensors alone.
+
+Evaluating a policy needs only its actor: the layers from observation to mean action. Here they
+are rebuilt from the tensors of ``policy.pth`` (their names say which layer is which, their
+shapes give the widths), so nothing that a model file *says* about its network (``net_arch``,
+``n_critics``, ``buffer_size``, ``n_envs``) is built: a crafted file can ask for no memory beyond
+the bytes of its own tensors, and no env, critic, optimizer or replay buffer is made.
+
+The forward pass is SB3's, operation for operation (``torch.nn.Linear`` and the activation, in
+float32, one row at a time as :class:`~agents.rl.policy_files.Policy` calls it), so a rebuilt
+actor gives the bit-identical action of SB3's ``predict(obs, deterministic=True)``:
+
+* PPO (``ActorCriticPolicy``): ``action_net(policy_net(obs))``, Tanh by default, then clipped to
+  the action box (``tanh`` first when the policy squashes its output);
+* SAC, TQC (squashed Gaussian): ``tanh(mu(latent_pi(obs)))``, ReLU by default, then mapped from
+  [-1, 1] to the action box with SB3's ``unscale_action`` arithmetic;
+* TD3: ``mu(obs)`` (its last layer a Tanh), ReLU by default, mapped the same way.
+
+Dict observations (the goal-conditioned env) are flattened key by key in the observation space's
+order and concatenated, as SB3's ``CombinedExtractor`` does for Box sub-spaces.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+MAX_WIDTH = 4096     # units in one layer
+MAX_LAYERS = 16      # hidden layers
+DEFAULT_ACTIVATION = {"ppo": "Tanh", "a2c": "Tanh", "sac": "ReLU", "tqc": "ReLU", "td3": "ReLU"}
+
+
+class ActorFileError(ValueError):
+    """Saved tensors that do not form the actor of the algorithm named."""
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Where an algorithm's actor lives in its state dict: the hidden layers' prefix (a
+    ``Sequential`` whose Linear layers sit at even indices), the output layer's prefix (None:
+    the Sequential's last Linear is the output layer), and whether the output is squashed by
+    tanh and mapped from [-1, 1] to the action box."""
+
+    hidden: str
+    head: str | None
+    squashed: bool
+
+
+LAYOUTS = {
+    "ppo": Layout("mlp_extractor.policy_net", "action_net", False),
+    "a2c": Layout("mlp_extractor.policy_net", "action_net", False),
+    "sac": Layout("actor.latent_pi", "actor.mu", True),
+    "tqc": Layout("actor.latent_pi", "actor.mu", True),
+    "td3": Layout("actor.mu", None, True),
+}
+
+
+def _linears(state: dict[str, Any], prefix: str) -> list[int]:
+    """Indices ``i`` of ``prefix.i.weight`` in ``state``, sorted."""
+    pat = re.compile(re.escape(prefix) + r"\.(\d+)\.weight$")
+    return sorted(int(m.group(1)) for k in state if (m := pat.match(k)))
+
+
+class ActorNet:
+    """The deterministic actor of ``algo`` built from ``state`` (SB3's ``policy.state_dict()``
+    tensors; only the actor's are used). ``obs_keys``: a Dict observation's keys in order (None:
+    a Box observation). ``activation``: a ``torch.nn`` class name (default: the algorithm's).
+    ``squash``: a PPO policy that squashes its output (gSDE's ``squash_output``).
+
+    :attr:`module` is a ``torch.nn.Module`` whose parameter names are SB3's state-dict keys with
+    ``.`` replaced by ``__`` (see :meth:`sb3_state`), so a fitted actor can be written back into
+    the policy's ``policy.pth``."""
+
+    def __init__(self, algo: str, state: dict[str, Any], obs_dim: int, action_low: np.ndarray,
+                 action_high: np.ndarray, obs_keys: tuple[str, ...] | None = None,
+                 activation: str | None = None, squash: bool = False) -> None:
+        import torch
+
+        if algo not in LAYOUTS:
+            raise ActorFileError(f"no actor layout for {algo!r}")
+        layout = LAYOUTS[algo]
+        name = activation or DEFAULT_ACTIVATION[algo]
+        act_cls = getattr(torch.nn, name, None)
+        if act_cls is None:
+            raise ActorFileError(f"unknown activation {name!r}")
+        idx = _linears(state, layout.hidden)
+        keys = [f"{layout.hidden}.{i}" for i in idx]
+        if layout.head is None:
+            if not keys:
+                raise ActorFileError(f"no {layout.hidden}.<i>.weight tensors: not a "
+                                     f"{algo.upper()} actor")
+            keys, head = keys[:-1], keys[-1]
+            idx = idx[:-1]
+        else:
+            head = layout.head
+        if idx != list(range(0, 2 * len(idx), 2)):
+            raise ActorFileError(f"{layout.hidden}: layers at {idx}, expected a Linear at every "
+                                 "even index (Linear, activation, ...)")
+        if len(keys) > MAX_LAYERS:
+            raise ActorFileError(f"{len(keys)} hidden layers (at most {MAX_LAYERS})")
+        n_act = int(np.prod(np.shape(action_low)))
+        layers: list[tuple[str, Any, Any]] = []
+        width = obs_dim
+        for prefix in [*keys, head]:
+            w, b = (_tensor(state, f"{prefix}.{what}") for what in ("weight", "bias"))
+            out = n_act if prefix == head else None
+            if (w.ndim != 2 or b.ndim != 1 or w.shape[1] != width or b.shape[0] != w.shape[0]
+                    or (out is not None and w.shape[0] != out) or w.shape[0] > MAX_WIDTH):
+                raise ActorFileError(
+                    f"{prefix}: weight {tuple(w.shape)} and bias {tuple(b.shape)} do not chain "
+                    f"from {width} inputs" + (f" to {out} actions" if out is not None else "")
+                    + f" (widths at most {MAX_WIDTH})")
+            layers.append((prefix, w, b))
+            width = int(w.shape[0])
+        self.algo, self.layout, self.activation = algo, layout, name
+        self.obs_keys, self.obs_dim = obs_keys, obs_dim
+        self.squash = layout.squashed or squash
+        self.low = np.asarray(action_low, np.float32)
+        self.high = np.asarray(action_high, np.float32)
+        self.module = _Module(layers, act_cls, final_tanh=self.squash)
+
+    def sb3_state(self) -> dict[str, Any]:
+        """The actor's tensors under their SB3 state-dict keys (float32, detached copies)."""
+        import torch
+
+        return {k.replace("__", "."): v.detach().to(torch.float32).clone()
+                for k, v in self.module.state_dict().items()}
+
+    def features(self, obs: Any) -> Any:
+        """A float32 tensor ``(n, obs_dim)`` of a batch of observations (a Dict's keys
+        flattened and concatenated in order)."""
+        import torch
+
+        if self.obs_keys is not None:
+            parts = [torch.as_tensor(np.asarray(obs[k])).float().reshape(len(obs[k]), -1)
+                     for k in self.obs_keys]
+            return torch.cat(parts, dim=1)
+        x = torch.as_tensor(np.asarray(obs)).float()
+        return x.reshape(x.shape[0], -1)
+
+    def mean(self, x: Any) -> Any:
+        """The actor's output for features ``x`` before the env's clipping (tanh-squashed where
+        the algorithm squashes), differentiable."""
+        return self.module(x)
+
+    def predict(self, obs: Any) -> np.ndarray:
+        """Deterministic actions for a batch of observations, as SB3's ``predict`` returns them
+        (clipped to the box, or mapped to it from [-1, 1] for squashed outputs)."""
+        import torch
+
+        with torch.no_grad():
+            a = self.mean(self.features(obs)).cpu().numpy()
+        a = a.reshape((-1, *self.low.shape))
+        if self.squash:
+            return self.low + (0.5 * (a + 1.0) * (self.high - self.low))
+        return np.clip(a, self.low, self.high)
+
+
+def _tensor(state: dict[str, Any], key: str) -> Any:
+    """``state[key]``: a finite float32 tensor, else :class:`ActorFileError`."""
+    import torch
+
+    t = state.get(key)
+    if not isinstance(t, torch.Tensor) or t.dtype != torch.float32:
+        raise ActorFileError(f"{key} is missing or not a float32 tensor")
+    if not bool(torch.isfinite(t).all()):
+        raise ActorFileError(f"{key} holds NaN or inf")
+    return t
+
+
+def _Module(layers: list[tuple[str, Any, Any]], act_cls: Any, final_tanh: bool) -> Any:
+    """A ``torch.nn.Module``: Linear and ``act_cls`` alternating, the last Linear without an
+    activation (then tanh if ``final_tanh``); parameter names from the SB3 prefixes."""
+    import torch
+
+    class Actor(torch.nn.Module):
+        def __init__(self) -> None:
+            super().__init__()
+            self.names: list[str] = []
+            for prefix, w, b in layers:
+                lin = torch.nn.Linear(int(w.shape[1]), int(w.shape[0]))
+                with torch.no_grad():
+                    lin.weight.copy_(w)
+                    lin.bias.copy_(b)
+                name = prefix.replace(".", "__")
+                self.add_module(name, lin)
+                self.names.append(name)
+            self.act = act_cls()
+
+        def forward(self, x: Any) -> Any:
+            for name in self.names[:-1]:
+                x = self.act(getattr(self, name)(x))
+            x = getattr(self, self.names[-1])(x)
+            return torch.tanh(x) if final_tanh else x
+
+    return Actor()
