@@ -1,4 +1,5 @@
-"""The deterministic actor of a stable-baselines3 policy, rebuilt from its saved tensors alone.
+"""The deterministic actor of a stable-baselines3 policy, rebuilt from its saved tensors alone
+(:func:`load_actor` from a model zip, :func:`actor_of_model` from a live model).
 
 Evaluating a policy needs only its actor: the layers from observation to mean action. Here they
 are rebuilt from the tensors of ``policy.pth`` (their names say which layer is which, their
@@ -21,11 +22,16 @@ order and concatenated, as SB3's ``CombinedExtractor`` does for Box sub-spaces.
 """
 from __future__ import annotations
 
+import binascii
 import re
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from .model_zip import SERIALIZED, ModelFileError, open_model, read_data, read_weights
+from .sb3_files import ALGOS, check_spaces, custom_objects, pickled_globals
 
 MAX_WIDTH = 4096     # units in one layer
 MAX_LAYERS = 16      # hidden layers
@@ -196,3 +202,81 @@ def _Module(layers: list[tuple[str, Any, Any]], act_cls: Any, final_tanh: bool) 
             return torch.tanh(x) if final_tanh else x
 
     return Actor()
+
+
+ACTIVATION_MODULE = "torch.nn.modules.activation."
+
+
+def _activation(path: Path, data: dict[str, Any]) -> tuple[str | None, dict[str, Any]]:
+    """The activation a model's ``policy_kwargs`` names (None: the algorithm's default) and its
+    plain policy kwargs. A pickled ``policy_kwargs`` (SB3 pickles it when it holds a class) is
+    read with :mod:`pickletools` only: the classes it names must be ``torch.nn`` activations of
+    :data:`~agents.rl.hyperparams.ACTIVATIONS` (at most one) or ``torch.optim`` optimizers
+    (irrelevant to acting)."""
+    from .hyperparams import ACTIVATIONS
+
+    entry = data.get("policy_kwargs") or {}
+    if not (isinstance(entry, dict) and SERIALIZED in entry):
+        return None, dict(entry)
+    try:
+        names = pickled_globals(entry)
+    except (ValueError, binascii.Error, TypeError) as exc:
+        raise ModelFileError(f"{str(path)!r}: its policy_kwargs entry is not a readable "
+                             f"pickle ({exc})") from None
+    acts = [n[len(ACTIVATION_MODULE):] for n in names if n.startswith(ACTIVATION_MODULE)]
+    other = [n for n in names if not n.startswith((ACTIVATION_MODULE, "torch.optim."))]
+    if other or len(set(acts)) > 1 or not set(acts) <= set(ACTIVATIONS):
+        raise ModelFileError(f"{str(path)!r}: its policy_kwargs name {names}; only one torch.nn "
+                             f"activation ({', '.join(ACTIVATIONS)}) and torch.optim classes "
+                             "are understood, so the model is refused")
+    if data.get("use_sde"):
+        raise ModelFileError(f"{str(path)!r}: a gSDE policy with pickled policy_kwargs: whether "
+                             "it squashes its output cannot be read without unpickling")
+    return (acts[0] if acts else None), {}
+
+
+def flat_obs(observation_space: Any) -> tuple[int, tuple[str, ...] | None]:
+    """The flattened observation size and, for a Dict space, its keys in order."""
+    from gymnasium import spaces
+
+    if isinstance(observation_space, spaces.Dict):
+        keys = tuple(observation_space.spaces)
+        return sum(int(np.prod(observation_space[k].shape or ())) for k in keys), keys
+    return int(np.prod(observation_space.shape)), None
+
+
+def load_actor(path: Path, algo: str, observation_space: Any, action_space: Any) -> ActorNet:
+    """The deterministic actor of the model zip at ``path`` (an ``algo`` model for these
+    spaces), rebuilt from its ``policy.pth`` tensors (:class:`~.actor_net.ActorNet`): no SB3
+    model, env, critic or buffer is built, and no pickle is loaded."""
+    zf = open_model(path)
+    data = read_data(path, zf)
+    check_spaces(path, data, observation_space, action_space, "the env")
+    if data.get("policy_class") is not None:
+        custom_objects(path, {"policy_class": data["policy_class"]}, algo, observation_space,
+                       action_space)   # the class it names must be the algorithm's policy
+    activation, kwargs = _activation(path, data)
+    squash = bool(data.get("use_sde")) and bool(kwargs.get("squash_output"))
+    state = read_weights(path, "policy.pth", zf)
+    obs_dim, keys = flat_obs(observation_space)
+    try:
+        return ActorNet(algo, state, obs_dim, action_space.low, action_space.high, keys,
+                        activation, squash)
+    except ActorFileError as exc:
+        raise ModelFileError(f"{str(path)!r}: policy.pth {exc}") from None
+
+
+def actor_of_model(model: Any) -> ActorNet:
+    """The deterministic actor of a live SB3 model (a copy of its actor's tensors), as
+    :func:`load_actor` builds it from a file: one forward pass for both."""
+    algo = next((name for name in ALGOS for cls in type(model).__mro__
+                 if cls.__name__.lower() == name), None)
+    if algo is None:
+        raise ValueError(f"no actor layout for a {type(model).__name__} model")
+    policy = model.policy
+    obs_dim, keys = flat_obs(model.observation_space)
+    act = getattr(policy, "activation_fn", None)
+    return ActorNet(algo, {k: v.detach().clone() for k, v in policy.state_dict().items()},
+                    obs_dim, model.action_space.low, model.action_space.high, keys,
+                    act.__name__ if act is not None else None,
+                    bool(getattr(policy, "squash_output", False)) and algo in ("ppo", "a2c"))

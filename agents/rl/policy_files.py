@@ -34,8 +34,8 @@ from microconveyor_env.presets import PresetError
 from . import normalization
 from .checkpoint import META, MODEL, CheckpointError, read_meta, verify_files
 from .normalization import NORMALIZATION, NormalizationError, ObsNormalizer
-from .actor_net import ActorNet
-from .sb3_files import ALGOS, ModelFileError, algo_of, check_spaces, load_actor, read_data
+from .actor_net import ActorNet, load_actor
+from .sb3_files import ALGOS, ModelFileError, algo_of, check_spaces, read_data
 
 FIRST_ENV_ID = "MicroConveyor-v0"  # what a policy without an env id in its metadata was trained on
 # plane config fields that are not the scene: how the env runs, and how training scores an episode

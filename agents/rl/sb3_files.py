@@ -1,13 +1,17 @@
 """Loading stable-baselines3 model zips without running code from them.
 
-An SB3 ``model.zip`` holds the network weights (``*.pth``, which SB3 reads with
-``torch.load(weights_only=True)``: tensors only) and a ``data`` JSON in which every value that is not
-plain JSON (the policy class, the spaces, the learning-rate schedule, buffers) is a base64
-cloudpickle. Unpickling those runs whatever code they name (issue 17: a crafted entry ran a shell
-command on ``evaluate``). Here the ``data`` JSON is read as text, every pickled entry is *replaced*
-through SB3's ``custom_objects`` by an object this module builds itself (so SB3 never unpickles
-any), an entry this module does not know is refused, and the policy class a pickle *names* is read
-with :mod:`pickletools` (which parses opcodes and executes nothing) and must be the expected one.
+An SB3 ``model.zip`` holds the network weights (``*.pth``, read here by torch with
+``weights_only=True``: tensors only) and a ``data`` JSON in which every value that is not plain
+JSON (the policy class, the spaces, the learning-rate schedule, buffers) is a base64
+cloudpickle; unpickling one runs whatever code it names. Here the zip is read within byte limits
+(:func:`open_model`), the ``data`` JSON is read as text and checked against an allowlist
+(:mod:`.model_data`), and no pickle is ever loaded:
+
+* to **evaluate**, only the actor is rebuilt from the ``policy.pth`` tensors
+  (:func:`load_actor`, :mod:`.actor_net`); the policy class a pickle *names* is read with
+  :mod:`pickletools` (which parses opcodes and executes nothing) and must be the algorithm's;
+* to **resume a training**, SB3 loads the model with every pickled entry *replaced* through its
+  ``custom_objects`` by an object built here (:func:`safe_load`).
 """
 from __future__ import annotations
 
@@ -15,24 +19,21 @@ import base64
 import binascii
 import io
 import json
-import math
 import pickletools
 import zipfile
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from microconveyor_env.safe_files import MiB, BoundedZip, UnsafeFileError, read_bytes
+from microconveyor_env.safe_files import UnsafeFileError, read_bytes
 
-from .actor_net import ActorFileError, ActorNet
+from .model_zip import (MODEL_FILE_LIMIT, SERIALIZED, ModelFileError, check_data, open_model,
+                        read_data, read_weights)
 
-SERIALIZED = ":serialized:"
-
-
-class ModelFileError(ValueError):
-    """A model zip that is not a stable-baselines3 model of the expected kind."""
+__all__ = ["SERIALIZED", "ModelFileError", "check_data", "open_model", "read_data",
+           "read_weights", "safe_load", "check_spaces", "algo_of", "pickled_globals",
+           "custom_objects"]
 
 
 # algorithm -> (keys its data JSON always has, the policy classes its pickle may name: for
@@ -53,217 +54,6 @@ ALGOS: dict[str, tuple[frozenset[str], tuple[str, ...]]] = {
             ("stable_baselines3.td3.policies.TD3Policy",
              "stable_baselines3.td3.policies.MultiInputPolicy")),
 }
-
-
-MODEL_FILE_LIMIT = 256 * MiB   # a model zip on disk
-DATA_LIMIT = 16 * MiB          # its data JSON, inflated
-WEIGHTS_LIMIT = 256 * MiB      # one weights entry (policy.pth ...), inflated
-MODEL_TOTAL_LIMIT = 768 * MiB  # all entries together, inflated
-
-
-def open_model(path: Path) -> BoundedZip:
-    """The model zip at ``path``, read within limits: a regular file of at most
-    :data:`MODEL_FILE_LIMIT` bytes whose entries have plain names and declared sizes within
-    :data:`WEIGHTS_LIMIT` (:data:`MODEL_TOTAL_LIMIT` together), checked before any is
-    inflated."""
-    try:
-        return BoundedZip(read_bytes(path, MODEL_FILE_LIMIT), repr(str(path)), WEIGHTS_LIMIT,
-                          MODEL_TOTAL_LIMIT)
-    except UnsafeFileError as exc:
-        raise ModelFileError(f"{exc}; not a stable-baselines3 model zip") from None
-
-
-def read_data(path: Path, zf: BoundedZip | None = None) -> dict[str, Any]:
-    """The ``data`` JSON of the zip at ``path``, as plain JSON (nothing deserialised), its
-    plain entries checked against :data:`DATA_KEYS` (:func:`check_data`)."""
-    zf = zf or open_model(path)
-    if "data" not in zf.infos:
-        raise ModelFileError(f"{str(path)!r} is not a stable-baselines3 model zip (no data "
-                             "entry)")
-    if zf.infos["data"].file_size > DATA_LIMIT:
-        raise ModelFileError(f"{str(path)!r}: its data entry would inflate to "
-                             f"{zf.infos['data'].file_size:,} bytes (at most {DATA_LIMIT:,})")
-    try:
-        data = json.loads(zf.read("data").decode())
-    except UnsafeFileError as exc:
-        raise ModelFileError(str(exc)) from None
-    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
-        raise ModelFileError(f"{str(path)!r}: its data entry is not JSON ({exc})") from None
-    if not isinstance(data, dict):
-        raise ModelFileError(f"{str(path)!r}: its data entry is not a JSON object")
-    check_data(path, data)
-    return data
-
-
-def read_weights(path: Path, entry: str = "policy.pth",
-                 zf: BoundedZip | None = None) -> dict[str, Any]:
-    """The tensors of ``entry`` in the model zip at ``path``: read by torch with
-    ``weights_only=True`` (tensors and plain containers only; a pickle naming anything else is
-    refused), on the CPU; a ``{name: float tensor}`` mapping."""
-    import pickle
-
-    import torch
-
-    zf = zf or open_model(path)
-    try:
-        raw = zf.read(entry)
-    except UnsafeFileError as exc:
-        raise ModelFileError(str(exc)) from None
-    import warnings
-
-    try:
-        with warnings.catch_warnings():   # torch's notes on the pickle protocol: not the user's
-            warnings.simplefilter("ignore")
-            state = torch.load(io.BytesIO(raw), map_location="cpu", weights_only=True)
-    except (pickle.UnpicklingError, RuntimeError, ValueError, EOFError, OSError, KeyError,
-            TypeError, AttributeError, IndexError, MemoryError) as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        if "weights_only" in str(exc) or isinstance(exc, pickle.UnpicklingError):
-            first = ("it holds Python objects other than tensors, which are not loaded "
-                     "(that could run code)")
-        raise ModelFileError(f"{str(path)!r}: {entry} is not a file of tensors ({first})") \
-            from None
-    if not isinstance(state, dict) or not all(
-            isinstance(k, str) and isinstance(v, torch.Tensor) for k, v in state.items()):
-        raise ModelFileError(f"{str(path)!r}: {entry} is not a mapping of names to tensors")
-    return state
-
-
-def _int_in(lo: int, hi: int, none: bool = False) -> Callable[[Any], bool]:
-    def ok(v: Any) -> bool:
-        return (v is None and none) or (isinstance(v, int) and not isinstance(v, bool)
-                                         and lo <= v <= hi)
-    ok.__doc__ = f"an integer in [{lo}, {hi}]" + (" or null" if none else "")
-    return ok
-
-
-def _num_in(lo: float, hi: float, none: bool = False, words: tuple[str, ...] = ()
-            ) -> Callable[[Any], bool]:
-    def ok(v: Any) -> bool:
-        if v is None:
-            return none
-        if isinstance(v, str):
-            return v in words or any(v.startswith(w + "_") for w in words)
-        return (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-                and lo <= v <= hi)
-    ok.__doc__ = (f"a number in [{lo:g}, {hi:g}]" + (" or null" if none else "")
-                  + (f" or {'/'.join(words)}" if words else ""))
-    return ok
-
-
-def _flag(v: Any) -> bool:
-    """true or false"""
-    return isinstance(v, bool)
-
-
-def _null(v: Any) -> bool:
-    """null"""
-    return v is None
-
-
-def _text(v: Any) -> bool:
-    """a short string or null"""
-    return v is None or (isinstance(v, str) and len(v) <= 4096)
-
-
-def _empty_list(v: Any) -> bool:
-    """an empty list"""
-    return v == []
-
-
-def _widths(v: Any) -> bool:
-    return (isinstance(v, list) and len(v) <= 16 and all(
-        isinstance(w, int) and not isinstance(w, bool) and 1 <= w <= 4096 for w in v))
-
-
-def _net_arch(v: Any) -> bool:
-    """a list of at most 16 widths in [1, 4096], or a dict of such lists (pi, vf, qf)"""
-    if isinstance(v, dict):
-        return set(v) <= {"pi", "vf", "qf"} and all(_widths(w) for w in v.values())
-    return _widths(v)
-
-
-POLICY_KWARGS: dict[str, Callable[[Any], bool]] = {
-    "net_arch": _net_arch, "log_std_init": _num_in(-20.0, 20.0), "use_sde": _flag,
-    "ortho_init": _flag, "squash_output": _flag, "full_std": _flag, "use_expln": _flag,
-    "share_features_extractor": _flag, "normalize_images": _flag,
-    "clip_mean": _num_in(0.0, 1e3), "n_critics": _int_in(1, 32), "n_quantiles": _int_in(1, 1000),
-}
-REPLAY_BUFFER_KWARGS: dict[str, Callable[[Any], bool]] = {
-    "copy_info_dict": _flag, "n_sampled_goal": _int_in(1, 100),
-    "goal_selection_strategy": lambda v: v in ("future", "final", "episode"),
-    "handle_timeout_termination": _flag,
-}
-
-
-def _kwargs(allowed: dict[str, Callable[[Any], bool]]) -> Callable[[Any], bool]:
-    def ok(v: Any) -> bool:
-        return isinstance(v, dict) and all(k in allowed and allowed[k](x) for k, x in v.items())
-    ok.__doc__ = f"a mapping of {', '.join(allowed) or 'nothing'} with valid values"
-    return ok
-
-
-COUNT = _int_in(0, 10**13)
-# Every plain-JSON entry an SB3 (2.x) PPO/A2C/SAC/TQC/TD3 model zip of this package may hold,
-# with the values allowed. A key not here, or a value outside its range, refuses the model.
-# Sizes that SB3 would allocate from (``n_envs``, ``buffer_size``, network widths) are bounded.
-DATA_KEYS: dict[str, Callable[[Any], bool]] = {
-    "verbose": _int_in(0, 2), "seed": _int_in(-(2**63), 2**63 - 1, none=True),
-    "num_timesteps": COUNT, "_total_timesteps": COUNT, "_num_timesteps_at_start": COUNT,
-    "_episode_num": COUNT, "_n_updates": COUNT, "_stats_window_size": _int_in(1, 10**6),
-    "start_time": _num_in(0.0, 1e30), "_current_progress_remaining": _num_in(-1.0, 2.0),
-    "tensorboard_log": _text, "use_sde": _flag, "sde_sample_freq": _int_in(-1, 10**9),
-    "n_envs": _int_in(1, 1024), "n_steps": _int_in(1, 10**6), "batch_size": _int_in(1, 10**7),
-    "n_epochs": _int_in(1, 10**4), "gamma": _num_in(0.0, 1.0), "gae_lambda": _num_in(0.0, 1.0),
-    "ent_coef": _num_in(0.0, 1e3, words=("auto",)), "vf_coef": _num_in(0.0, 1e3),
-    "max_grad_norm": _num_in(0.0, 1e9), "normalize_advantage": _flag,
-    "target_kl": _num_in(0.0, 1e3, none=True), "clip_range_vf": _num_in(0.0, 1e3, none=True),
-    "learning_rate": _num_in(0.0, 10.0), "buffer_size": _int_in(1, 10**7),
-    "learning_starts": COUNT, "tau": _num_in(0.0, 1.0), "gradient_steps": _int_in(-1, 10**4),
-    "optimize_memory_usage": _flag, "target_update_interval": _int_in(1, 10**9),
-    "target_entropy": _num_in(-1e3, 1e3, words=("auto",)), "use_sde_at_warmup": _flag,
-    "top_quantiles_to_drop_per_net": _int_in(0, 1000), "policy_delay": _int_in(1, 10**3),
-    "target_policy_noise": _num_in(0.0, 1e3), "target_noise_clip": _num_in(0.0, 1e3),
-    "batch_norm_stats": _empty_list, "batch_norm_stats_target": _empty_list,
-    "actor_batch_norm_stats": _empty_list, "actor_batch_norm_stats_target": _empty_list,
-    "critic_batch_norm_stats": _empty_list, "critic_batch_norm_stats_target": _empty_list,
-    "policy_kwargs": _kwargs(POLICY_KWARGS), "replay_buffer_kwargs": _kwargs(
-        REPLAY_BUFFER_KWARGS), "rollout_buffer_kwargs": _kwargs({}),
-    # buffers and state SB3 stores as pickles (replaced, never unpickled) or as null
-    "_last_obs": _null, "_last_episode_starts": _null, "_last_original_obs": _null,
-    "ep_info_buffer": _null, "ep_success_buffer": _null, "action_noise": _null,
-    # this package's training phases (agents.rl.phases): armed once, saved with the model
-    "restart_pending": _flag, "shift_pending": _flag,
-}
-# entries that may hold a pickle (replaced by custom_objects, never unpickled)
-PICKLED_KEYS = frozenset({
-    "policy_class", "observation_space", "action_space", "learning_rate", "lr_schedule",
-    "clip_range", "clip_range_vf", "_last_obs", "_last_episode_starts", "_last_original_obs",
-    "ep_info_buffer", "ep_success_buffer", "rollout_buffer_class", "replay_buffer_class",
-    "train_freq", "target_entropy", "action_noise", "target_policy_noise", "target_noise_clip",
-    "ent_coef", "policy_kwargs"})
-
-
-def check_data(path: Path, data: dict[str, Any]) -> None:
-    """Refuse a model whose ``data`` holds an entry not in :data:`DATA_KEYS` (or, pickled, not
-    in :data:`PICKLED_KEYS`) or a plain value outside what :data:`DATA_KEYS` allows."""
-    for key, value in data.items():
-        if isinstance(value, dict) and SERIALIZED in value:
-            if key not in PICKLED_KEYS:
-                raise ModelFileError(f"{str(path)!r}: its data entry {key!r} holds a pickled "
-                                     "Python object this loader does not know; it is not "
-                                     "unpickled (that could run code), so the model is refused")
-            continue
-        check = DATA_KEYS.get(key)
-        if check is None:
-            raise ModelFileError(f"{str(path)!r}: its data entry {key!r} is not one a "
-                                 "stable-baselines3 model of this package holds; refusing the "
-                                 "model")
-        if not check(value):
-            shown = repr(value)
-            shown = shown if len(shown) <= 80 else shown[:77] + "..."
-            raise ModelFileError(f"{str(path)!r}: its data entry {key!r} = {shown} is invalid "
-                                 f"(must be {check.__doc__ or 'valid'})")
 
 
 def algo_of(data: dict[str, Any]) -> str | None:
@@ -456,81 +246,3 @@ def safe_load(path: Path, algo: str, observation_space: Any, action_space: Any,
     except (RuntimeError, ValueError, KeyError, OSError, zipfile.BadZipFile) as exc:
         raise ModelFileError(f"{str(path)!r} could not be loaded as {algo.upper()} "
                              f"({type(exc).__name__}: {str(exc).splitlines()[0]})") from None
-
-
-ACTIVATION_MODULE = "torch.nn.modules.activation."
-
-
-def _activation(path: Path, data: dict[str, Any]) -> tuple[str | None, dict[str, Any]]:
-    """The activation a model's ``policy_kwargs`` names (None: the algorithm's default) and its
-    plain policy kwargs. A pickled ``policy_kwargs`` (SB3 pickles it when it holds a class) is
-    read with :mod:`pickletools` only: the classes it names must be ``torch.nn`` activations of
-    :data:`~agents.rl.hyperparams.ACTIVATIONS` (at most one) or ``torch.optim`` optimizers
-    (irrelevant to acting)."""
-    from .hyperparams import ACTIVATIONS
-
-    entry = data.get("policy_kwargs") or {}
-    if not (isinstance(entry, dict) and SERIALIZED in entry):
-        return None, dict(entry)
-    try:
-        names = pickled_globals(entry)
-    except (ValueError, binascii.Error, TypeError) as exc:
-        raise ModelFileError(f"{str(path)!r}: its policy_kwargs entry is not a readable "
-                             f"pickle ({exc})") from None
-    acts = [n[len(ACTIVATION_MODULE):] for n in names if n.startswith(ACTIVATION_MODULE)]
-    other = [n for n in names if not n.startswith((ACTIVATION_MODULE, "torch.optim."))]
-    if other or len(set(acts)) > 1 or not set(acts) <= set(ACTIVATIONS):
-        raise ModelFileError(f"{str(path)!r}: its policy_kwargs name {names}; only one torch.nn "
-                             f"activation ({', '.join(ACTIVATIONS)}) and torch.optim classes "
-                             "are understood, so the model is refused")
-    if data.get("use_sde"):
-        raise ModelFileError(f"{str(path)!r}: a gSDE policy with pickled policy_kwargs: whether "
-                             "it squashes its output cannot be read without unpickling")
-    return (acts[0] if acts else None), {}
-
-
-def flat_obs(observation_space: Any) -> tuple[int, tuple[str, ...] | None]:
-    """The flattened observation size and, for a Dict space, its keys in order."""
-    from gymnasium import spaces
-
-    if isinstance(observation_space, spaces.Dict):
-        keys = tuple(observation_space.spaces)
-        return sum(int(np.prod(observation_space[k].shape or ())) for k in keys), keys
-    return int(np.prod(observation_space.shape)), None
-
-
-def load_actor(path: Path, algo: str, observation_space: Any, action_space: Any) -> ActorNet:
-    """The deterministic actor of the model zip at ``path`` (an ``algo`` model for these
-    spaces), rebuilt from its ``policy.pth`` tensors (:class:`~.actor_net.ActorNet`): no SB3
-    model, env, critic or buffer is built, and no pickle is loaded."""
-    zf = open_model(path)
-    data = read_data(path, zf)
-    check_spaces(path, data, observation_space, action_space, "the env")
-    if data.get("policy_class") is not None:
-        custom_objects(path, {"policy_class": data["policy_class"]}, algo, observation_space,
-                       action_space)   # the class it names must be the algorithm's policy
-    activation, kwargs = _activation(path, data)
-    squash = bool(data.get("use_sde")) and bool(kwargs.get("squash_output"))
-    state = read_weights(path, "policy.pth", zf)
-    obs_dim, keys = flat_obs(observation_space)
-    try:
-        return ActorNet(algo, state, obs_dim, action_space.low, action_space.high, keys,
-                        activation, squash)
-    except ActorFileError as exc:
-        raise ModelFileError(f"{str(path)!r}: policy.pth {exc}") from None
-
-
-def actor_of_model(model: Any) -> ActorNet:
-    """The deterministic actor of a live SB3 model (a copy of its actor's tensors), as
-    :func:`load_actor` builds it from a file: one forward pass for both."""
-    algo = next((name for name in ALGOS for cls in type(model).__mro__
-                 if cls.__name__.lower() == name), None)
-    if algo is None:
-        raise ValueError(f"no actor layout for a {type(model).__name__} model")
-    policy = model.policy
-    obs_dim, keys = flat_obs(model.observation_space)
-    act = getattr(policy, "activation_fn", None)
-    return ActorNet(algo, {k: v.detach().clone() for k, v in policy.state_dict().items()},
-                    obs_dim, model.action_space.low, model.action_space.high, keys,
-                    act.__name__ if act is not None else None,
-                    bool(getattr(policy, "squash_output", False)) and algo in ("ppo", "a2c"))

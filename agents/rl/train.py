@@ -35,7 +35,8 @@ from . import checkpoint, hyperparams, normalization, phases, wrappers
 from .algos import ALGO_NAMES, algo_class
 from .checkpoint import META, MODEL, NORMALIZATION, CheckpointError
 from .evaluate import Policy, evaluate
-from .sb3_files import ModelFileError, actor_of_model, algo_of, read_data, safe_load
+from .actor_net import actor_of_model
+from .sb3_files import ModelFileError, algo_of, read_data, safe_load
 
 FORMAT = 2          # run-folder layout: checkpoints/gen-*, normalization.json (1: pickles)
 LEGACY_CHECKPOINT = "checkpoint"
@@ -287,6 +288,12 @@ def train(out: str | Path, steps: int | None = None, seed: int | None = None, co
         if env_kwargs:
             hp["env_kwargs"] = {**(hp.get("env_kwargs") or {}), **env_kwargs}
         cfg = config or env_config(env_id, **(hp.get("env_kwargs") or {}))
+        if env_id in GOAL_ENV_IDS and hyperparams.normalize_kwargs(hp) is not None:
+            # HER relabels the raw goals it stores; the policy files keep statistics of Box
+            # observations only. Refused before training rather than at the first save.
+            raise ValueError(f"normalize: {env_id} has Dict observations (goal-conditioned); "
+                             "observation normalisation is for the Box envs. Drop normalize "
+                             "from the recipe")
         chash = config_hash(cfg, hp, algo)
         run_seed = 0 if seed is None else int(seed)  # a resume: the run's own (below)
         run_meta = {"format": FORMAT, "env_id": env_id, "algo": algo,

@@ -103,3 +103,19 @@ def test_cli_train_algo_and_evaluate(tmp_path):
     meta = json.loads((out / "metadata.json").read_text())
     assert meta["algo"] == "sac"
     assert len((out / "evaluations.jsonl").read_text().splitlines()) >= 2
+
+
+def test_goal_env_with_normalised_observations_is_refused_before_training(tmp_path):
+    """It used to train to the end and fail at the first save (Dict observations have no
+    statistics file); now it is refused before a step is taken."""
+    import time
+
+    from agents.rl.train import train
+
+    t0 = time.perf_counter()
+    with pytest.raises(ValueError, match="normalize: MicroConveyorGoal-v1 has Dict observations"):
+        train(tmp_path / "run", steps=2048, env_id="MicroConveyorGoal-v1", algo="sac",
+              overrides={"normalize": True, "learning_starts": 100}, eval_freq=0,
+              eval_targets=0, checkpoint_freq=1024, progress_bar=False, tensorboard=False)
+    assert time.perf_counter() - t0 < 30
+    assert not (tmp_path / "run" / "checkpoints").exists()

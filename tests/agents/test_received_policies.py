@@ -108,7 +108,8 @@ def test_rebuilt_actor_acts_exactly_as_sb3_predict(tmp_path, algo):
     import gymnasium as gym
 
     import microconveyor_env  # noqa: F401
-    from agents.rl.sb3_files import algo_class, load_actor
+    from agents.rl.actor_net import load_actor
+    from agents.rl.sb3_files import algo_class
 
     cls = algo_class(algo)
     for env_id, policy in (("MicroConveyor-v1", "MlpPolicy"),
