@@ -12,19 +12,35 @@ restart from a saved state.
 As data it is a plain dict of SI numbers with unit-suffixed keys (:meth:`PartState.to_dict`,
 :meth:`PartState.from_dict`), JSON-safe. A state *observed* by a controller leaves the
 randomisation fields ``None``: an env started from it keeps its own (drawn) factors and noise.
+
+Bounds (:func:`check_state`; a value outside is refused in one line naming the field, its value
+and the range). With ``h``, ``f`` the top of the scene's ``stroke_range`` and ``freq_range``:
+
+| field | unit | allowed | why |
+|---|---|---|---|
+| ``fired`` | firings | an integer in [0, ``n_actuators`` - 1] | a firing must be left |
+| ``time_s`` | s | [0, ``max_time``) | the episode's time is not spent |
+| ``velocity_m_s`` | m/s | abs at most ``v_max = 2 (15/4) h f + sqrt(2 g h)`` | the surface moves vertically only and drives the part: its fastest point moves at the quintic stroke's peak speed (15/4) h f; twice that, plus the speed of a slide down the highest bump (g = 9.81 m/s²), bounds the part (random firings, measured: at most 0.51 m/s where the peak is 0.75 m/s and ``v_max`` 1.56 m/s, h = 200 µm, f = 1 kHz; at most 0.40 m/s against ``v_max`` = 15.1 m/s on v0's and v1's scenes) |
+| ``position_m`` | m | within ``v_max * max_time`` of the start positions (``-start_offset`` ± ``start_jitter``) | no farther than the part can go in the episode's time |
+| ``target_m`` | m | abs at most 0.1 | where the observation can show it (10 x 10 mm) |
+| ``friction_factor``, ``mass_factor`` | - | the env's ``friction_factor_range``, ``mass_factor_range`` | what the env draws |
+| ``noise`` | - (standard normals) | shape ``(n_actuators, 3)``, abs at most 13; only with ``action_noise`` > 0 | numpy's standard normals never reach 12.23 (P(abs z > 13) = 1.2e-38) |
 """
 from __future__ import annotations
 
 import math
 import numbers
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
-from .common import check_target
-from .config import EnvConfig
+from ..physics.materials import G0
+from .config import MAX_TARGET, EnvConfig
 
+# standard normals beyond it are never drawn (numpy's ziggurat on 53-bit uniforms cannot return
+# |z| >= 12.23; P(|z| > 13) = 1.2e-38)
+NOISE_BOUND = 13.0
 _FIELDS = ("position_m", "velocity_m_s", "time_s", "fired", "target_m", "friction_factor",
            "mass_factor", "noise")
 
@@ -71,23 +87,49 @@ class PartState:
         return cls(**{**d, "noise": None if noise is None else tuple(map(tuple, noise))})
 
 
-def _real(name: str, value: object, lo: float = -math.inf, hi: float = math.inf,
-          unit: str = "") -> float:
+class StateBounds(NamedTuple):
+    """What a part can do in a scene (:func:`state_bounds`), SI units."""
+
+    speed_m_s: float                  # |velocity| at most
+    position_m: tuple[float, float]   # (lowest, highest) position
+
+
+def state_bounds(config: EnvConfig) -> StateBounds:
+    """The speed and positions a part can reach in ``config``'s scene (module docstring)."""
+    h, f = config.stroke_range[1], config.freq_range[1]
+    speed = 2.0 * 3.75 * h * f + math.sqrt(2.0 * G0 * h)
+    reach = speed * config.max_time
+    start = -config.start_offset
+    return StateBounds(speed, (start - config.start_jitter - reach,
+                               start + config.start_jitter + reach))
+
+
+def _within(name: str, value: object, lo: float, hi: float, unit: str, scale: float,
+            why: str, hi_open: bool = False) -> float:
+    """``value`` as a float if it is a finite real number in [lo, hi] (SI; ``hi_open``: below
+    hi), else a one-line ValueError naming ``name``, the value and the range in ``unit`` (SI
+    times ``scale``)."""
     x = math.nan
     if isinstance(value, (numbers.Real, np.floating, np.integer)) and not isinstance(
             value, (bool, np.bool_)):
         x = float(value)
-    if not (math.isfinite(x) and lo <= x <= hi):
-        raise ValueError(f"part state {name} = {value!r} is invalid: must be finite in "
-                         f"[{lo:g}, {hi:g}]{' ' + unit if unit else ''}")
-    return x
+    if math.isfinite(x) and lo <= x <= hi and not (hi_open and x == hi):
+        return x
+    u = f" {unit}" if unit else ""
+    shown = repr(value) if math.isnan(x) and not isinstance(value, float) else repr(x)
+    if scale != 1.0 and math.isfinite(x):
+        shown += f" ({x * scale:.6g}{u})"
+    allowed = (f"±{hi * scale:.6g}" if lo == -hi else
+               f"[{lo * scale:.6g}, {hi * scale:.6g}{')' if hi_open else ']'}")
+    raise ValueError(f"part state {name} = {shown} is invalid: must be finite and within "
+                     f"{allowed}{u} ({why})")
 
 
 def check_state(state: PartState | dict, config: EnvConfig) -> PartState:
-    """``state`` (a :class:`PartState` or its dict) checked against ``config``: a firing left
-    (``fired < n_actuators``), time in [0, max_time), finite position and velocity, a valid
-    target, and randomisation fields only where the config randomises (factors inside its
-    ranges, noise of shape ``(n_actuators, 3)``)."""
+    """``state`` (a :class:`PartState` or its dict) checked against ``config``: every field
+    finite and within the scene's bounds (module docstring), a firing left, and randomisation
+    fields only where the config randomises (factors inside its ranges, noise of shape
+    ``(n_actuators, 3)``). A one-line ValueError names the field, its value and the range."""
     s = state if isinstance(state, PartState) else PartState.from_dict(state)
     n = config.n_actuators
     fired = s.fired
@@ -95,27 +137,38 @@ def check_state(state: PartState | dict, config: EnvConfig) -> PartState:
             or not 0 <= int(fired) < n):
         raise ValueError(f"part state fired = {fired!r} is invalid: must be an integer in "
                          f"[0, {n - 1}] (a firing must be left)")
-    limit = 10.0  # m: far beyond any scene (positions are finite, the check catches NaN/inf)
-    x = _real("position_m", s.position_m, -limit, limit, "m")
-    v = _real("velocity_m_s", s.velocity_m_s, unit="m/s")
-    t = _real("time_s", s.time_s, 0.0, config.max_time, "s")
-    if t >= config.max_time:
-        raise ValueError(f"part state time_s = {t!r} is invalid: the episode's max_time "
-                         f"({config.max_time} s) is spent")
-    target = check_target(s.target_m)
+    bounds = state_bounds(config)
+    v_max, (x_lo, x_hi) = bounds.speed_m_s, bounds.position_m
+    x = _within("position_m", s.position_m, x_lo, x_hi, "mm", 1e3,
+                f"reachable from the start in max_time at {v_max * 1e3:.6g} mm/s")
+    v = _within("velocity_m_s", s.velocity_m_s, -v_max, v_max, "mm/s", 1e3,
+                "twice the peak surface speed of the fastest, highest stroke plus a slide down "
+                "its bump")
+    t = _within("time_s", s.time_s, 0.0, config.max_time, "ms", 1e3,
+                "the episode's max_time", hi_open=True)
+    target = _within("target_m", s.target_m, -MAX_TARGET, MAX_TARGET, "mm", 1e3,
+                     "where the observation can show it")
     ff, mf, noise = s.friction_factor, s.mass_factor, s.noise
-    for name, val, rng in (("friction_factor", ff, config.friction_factor_range),
-                           ("mass_factor", mf, config.mass_factor_range)):
+    for name, val, (lo, hi) in (("friction_factor", ff, config.friction_factor_range),
+                                ("mass_factor", mf, config.mass_factor_range)):
         if val is not None:
-            _real(name, val, *rng)
+            _within(name, val, lo, hi, "", 1.0, f"this env's {name}_range")
     if noise is not None:
-        arr = np.asarray(noise, dtype=float)
         if config.action_noise <= 0.0:
             raise ValueError("part state noise is given but the env has no execution noise "
                              "(action_noise = 0)")
-        if arr.shape != (n, 3) or not np.all(np.isfinite(arr)):
-            raise ValueError(f"part state noise must be ({n}, 3) finite numbers, got shape "
+        try:
+            arr = np.asarray(noise, dtype=float)
+        except (TypeError, ValueError):
+            arr = np.full(1, np.nan)
+        if arr.shape != (n, 3):
+            raise ValueError(f"part state noise must be ({n}, 3) numbers, got shape "
                              f"{arr.shape}")
+        bad = np.argwhere(~(np.abs(arr) <= NOISE_BOUND))  # NaN too
+        if len(bad):
+            i, j = bad[0]
+            _within(f"noise[{i}][{j}]", arr[i, j], -NOISE_BOUND, NOISE_BOUND, "", 1.0,
+                    "standard normal draws")
         noise = tuple(map(tuple, arr.tolist()))
     return PartState(x, v, t, int(fired), target,
                      None if ff is None else float(ff), None if mf is None else float(mf),

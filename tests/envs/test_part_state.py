@@ -2,7 +2,9 @@
 uninterrupted episode (bit for bit on the same machine), in the single and the batched env, with
 and without per-episode randomisation; bad states are refused with the field named."""
 import json
+import math
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -115,3 +117,51 @@ def test_state_and_target_together_are_refused():
     vec = MicroConveyorVectorEnv(2, config=env_config("MicroConveyor-v1"))
     with pytest.raises(ValueError, match="2 envs"):
         vec.reset(options={"state": [PartState(0.0, 0.0, 0.0, 0, 1e-3)] * 3})
+
+
+GENTLE = np.array([-1.0, -1.0, -1.0], np.float32)
+
+
+def _saved(env_id="MicroConveyor-v1", **kwargs):
+    """A state after one gentle firing in ``gym.make(env_id, **kwargs)``."""
+    env = gym.make(env_id, **kwargs)
+    env.reset(seed=1, options={"target": 5e-3})
+    env.step(GENTLE)
+    return env.unwrapped.get_state()
+
+
+@pytest.mark.parametrize("field, value, shown", [
+    ("velocity_m_s", 1e300, r"velocity_m_s = 1e\+300 .*within ±15062.6 mm/s"),
+    ("velocity_m_s", -16.0, r"velocity_m_s = -16.0 .*within ±15062.6 mm/s"),
+    ("position_m", 20.0, r"position_m = 20.0 .*within \[-15062.8, 15062.5\] mm"),
+    ("noise", 1e300, r"noise\[0\]\[0\] = 1e\+300 .*within ±13 "),
+    ("noise", -14.0, r"noise\[0\]\[0\] = -14.0 .*within ±13 "),
+])
+def test_values_beyond_the_scene_are_refused_naming_field_value_and_range(field, value, shown):
+    """Finite but impossible values: faster than the scene's fastest surface can move a part,
+    farther than it can go in the episode's time, noise draws no standard normal gives."""
+    state = _saved(**RANDOMISED)
+    d = state.to_dict()
+    if field == "noise":
+        d["noise"][0][0] = value
+    else:
+        d[field] = value
+    env = MicroConveyorEnv(config=env_config("MicroConveyor-v1", **RANDOMISED))
+    with pytest.raises(ValueError, match=shown) as err:
+        env.reset(options={"state": d})
+    assert "\n" not in str(err.value)
+
+
+def test_state_bounds_follow_the_scene():
+    """The bounds (module docstring of part_state): twice the stroke's peak surface speed
+    (15/4) h f plus a slide down the highest bump sqrt(2 g h); the distance at that speed for
+    the whole episode from the start; standard normals within 13."""
+    from microconveyor_env.envs.part_state import NOISE_BOUND, state_bounds
+
+    cfg = env_config("MicroConveyor-v1", stroke_range=(100e-6, 150e-6), freq_range=(200.0, 4e3))
+    b = state_bounds(cfg)
+    speed = 2 * 3.75 * 150e-6 * 4e3 + math.sqrt(2 * 9.81 * 150e-6)
+    assert b.speed_m_s == pytest.approx(speed, rel=1e-12)
+    assert b.position_m == pytest.approx((-cfg.start_offset - cfg.start_jitter - speed * cfg.max_time,
+                                          -cfg.start_offset + cfg.start_jitter + speed * cfg.max_time))
+    assert NOISE_BOUND == 13.0
