@@ -85,6 +85,12 @@ class OwnsConveyor:
         return self.conveyor.positions
 
 
+def spec_id(env: Any) -> str | None:
+    """The registered id ``env`` was made with (``gym.make``, ``make_vec``); None without."""
+    spec = getattr(env, "spec", None)
+    return None if spec is None else str(spec.id)
+
+
 def conveyor_field(path: str, doc: str) -> Any:
     """A read-only property for ``self.conveyor.<path>`` (dotted), e.g. ``"parts.x"``."""
     names = path.split(".")

@@ -10,7 +10,7 @@ from gymnasium.core import RenderFrame
 
 from ..physics import dynamics_kernel as kernel
 from . import actions, task
-from .common import OwnsConveyor, check_render_mode
+from .common import OwnsConveyor, check_render_mode, spec_id
 from .part_state import PartState
 from .config import EnvConfig
 from .frames import EnvRenderer, check_frames_per_stroke
@@ -190,8 +190,9 @@ class MicroConveyorEnv(OwnsConveyor, gym.Env):
 
     def get_state(self) -> PartState:
         """The part's state now (:class:`~.part_state.PartState`, SI units): ``reset(options=
-        {"state": s})`` continues the episode from it exactly."""
-        return self.conveyor.get_state(0)
+        {"state": s})`` continues the episode from it exactly. It names the env id and the
+        scene: an env of another scene refuses it."""
+        return self.conveyor.get_state(0, spec_id(self))
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         if self._done:

@@ -13,6 +13,18 @@ As data it is a plain dict of SI numbers with unit-suffixed keys (:meth:`PartSta
 :meth:`PartState.from_dict`), JSON-safe. A state *observed* by a controller leaves the
 randomisation fields ``None``: an env started from it keeps its own (drawn) factors and noise.
 
+A state names where it was saved: ``env_id`` (the registered id the env was made with, ``None``
+for an env made without ``gym.make``) and ``scene``, the env's config fields that are its scene
+(:func:`~.versions.scene_of`: what :func:`~.versions.scene_differences` compares; per-episode
+randomisation, runtime knobs and the reward's weights are not the scene). An env of another
+scene refuses it in one line naming the fields that differ: a position or a firing count means
+something else with other actuators, surfaces or time limits. A dict without ``env_id`` and
+``scene`` (saved before states named them) is refused too, saying how to go on: nothing can
+check it, and a state taken into the wrong scene runs without error and silently means
+something else, which a warning in a long batch would not prevent. A :class:`PartState` built in
+code without a scene (as a controller builds the state it observed) is taken as the env's own:
+the code that built it vouches for it, and ``PartState(**d)`` does the same for a dict.
+
 Bounds (:func:`check_state`; a value outside is refused in one line naming the field, its value
 and the range). With ``h``, ``f`` the top of the scene's ``stroke_range`` and ``freq_range``:
 
@@ -30,19 +42,22 @@ from __future__ import annotations
 
 import math
 import numbers
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
 import numpy as np
 
 from ..physics.materials import G0
 from .config import MAX_TARGET, EnvConfig
+from .versions import scene_of
 
 # standard normals beyond it are never drawn (numpy's ziggurat on 53-bit uniforms cannot return
 # |z| >= 12.23; P(|z| > 13) = 1.2e-38)
 NOISE_BOUND = 13.0
 _FIELDS = ("position_m", "velocity_m_s", "time_s", "fired", "target_m", "friction_factor",
-           "mass_factor", "noise")
+           "mass_factor", "noise", "env_id", "scene")
+_RANDOMISATION = _FIELDS[5:8]
+_SAVED_IN = _FIELDS[8:]
 
 
 @dataclass(frozen=True)
@@ -53,7 +68,8 @@ class PartState:
     since the episode began, ``fired`` [-] actuators fired so far (the next firing is actuator
     ``fired + 1``), ``target_m`` [m]; with randomisation, ``friction_factor`` and ``mass_factor``
     [-] this episode's factors and ``noise`` the ``(n_actuators, 3)`` standard normals of its
-    execution noise (None: the env's own draws)."""
+    execution noise (None: the env's own draws); ``env_id`` and ``scene`` where it was saved
+    (None: built in code, taken as the env's own; module docstring)."""
 
     position_m: float
     velocity_m_s: float
@@ -63,19 +79,25 @@ class PartState:
     friction_factor: float | None = None
     mass_factor: float | None = None
     noise: tuple[tuple[float, float, float], ...] | None = None
+    env_id: str | None = None
+    scene: dict[str, Any] | None = field(default=None, hash=False, repr=False)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-safe dict (the randomisation keys only when set)."""
+        """JSON-safe dict (the randomisation keys only when set; ``env_id`` and ``scene`` when
+        the state names its scene)."""
         d: dict[str, Any] = {k: getattr(self, k) for k in _FIELDS[:5]}
-        for k in _FIELDS[5:]:
+        for k in _RANDOMISATION:
             val = getattr(self, k)
             if val is not None:
                 d[k] = [list(r) for r in val] if k == "noise" else val
+        if self.scene is not None:
+            d["env_id"], d["scene"] = self.env_id, dict(self.scene)
         return d
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> PartState:
-        """The state a dict of :meth:`to_dict` describes (unknown or missing keys refused)."""
+        """The state a dict of :meth:`to_dict` describes (unknown or missing keys refused, a dict
+        without ``env_id`` and ``scene`` too: module docstring)."""
         if not isinstance(d, dict):
             raise ValueError(f"a part state must be a dict or PartState, got {type(d).__name__}")
         unknown = sorted(set(d) - set(_FIELDS))
@@ -83,8 +105,18 @@ class PartState:
         if unknown or missing:
             raise ValueError(f"part state: unknown keys {unknown}, missing keys {missing} "
                              f"(keys: {list(_FIELDS)})")
-        noise = d.get("noise")
-        return cls(**{**d, "noise": None if noise is None else tuple(map(tuple, noise))})
+        if any(k not in d for k in _SAVED_IN):
+            raise ValueError("part state names no env id and scene (keys 'env_id', 'scene'; a "
+                             "state saved before states named them), so it cannot be checked "
+                             "against this env's scene: save it again with "
+                             "env.get_state().to_dict(), or, if it is this env's, start from "
+                             "it in code: PartState(**d)")
+        noise, scene = d.get("noise"), d["scene"]
+        if not isinstance(scene, dict):
+            raise ValueError(f"part state scene = {scene!r} is invalid: must be a mapping of "
+                             "the env config's scene fields")
+        return cls(**{**d, "noise": None if noise is None else tuple(map(tuple, noise)),
+                      "scene": dict(scene)})
 
 
 class StateBounds(NamedTuple):
@@ -131,6 +163,8 @@ def check_state(state: PartState | dict, config: EnvConfig) -> PartState:
     fields only where the config randomises (factors inside its ranges, noise of shape
     ``(n_actuators, 3)``). A one-line ValueError names the field, its value and the range."""
     s = state if isinstance(state, PartState) else PartState.from_dict(state)
+    if s.scene is not None:
+        check_scene(s, config)
     n = config.n_actuators
     fired = s.fired
     if (isinstance(fired, (bool, np.bool_)) or not isinstance(fired, (numbers.Integral,))
@@ -172,7 +206,30 @@ def check_state(state: PartState | dict, config: EnvConfig) -> PartState:
         noise = tuple(map(tuple, arr.tolist()))
     return PartState(x, v, t, int(fired), target,
                      None if ff is None else float(ff), None if mf is None else float(mf),
-                     noise)
+                     noise, s.env_id, s.scene)
+
+
+def check_scene(state: PartState, config: EnvConfig) -> None:
+    """A one-line ValueError if ``state`` was saved in another scene than ``config``'s, naming
+    the fields that differ (saved, here)."""
+    env_id, saved = state.env_id, state.scene
+    if env_id is not None and not isinstance(env_id, str):
+        raise ValueError(f"part state env_id = {env_id!r} is invalid: must be an env id or null")
+    here = scene_of(config)
+    absent = "(absent)"
+
+    def plain(v: Any) -> Any:
+        return list(v) if isinstance(v, tuple) else v
+
+    saved = {k: plain(v) for k, v in (saved or {}).items()}
+    diff = [f"{k}: saved {saved.get(k, absent)!r}, here {here.get(k, absent)!r}"
+            for k in sorted(set(saved) | set(here))
+            if saved.get(k, absent) != here.get(k, absent)]
+    if diff:
+        where = env_id or "an env made without an id"
+        raise ValueError(f"part state saved in {where} is of another scene than this env's: "
+                         f"{'; '.join(diff)} (a state starts an episode only in its own scene; "
+                         "randomisation and runtime knobs may differ)")
 
 
 def reset_state(options: dict[str, Any] | None) -> Any:

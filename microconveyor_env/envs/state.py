@@ -33,6 +33,7 @@ from .part_state import PartState, check_state, reset_state
 from .step import (NO_NOISE, NO_RECORD, Constants, Outputs, Parts, observe_all, step_parallel,
                    step_serial)
 from .threads import ThreadChooser, threads
+from .versions import scene_of
 
 Streams = tuple[np.random.Generator, np.random.Generator]
 # One remembered firing of the observation history (EnvConfig.observe_history): the observation
@@ -213,9 +214,10 @@ class Conveyor:
         if state is not None:
             self._set_state(i, state)
 
-    def get_state(self, i: int) -> PartState:
+    def get_state(self, i: int, env_id: str | None = None) -> PartState:
         """Part ``i``'s state now (with randomisation on, its factors and noise too; not the
-        observation history: an episode started from it starts with an empty history)."""
+        observation history: an episode started from it starts with an empty history), naming
+        ``env_id`` and this config's scene."""
         p = self.parts
         ff = mf = None
         noise = None
@@ -224,7 +226,7 @@ class Conveyor:
             if self.consts.noise.size:
                 noise = tuple(map(tuple, self.consts.noise[i].tolist()))
         return PartState(float(p.x[i]), float(p.v[i]), float(p.t[i]), int(p.fired[i]),
-                         float(p.target[i]), ff, mf, noise)
+                         float(p.target[i]), ff, mf, noise, env_id, scene_of(self.config))
 
     def _set_state(self, i: int, s: PartState) -> None:
         """Put part ``i`` in the checked state ``s``, after its reset (so the fields ``s``

@@ -12,7 +12,7 @@ from gymnasium.vector.utils import batch_space
 
 from ..physics import dynamics_kernel as kernel
 from . import actions as act, task
-from .common import OwnsConveyor, check_render_mode, check_target, conveyor_field
+from .common import OwnsConveyor, check_render_mode, check_target, conveyor_field, spec_id
 from .config import EnvConfig
 from .part_state import PartState
 from .state import Conveyor
@@ -118,8 +118,9 @@ class MicroConveyorVectorEnv(OwnsConveyor, VectorEnv):
         return self._obs()
 
     def get_state(self, i: int) -> PartState:
-        """Sub-env ``i``'s part state now (:class:`~.part_state.PartState`)."""
-        return self.conveyor.get_state(int(i))
+        """Sub-env ``i``'s part state now (:class:`~.part_state.PartState`, naming the env id
+        and the scene)."""
+        return self.conveyor.get_state(int(i), spec_id(self))
 
     def reset(self, *, seed: int | list | None = None,
               options: dict | None = None) -> tuple[np.ndarray, dict]:
