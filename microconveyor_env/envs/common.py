@@ -51,7 +51,7 @@ def check_target(target: object) -> float:
         t = float(target)
     if not (np.isfinite(t) and abs(t) <= limit):
         raise ValueError(f"options['target'] = {target!r} is invalid: must be a finite distance "
-                         f"beyond actuator 1 within +-{limit:g} m")
+                         f"beyond actuator 1 within ±{limit * 1e3:g} mm")
     return t
 
 

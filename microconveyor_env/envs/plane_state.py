@@ -69,7 +69,7 @@ def check_plane_target(target: object) -> tuple[float, float]:
     if arr.shape != (2,) or not np.isfinite(arr).all() or np.abs(arr).max() > limit \
             or isinstance(target, (str, bytes)):
         raise ValueError(f"options['target'] = {target!r} is invalid: must be an (x, y) pair of "
-                         f"finite positions [m] within +-{limit:g} m of actuator 0")
+                         f"finite positions [m] within ±{limit * 1e3:g} mm of actuator 0")
     return float(arr[0]), float(arr[1])
 
 
