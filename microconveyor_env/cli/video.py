@@ -25,14 +25,16 @@ def video_file(text: str) -> str:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def positive(text: str) -> float:
+def frames_per_second(text: str) -> float:
+    """``--fps``: a number in :data:`..envs.video.FPS_RANGE`, checked before any work."""
+    from ..envs.video import FPS_RANGE, check_fps
+
     try:
-        v = float(text)
+        return check_fps(float(text))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"must be a positive finite number, got {text}")
-    return v
+        lo, hi = FPS_RANGE
+        raise argparse.ArgumentTypeError(f"must be a number of frames per second in "
+                                         f"[{lo:g}, {hi:g}], got {text}") from None
 
 
 def number_list(text: str) -> list[float]:
@@ -49,6 +51,7 @@ def number_list(text: str) -> list[float]:
 def video_args(p: argparse.ArgumentParser) -> None:
     """The options every version of the command has."""
     from ..envs.frames import MAX_FRAMES_PER_STROKE
+    from ..envs.video import FPS_RANGE
 
     p.add_argument("--out", type=video_file, default="episode.gif",
                    help="the video: .gif or .mp4, the format by the suffix (default: episode.gif)")
@@ -58,9 +61,10 @@ def video_args(p: argparse.ArgumentParser) -> None:
                    default=DEFAULT_FRAMES,
                    help=f"frames per phase of a firing: the stroke, the slide after it "
                         f"(default: {DEFAULT_FRAMES}; 1: one frame per firing)")
-    p.add_argument("--fps", type=positive, default=None,
-                   help="frames per second (default: the env's render_fps, 4 x frames per "
-                        "stroke: each phase lasts 1/4 s)")
+    p.add_argument("--fps", type=frames_per_second, default=None,
+                   help=f"frames per second, in [{FPS_RANGE[0]:g}, {FPS_RANGE[1]:g}] (default: "
+                        f"the env's render_fps, 4 x frames per stroke: each phase lasts 1/4 s; "
+                        f"at most {FPS_RANGE[1]:g})")
     p.add_argument("--seed", type=int, default=0, help="the episode's seed (its start jitter)")
 
 
@@ -111,7 +115,7 @@ def make_video(args: argparse.Namespace, config: Any, act: Callable[[Any], Any],
     from pathlib import Path
 
     from ..envs import MicroConveyorEnv
-    from ..envs.video import check_writer, episode_frames, write_video
+    from ..envs.video import FPS_RANGE, check_writer, episode_frames, write_video
 
     check_writer(args.out)  # a missing writer fails before the episode is drawn
     env = MicroConveyorEnv(config=config, render_mode="rgb_array_list",
@@ -120,7 +124,7 @@ def make_video(args: argparse.Namespace, config: Any, act: Callable[[Any], Any],
         frames, episode = episode_frames(env, act(env), args.target, seed=args.seed)
     finally:
         env.close()
-    fps = float(args.fps or env.metadata["render_fps"])
+    fps = float(args.fps or min(env.metadata["render_fps"], FPS_RANGE[1]))
     path = write_video(frames, args.out, fps)
     return {"video": str(path), "format": path.suffix[1:].lower(), "frames": len(frames),
             "fps": fps, "duration_s": len(frames) / fps, "bytes": Path(path).stat().st_size,

@@ -51,7 +51,7 @@ def check_target(target: object) -> float:
         t = float(target)
     if not (np.isfinite(t) and abs(t) <= limit):
         raise ValueError(f"options['target'] = {target!r} is invalid: must be a finite distance "
-                         f"beyond actuator 1 within +-{limit:g} m")
+                         f"beyond actuator 1 within ±{limit * 1e3:g} mm")
     return t
 
 
@@ -83,6 +83,12 @@ class OwnsConveyor:
     def positions(self) -> np.ndarray:
         """Actuator positions [m] (float64)."""
         return self.conveyor.positions
+
+
+def spec_id(env: Any) -> str | None:
+    """The registered id ``env`` was made with (``gym.make``, ``make_vec``); None without."""
+    spec = getattr(env, "spec", None)
+    return None if spec is None else str(spec.id)
 
 
 def conveyor_field(path: str, doc: str) -> Any:

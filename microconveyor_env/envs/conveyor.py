@@ -10,8 +10,8 @@ from gymnasium.core import RenderFrame
 
 from ..physics import dynamics_kernel as kernel
 from . import actions, task
-from .common import OwnsConveyor, check_render_mode, check_target
-from .part_state import PartState, reset_state
+from .common import OwnsConveyor, check_render_mode, spec_id
+from .part_state import PartState
 from .config import EnvConfig
 from .frames import EnvRenderer, check_frames_per_stroke
 from .state import Conveyor
@@ -177,12 +177,9 @@ class MicroConveyorEnv(OwnsConveyor, gym.Env):
     # ------------------------------------------------------------------ API
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        resets = self.conveyor.check_reset(options, batched=False)  # before anything changes
         super().reset(seed=seed)
-        state = reset_state(options)
-        given = check_target(options["target"]) if options and "target" in options else None
-        self.conveyor.reset_part(0, self.np_random, given)
-        if state is not None:
-            self.conveyor.set_state(0, state)
+        self.conveyor.reset_part(0, self.np_random, *resets.of(0))
         self._done = False
         self._last_firing = None
         obs = self.conveyor.observe()[0].copy()
@@ -193,8 +190,9 @@ class MicroConveyorEnv(OwnsConveyor, gym.Env):
 
     def get_state(self) -> PartState:
         """The part's state now (:class:`~.part_state.PartState`, SI units): ``reset(options=
-        {"state": s})`` continues the episode from it exactly."""
-        return self.conveyor.get_state(0)
+        {"state": s})`` continues the episode from it exactly. It names the env id and the
+        scene: an env of another scene refuses it."""
+        return self.conveyor.get_state(0, spec_id(self))
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         if self._done:

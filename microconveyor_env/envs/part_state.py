@@ -12,21 +12,52 @@ restart from a saved state.
 As data it is a plain dict of SI numbers with unit-suffixed keys (:meth:`PartState.to_dict`,
 :meth:`PartState.from_dict`), JSON-safe. A state *observed* by a controller leaves the
 randomisation fields ``None``: an env started from it keeps its own (drawn) factors and noise.
+
+A state names where it was saved: ``env_id`` (the registered id the env was made with, ``None``
+for an env made without ``gym.make``) and ``scene``, the env's config fields that are its scene
+(:func:`~.versions.scene_of`: what :func:`~.versions.scene_differences` compares; per-episode
+randomisation, runtime knobs and the reward's weights are not the scene). An env of another
+scene refuses it in one line naming the fields that differ: a position or a firing count means
+something else with other actuators, surfaces or time limits. A dict without ``env_id`` and
+``scene`` (saved before states named them) is refused too, saying how to go on: nothing can
+check it, and a state taken into the wrong scene runs without error and silently means
+something else, which a warning in a long batch would not prevent. A :class:`PartState` built in
+code without a scene (as a controller builds the state it observed) is taken as the env's own:
+the code that built it vouches for it, and ``PartState(**d)`` does the same for a dict.
+
+Bounds (:func:`check_state`; a value outside is refused in one line naming the field, its value
+and the range). With ``h``, ``f`` the top of the scene's ``stroke_range`` and ``freq_range``:
+
+| field | unit | allowed | why |
+|---|---|---|---|
+| ``fired`` | firings | an integer in [0, ``n_actuators`` - 1] | a firing must be left |
+| ``time_s`` | s | [0, ``max_time``) | the episode's time is not spent |
+| ``velocity_m_s`` | m/s | abs at most ``v_max = 2 (15/4) h f + sqrt(2 g h)`` | the surface moves vertically only and drives the part: its fastest point moves at the quintic stroke's peak speed (15/4) h f; twice that, plus the speed of a slide down the highest bump (g = 9.81 m/s²), bounds the part (random firings, measured: at most 0.51 m/s where the peak is 0.75 m/s and ``v_max`` 1.56 m/s, h = 200 µm, f = 1 kHz; at most 0.40 m/s against ``v_max`` = 15.1 m/s on v0's and v1's scenes) |
+| ``position_m`` | m | within ``v_max * max_time`` of the start positions (``-start_offset`` ± ``start_jitter``) | no farther than the part can go in the episode's time |
+| ``target_m`` | m | abs at most 0.1 | where the observation can show it (10 x 10 mm) |
+| ``friction_factor``, ``mass_factor`` | - | the env's ``friction_factor_range``, ``mass_factor_range`` | what the env draws |
+| ``noise`` | - (standard normals) | shape ``(n_actuators, 3)``, abs at most 13; only with ``action_noise`` > 0 | numpy's standard normals never reach 12.23 (P(abs z > 13) = 1.2e-38) |
 """
 from __future__ import annotations
 
 import math
 import numbers
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, field
+from typing import Any, NamedTuple
 
 import numpy as np
 
-from .common import check_target
-from .config import EnvConfig
+from ..physics.materials import G0
+from .config import MAX_TARGET, EnvConfig
+from .versions import scene_of
 
+# standard normals beyond it are never drawn (numpy's ziggurat on 53-bit uniforms cannot return
+# |z| >= 12.23; P(|z| > 13) = 1.2e-38)
+NOISE_BOUND = 13.0
 _FIELDS = ("position_m", "velocity_m_s", "time_s", "fired", "target_m", "friction_factor",
-           "mass_factor", "noise")
+           "mass_factor", "noise", "env_id", "scene")
+_RANDOMISATION = _FIELDS[5:8]
+_SAVED_IN = _FIELDS[8:]
 
 
 @dataclass(frozen=True)
@@ -37,7 +68,8 @@ class PartState:
     since the episode began, ``fired`` [-] actuators fired so far (the next firing is actuator
     ``fired + 1``), ``target_m`` [m]; with randomisation, ``friction_factor`` and ``mass_factor``
     [-] this episode's factors and ``noise`` the ``(n_actuators, 3)`` standard normals of its
-    execution noise (None: the env's own draws)."""
+    execution noise (None: the env's own draws); ``env_id`` and ``scene`` where it was saved
+    (None: built in code, taken as the env's own; module docstring)."""
 
     position_m: float
     velocity_m_s: float
@@ -47,19 +79,25 @@ class PartState:
     friction_factor: float | None = None
     mass_factor: float | None = None
     noise: tuple[tuple[float, float, float], ...] | None = None
+    env_id: str | None = None
+    scene: dict[str, Any] | None = field(default=None, hash=False, repr=False)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-safe dict (the randomisation keys only when set)."""
+        """JSON-safe dict (the randomisation keys only when set; ``env_id`` and ``scene`` when
+        the state names its scene)."""
         d: dict[str, Any] = {k: getattr(self, k) for k in _FIELDS[:5]}
-        for k in _FIELDS[5:]:
+        for k in _RANDOMISATION:
             val = getattr(self, k)
             if val is not None:
                 d[k] = [list(r) for r in val] if k == "noise" else val
+        if self.scene is not None:
+            d["env_id"], d["scene"] = self.env_id, dict(self.scene)
         return d
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> PartState:
-        """The state a dict of :meth:`to_dict` describes (unknown or missing keys refused)."""
+        """The state a dict of :meth:`to_dict` describes (unknown or missing keys refused, a dict
+        without ``env_id`` and ``scene`` too: module docstring)."""
         if not isinstance(d, dict):
             raise ValueError(f"a part state must be a dict or PartState, got {type(d).__name__}")
         unknown = sorted(set(d) - set(_FIELDS))
@@ -67,59 +105,131 @@ class PartState:
         if unknown or missing:
             raise ValueError(f"part state: unknown keys {unknown}, missing keys {missing} "
                              f"(keys: {list(_FIELDS)})")
-        noise = d.get("noise")
-        return cls(**{**d, "noise": None if noise is None else tuple(map(tuple, noise))})
+        if any(k not in d for k in _SAVED_IN):
+            raise ValueError("part state names no env id and scene (keys 'env_id', 'scene'; a "
+                             "state saved before states named them), so it cannot be checked "
+                             "against this env's scene: save it again with "
+                             "env.get_state().to_dict(), or, if it is this env's, start from "
+                             "it in code: PartState(**d)")
+        noise, scene = d.get("noise"), d["scene"]
+        if not isinstance(scene, dict):
+            raise ValueError(f"part state scene = {scene!r} is invalid: must be a mapping of "
+                             "the env config's scene fields")
+        return cls(**{**d, "noise": None if noise is None else tuple(map(tuple, noise)),
+                      "scene": dict(scene)})
 
 
-def _real(name: str, value: object, lo: float = -math.inf, hi: float = math.inf,
-          unit: str = "") -> float:
+class StateBounds(NamedTuple):
+    """What a part can do in a scene (:func:`state_bounds`), SI units."""
+
+    speed_m_s: float                  # |velocity| at most
+    position_m: tuple[float, float]   # (lowest, highest) position
+
+
+def state_bounds(config: EnvConfig) -> StateBounds:
+    """The speed and positions a part can reach in ``config``'s scene (module docstring)."""
+    h, f = config.stroke_range[1], config.freq_range[1]
+    speed = 2.0 * 3.75 * h * f + math.sqrt(2.0 * G0 * h)
+    reach = speed * config.max_time
+    start = -config.start_offset
+    return StateBounds(speed, (start - config.start_jitter - reach,
+                               start + config.start_jitter + reach))
+
+
+def _within(name: str, value: object, lo: float, hi: float, unit: str, scale: float,
+            why: str, hi_open: bool = False) -> float:
+    """``value`` as a float if it is a finite real number in [lo, hi] (SI; ``hi_open``: below
+    hi), else a one-line ValueError naming ``name``, the value and the range in ``unit`` (SI
+    times ``scale``)."""
     x = math.nan
     if isinstance(value, (numbers.Real, np.floating, np.integer)) and not isinstance(
             value, (bool, np.bool_)):
         x = float(value)
-    if not (math.isfinite(x) and lo <= x <= hi):
-        raise ValueError(f"part state {name} = {value!r} is invalid: must be finite in "
-                         f"[{lo:g}, {hi:g}]{' ' + unit if unit else ''}")
-    return x
+    if math.isfinite(x) and lo <= x <= hi and not (hi_open and x == hi):
+        return x
+    u = f" {unit}" if unit else ""
+    shown = repr(value) if math.isnan(x) and not isinstance(value, float) else repr(x)
+    if scale != 1.0 and math.isfinite(x):
+        shown += f" ({x * scale:.6g}{u})"
+    allowed = (f"±{hi * scale:.6g}" if lo == -hi else
+               f"[{lo * scale:.6g}, {hi * scale:.6g}{')' if hi_open else ']'}")
+    raise ValueError(f"part state {name} = {shown} is invalid: must be finite and within "
+                     f"{allowed}{u} ({why})")
 
 
 def check_state(state: PartState | dict, config: EnvConfig) -> PartState:
-    """``state`` (a :class:`PartState` or its dict) checked against ``config``: a firing left
-    (``fired < n_actuators``), time in [0, max_time), finite position and velocity, a valid
-    target, and randomisation fields only where the config randomises (factors inside its
-    ranges, noise of shape ``(n_actuators, 3)``)."""
+    """``state`` (a :class:`PartState` or its dict) checked against ``config``: every field
+    finite and within the scene's bounds (module docstring), a firing left, and randomisation
+    fields only where the config randomises (factors inside its ranges, noise of shape
+    ``(n_actuators, 3)``). A one-line ValueError names the field, its value and the range."""
     s = state if isinstance(state, PartState) else PartState.from_dict(state)
+    if s.scene is not None:
+        check_scene(s, config)
     n = config.n_actuators
     fired = s.fired
     if (isinstance(fired, (bool, np.bool_)) or not isinstance(fired, (numbers.Integral,))
             or not 0 <= int(fired) < n):
         raise ValueError(f"part state fired = {fired!r} is invalid: must be an integer in "
                          f"[0, {n - 1}] (a firing must be left)")
-    limit = 10.0  # m: far beyond any scene (positions are finite, the check catches NaN/inf)
-    x = _real("position_m", s.position_m, -limit, limit, "m")
-    v = _real("velocity_m_s", s.velocity_m_s, unit="m/s")
-    t = _real("time_s", s.time_s, 0.0, config.max_time, "s")
-    if t >= config.max_time:
-        raise ValueError(f"part state time_s = {t!r} is invalid: the episode's max_time "
-                         f"({config.max_time} s) is spent")
-    target = check_target(s.target_m)
+    bounds = state_bounds(config)
+    v_max, (x_lo, x_hi) = bounds.speed_m_s, bounds.position_m
+    x = _within("position_m", s.position_m, x_lo, x_hi, "mm", 1e3,
+                f"reachable from the start in max_time at {v_max * 1e3:.6g} mm/s")
+    v = _within("velocity_m_s", s.velocity_m_s, -v_max, v_max, "mm/s", 1e3,
+                "twice the peak surface speed of the fastest, highest stroke plus a slide down "
+                "its bump")
+    t = _within("time_s", s.time_s, 0.0, config.max_time, "ms", 1e3,
+                "the episode's max_time", hi_open=True)
+    target = _within("target_m", s.target_m, -MAX_TARGET, MAX_TARGET, "mm", 1e3,
+                     "where the observation can show it")
     ff, mf, noise = s.friction_factor, s.mass_factor, s.noise
-    for name, val, rng in (("friction_factor", ff, config.friction_factor_range),
-                           ("mass_factor", mf, config.mass_factor_range)):
+    for name, val, (lo, hi) in (("friction_factor", ff, config.friction_factor_range),
+                                ("mass_factor", mf, config.mass_factor_range)):
         if val is not None:
-            _real(name, val, *rng)
+            _within(name, val, lo, hi, "", 1.0, f"this env's {name}_range")
     if noise is not None:
-        arr = np.asarray(noise, dtype=float)
         if config.action_noise <= 0.0:
             raise ValueError("part state noise is given but the env has no execution noise "
                              "(action_noise = 0)")
-        if arr.shape != (n, 3) or not np.all(np.isfinite(arr)):
-            raise ValueError(f"part state noise must be ({n}, 3) finite numbers, got shape "
+        try:
+            arr = np.asarray(noise, dtype=float)
+        except (TypeError, ValueError):
+            arr = np.full(1, np.nan)
+        if arr.shape != (n, 3):
+            raise ValueError(f"part state noise must be ({n}, 3) numbers, got shape "
                              f"{arr.shape}")
+        bad = np.argwhere(~(np.abs(arr) <= NOISE_BOUND))  # NaN too
+        if len(bad):
+            i, j = bad[0]
+            _within(f"noise[{i}][{j}]", arr[i, j], -NOISE_BOUND, NOISE_BOUND, "", 1.0,
+                    "standard normal draws")
         noise = tuple(map(tuple, arr.tolist()))
     return PartState(x, v, t, int(fired), target,
                      None if ff is None else float(ff), None if mf is None else float(mf),
-                     noise)
+                     noise, s.env_id, s.scene)
+
+
+def check_scene(state: PartState, config: EnvConfig) -> None:
+    """A one-line ValueError if ``state`` was saved in another scene than ``config``'s, naming
+    the fields that differ (saved, here)."""
+    env_id, saved = state.env_id, state.scene
+    if env_id is not None and not isinstance(env_id, str):
+        raise ValueError(f"part state env_id = {env_id!r} is invalid: must be an env id or null")
+    here = scene_of(config)
+    absent = "(absent)"
+
+    def plain(v: Any) -> Any:
+        return list(v) if isinstance(v, tuple) else v
+
+    saved = {k: plain(v) for k, v in (saved or {}).items()}
+    diff = [f"{k}: saved {saved.get(k, absent)!r}, here {here.get(k, absent)!r}"
+            for k in sorted(set(saved) | set(here))
+            if saved.get(k, absent) != here.get(k, absent)]
+    if diff:
+        where = env_id or "an env made without an id"
+        raise ValueError(f"part state saved in {where} is of another scene than this env's: "
+                         f"{'; '.join(diff)} (a state starts an episode only in its own scene; "
+                         "randomisation and runtime knobs may differ)")
 
 
 def reset_state(options: dict[str, Any] | None) -> Any:

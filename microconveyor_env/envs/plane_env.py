@@ -12,7 +12,7 @@ from ..physics import dynamics_kernel as kernel
 from . import plane_task
 from .common import check_render_mode
 from .plane_config import PlaneEnvConfig
-from .plane_state import PlaneConveyor, check_plane_actions, check_plane_target
+from .plane_state import PlaneConveyor, check_plane_actions
 from .plane_step import ACTION_DIM
 
 
@@ -151,10 +151,9 @@ class MicroConveyor2DEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        targets = self.conveyor.check_targets(options, batched=False)  # before anything changes
         super().reset(seed=seed)
-        given = check_plane_target(options["target"]) if options and "target" in options \
-            else None
-        self.conveyor.reset_part(0, self.np_random, given)
+        self.conveyor.reset_part(0, self.np_random, None if targets is None else targets[0])
         self._done = False
         self._last_firing = None
         self._path = [(self.x, self.y)]

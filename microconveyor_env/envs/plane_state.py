@@ -69,7 +69,7 @@ def check_plane_target(target: object) -> tuple[float, float]:
     if arr.shape != (2,) or not np.isfinite(arr).all() or np.abs(arr).max() > limit \
             or isinstance(target, (str, bytes)):
         raise ValueError(f"options['target'] = {target!r} is invalid: must be an (x, y) pair of "
-                         f"finite positions [m] within +-{limit:g} m of actuator 0")
+                         f"finite positions [m] within ±{limit * 1e3:g} mm of actuator 0")
     return float(arr[0]), float(arr[1])
 
 
@@ -114,10 +114,37 @@ class PlaneConveyor:
         self._parallel = BoundCall(step_parallel, args)
         self._observe = BoundCall(observe_all, (self.parts, self.task, self.out.obs))
 
+    def check_targets(self, options: dict[str, Any] | None,
+                      batched: bool) -> list[tuple[float, float]] | None:
+        """Every part's target from reset ``options`` (None: none given, each part draws its
+        own), all checked before any part changes (:func:`check_plane_target`): an ``(x, y)``
+        pair [m] for every part or, ``batched``, an ``(n, 2)`` array, one per part."""
+        if not options or "target" not in options:
+            return None
+        given = options["target"]
+        if not batched:
+            return [check_plane_target(given)]
+        try:
+            tv = np.asarray(given, dtype=float)
+        except (TypeError, ValueError):
+            return [check_plane_target(given)]  # not numbers: refused, naming them
+        if tv.shape not in ((2,), (self.n, 2)):
+            raise ValueError(f"options['target'] has shape {tv.shape}: must be (2,) or "
+                             f"({self.n}, 2) [m]")
+        if tv.ndim == 1:
+            return [check_plane_target(given)] * self.n
+        out = []
+        for i in range(self.n):
+            try:
+                out.append(check_plane_target(tv[i]))
+            except ValueError as exc:
+                raise ValueError(f"env {i}: {exc}") from None
+        return out
+
     def reset_part(self, i: int, rng: np.random.Generator,
                    target: tuple[float, float] | None = None) -> None:
-        """Start part ``i``'s next episode: start and target from ``rng`` (``target``, checked,
-        overrides the drawn one)."""
+        """Start part ``i``'s next episode: start and target from ``rng`` (``target``, as
+        :meth:`check_targets` gives it, overrides the drawn one)."""
         x0, y0, tx, ty = plane_task.initial_state(self.config, rng, target)
         p = self.parts
         p.x[i], p.y[i], p.vx[i], p.vy[i], p.t[i] = x0, y0, 0.0, 0.0, 0.0

@@ -15,7 +15,7 @@ from ..physics import dynamics_kernel as kernel
 from . import plane_task
 from .common import check_render_mode
 from .plane_config import PlaneEnvConfig
-from .plane_state import PlaneConveyor, check_plane_actions, check_plane_target
+from .plane_state import PlaneConveyor, check_plane_actions
 from .plane_step import ACTION_DIM
 
 MAX_ENVS = 1_000_000
@@ -79,29 +79,21 @@ class MicroConveyor2DVectorEnv(VectorEnv):
     target = property(lambda self: np.stack([self.conveyor.parts.tx, self.conveyor.parts.ty], 1),
                       doc="targets (num_envs, 2) [m] (a copy)")
 
-    def _reset_one(self, i: int, options: dict | None) -> None:
-        given = None
-        if options and "target" in options:
-            tv = np.asarray(options["target"], dtype=float)
-            given = check_plane_target(tv[i] if tv.ndim == 2 else options["target"])
-        self.conveyor.reset_part(i, self.rngs[i], given)
+    def _reset_one(self, i: int, target: tuple[float, float] | None = None) -> None:
+        self.conveyor.reset_part(i, self.rngs[i], target)
         self.done[i] = False
 
     def reset(self, *, seed: int | list | None = None,
               options: dict | None = None) -> tuple[np.ndarray, dict]:
+        targets = self.conveyor.check_targets(options, batched=True)  # before anything changes
         if seed is not None:
             seeds = ([int(seed) + i for i in range(self.num_envs)]
                      if isinstance(seed, (int, np.integer)) else [int(s) for s in seed])
             if len(seeds) != self.num_envs:
                 raise ValueError(f"{len(seeds)} seeds for {self.num_envs} envs")
             self.rngs = [seeding.np_random(s)[0] for s in seeds]
-        if options and "target" in options:
-            tv = np.asarray(options["target"], dtype=float)
-            if tv.shape not in ((2,), (self.num_envs, 2)):
-                raise ValueError(f"options['target'] has shape {tv.shape}: must be (2,) or "
-                                 f"({self.num_envs}, 2) [m]")
         for i in range(self.num_envs):
-            self._reset_one(i, options)
+            self._reset_one(i, None if targets is None else targets[i])
         self._started = True
         return self.conveyor.observe().copy(), self._reset_infos()
 
@@ -112,7 +104,7 @@ class MicroConveyor2DVectorEnv(VectorEnv):
         resetting = self.done.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP else \
             np.zeros(self.num_envs, dtype=bool)
         for i in np.flatnonzero(resetting):
-            self._reset_one(int(i), None)
+            self._reset_one(int(i))
         active = ~resetting
         out = self.conveyor.step(a, active)
         codes = out.outcome.copy()
@@ -148,7 +140,7 @@ class MicroConveyor2DVectorEnv(VectorEnv):
                 final_info["_" + key] = mask
         for i in idx:
             final_obs[i] = obs[i].copy()
-            self._reset_one(int(i), None)
+            self._reset_one(int(i))
         reset = self._reset_infos()
         infos = dict(infos)
         for key, val in reset.items():

@@ -7,9 +7,10 @@ arrays, one element or row per part (:mod:`.step`, where the compiled code that 
 :class:`~.actions.ActionConstants` and :class:`~.task.TaskConstants`), and :class:`Conveyor`
 owns them and implements, once for both envs,
 
-* the reset of one part: its initial state and target (:func:`.task.initial_state`), its
-  randomisation streams (derived from the part's generator, re-derived when the generator is
-  replaced) and draws (:mod:`.randomisation`);
+* the reset options of all parts (targets, saved states), checked whole before any part changes
+  (:meth:`Conveyor.check_reset`), and the reset of one part: its initial state and target
+  (:func:`.task.initial_state`), its randomisation streams (derived from the part's generator,
+  re-derived when the generator is replaced) and draws (:mod:`.randomisation`), or a saved state;
 * the step of all parts: one compiled call (:func:`.step.step_serial` or, chosen by
   :class:`.threads.ThreadChooser`, :func:`.step.step_parallel`) with its arguments built once.
 
@@ -19,19 +20,20 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple, TypeVar
 
 import numba
 import numpy as np
 
 from ..physics import dynamics_kernel as kernel
 from . import actions, randomisation, task
-from .common import make_simulator, raise_if_beyond_table
+from .common import check_target, make_simulator, raise_if_beyond_table
 from .config import EnvConfig
-from .part_state import PartState, check_state
+from .part_state import PartState, check_state, reset_state
 from .step import (NO_NOISE, NO_RECORD, Constants, Outputs, Parts, observe_all, step_parallel,
                    step_serial)
 from .threads import ThreadChooser, threads
+from .versions import scene_of
 
 Streams = tuple[np.random.Generator, np.random.Generator]
 # One remembered firing of the observation history (EnvConfig.observe_history): the observation
@@ -39,6 +41,27 @@ Streams = tuple[np.random.Generator, np.random.Generator]
 # [-1, 1] as the decoding clips it, before execution noise) and 1.0 (the slot holds a firing; an
 # empty slot is all zeros)
 HISTORY_ROW = task.OBS_DIM + actions.ACTION_DIM + 1
+T = TypeVar("T")
+
+
+class Resets(NamedTuple):
+    """Checked reset options, one entry per part (None: nothing given, the part draws)."""
+
+    targets: list[float] | None
+    states: list[PartState] | None
+
+    def of(self, i: int) -> tuple[float | None, PartState | None]:
+        """Part ``i``'s (target, state)."""
+        return (None if self.targets is None else self.targets[i],
+                None if self.states is None else self.states[i])
+
+
+def _part(i: int, check: Callable[..., T], *args: Any) -> T:
+    """``check(*args)`` for part ``i`` of a batch, its error naming the part."""
+    try:
+        return check(*args)
+    except ValueError as exc:
+        raise ValueError(f"env {i}: {exc}") from None
 
 
 class BoundCall:
@@ -139,10 +162,39 @@ class Conveyor:
                                                 self.out.obs))
 
     # ------------------------------------------------------------------ reset
-    def reset_part(self, i: int, rng: np.random.Generator, target: float | None = None) -> None:
-        """Start part ``i``'s next episode: start and target from ``rng`` (``target``, checked,
-        overrides the drawn one), then, with randomisation on, its factors and noise from the
-        streams derived from ``rng``."""
+    def check_reset(self, options: dict[str, Any] | None, batched: bool) -> Resets:
+        """Every part's reset from reset ``options``, all checked before any part changes (a
+        refused reset leaves every part as it was): ``"target"`` a distance [m]
+        (:func:`.common.check_target`), ``"state"`` a part state
+        (:func:`.part_state.check_state`), not both. ``batched``: each may also be one per part
+        (a sequence of ``n``); otherwise the one given is every part's."""
+        state = reset_state(options)
+        n = self.n
+        if state is not None:
+            if batched and isinstance(state, (list, tuple)):
+                if len(state) != n:
+                    raise ValueError(f"{len(state)} part states for {n} envs")
+                return Resets(None, [_part(i, check_state, s, self.config)
+                                     for i, s in enumerate(state)])
+            return Resets(None, [check_state(state, self.config)] * n)
+        if options and "target" in options:
+            if not batched:
+                return Resets([check_target(options["target"])], None)
+            try:
+                tv = np.broadcast_to(np.asarray(options["target"], dtype=float), (n,))
+            except (TypeError, ValueError):
+                raise ValueError(f"options['target'] = {options['target']!r} is invalid: give "
+                                 f"one target [m] or {n}, one per env") from None
+            return Resets([_part(i, check_target, t) for i, t in enumerate(tv)], None)
+        return Resets(None, None)
+
+    def reset_part(self, i: int, rng: np.random.Generator, target: float | None = None,
+                   state: PartState | None = None) -> None:
+        """Start part ``i``'s next episode: start and target from ``rng`` (``target`` overrides
+        the drawn one), then, with randomisation on, its factors and noise from the streams
+        derived from ``rng``; then ``state``, if given, in place of all that (its fields left
+        None keep this episode's draws). ``target`` and ``state`` as :meth:`check_reset` gives
+        them."""
         x0, tgt = task.initial_state(self.config, rng, target)
         if self.randomised:
             streams = self._streams[i]
@@ -159,10 +211,13 @@ class Conveyor:
         p.target[i] = tgt
         if self.history_len:
             self.obs[i, task.OBS_DIM:] = 0.0  # a new episode remembers no firing
+        if state is not None:
+            self._set_state(i, state)
 
-    def get_state(self, i: int) -> PartState:
+    def get_state(self, i: int, env_id: str | None = None) -> PartState:
         """Part ``i``'s state now (with randomisation on, its factors and noise too; not the
-        observation history: an episode started from it starts with an empty history)."""
+        observation history: an episode started from it starts with an empty history), naming
+        ``env_id`` and this config's scene."""
         p = self.parts
         ff = mf = None
         noise = None
@@ -171,12 +226,11 @@ class Conveyor:
             if self.consts.noise.size:
                 noise = tuple(map(tuple, self.consts.noise[i].tolist()))
         return PartState(float(p.x[i]), float(p.v[i]), float(p.t[i]), int(p.fired[i]),
-                         float(p.target[i]), ff, mf, noise)
+                         float(p.target[i]), ff, mf, noise, env_id, scene_of(self.config))
 
-    def set_state(self, i: int, state: PartState | dict) -> None:
-        """Put part ``i`` in ``state`` (checked by :func:`.part_state.check_state`): after its
-        reset, so the fields a state leaves None keep this episode's draws."""
-        s = check_state(state, self.config)
+    def _set_state(self, i: int, s: PartState) -> None:
+        """Put part ``i`` in the checked state ``s``, after its reset (so the fields ``s``
+        leaves None keep this episode's draws)."""
         p = self.parts
         p.x[i], p.v[i], p.t[i] = s.position_m, s.velocity_m_s, s.time_s
         p.fired[i] = s.fired

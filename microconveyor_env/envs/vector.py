@@ -12,9 +12,9 @@ from gymnasium.vector.utils import batch_space
 
 from ..physics import dynamics_kernel as kernel
 from . import actions as act, task
-from .common import OwnsConveyor, check_render_mode, check_target, conveyor_field
+from .common import OwnsConveyor, check_render_mode, check_target, conveyor_field, spec_id
 from .config import EnvConfig
-from .part_state import PartState, reset_state
+from .part_state import PartState
 from .state import Conveyor
 
 MAX_ENVS = 1_000_000  # parts in one batch (each costs ~1 kB of state)
@@ -92,19 +92,9 @@ class MicroConveyorVectorEnv(OwnsConveyor, VectorEnv):
     threads = conveyor_field("threads", "Serial or parallel, per step (:mod:`.threads`).")
 
     # ------------------------------------------------------------------ resets
-    def _reset_one(self, i: int, options: dict | None) -> None:
-        given = None
-        state = reset_state(options)
-        if options and "target" in options:
-            tv = np.broadcast_to(np.asarray(options["target"], dtype=float), (self.num_envs,))
-            given = check_target(tv[i])
-        self.conveyor.reset_part(i, self.rngs[i], given)
-        if state is not None:
-            if isinstance(state, (list, tuple)):
-                if len(state) != self.num_envs:
-                    raise ValueError(f"{len(state)} part states for {self.num_envs} envs")
-                state = state[i]
-            self.conveyor.set_state(i, state)
+    def _reset_one(self, i: int, target: float | None = None,
+                   state: PartState | None = None) -> None:
+        self.conveyor.reset_part(i, self.rngs[i], target, state)
         self.done[i] = False
 
     def set_targets(self, indices: Any, targets: Any) -> np.ndarray:
@@ -115,21 +105,26 @@ class MicroConveyorVectorEnv(OwnsConveyor, VectorEnv):
         (agents/rl/targets.py)."""
         idx = np.atleast_1d(np.asarray(indices, dtype=np.int64))
         tv = np.broadcast_to(np.asarray(targets, dtype=float), idx.shape)
+        checked = []  # every target checked before any is set
         for i, t in zip(idx.tolist(), tv.tolist(), strict=True):
             if not 0 <= i < self.num_envs:
                 raise IndexError(f"sub-env {i} of {self.num_envs}")
             if self.fired[i] or self.t[i]:
                 raise ValueError(f"sub-env {i} is in its episode ({self.fired[i]} actuator(s) "
                                  "fired): a target can be set only at an episode's start")
-            self.conveyor.parts.target[i] = check_target(t)
+            checked.append(check_target(t))
+        for i, t in zip(idx.tolist(), checked, strict=True):
+            self.conveyor.parts.target[i] = t
         return self._obs()
 
     def get_state(self, i: int) -> PartState:
-        """Sub-env ``i``'s part state now (:class:`~.part_state.PartState`)."""
-        return self.conveyor.get_state(int(i))
+        """Sub-env ``i``'s part state now (:class:`~.part_state.PartState`, naming the env id
+        and the scene)."""
+        return self.conveyor.get_state(int(i), spec_id(self))
 
     def reset(self, *, seed: int | list | None = None,
               options: dict | None = None) -> tuple[np.ndarray, dict]:
+        resets = self.conveyor.check_reset(options, batched=True)  # before anything changes
         if seed is not None:
             seeds = ([int(seed) + i for i in range(self.num_envs)]
                      if isinstance(seed, (int, np.integer)) else [int(s) for s in seed])
@@ -137,7 +132,7 @@ class MicroConveyorVectorEnv(OwnsConveyor, VectorEnv):
                 raise ValueError(f"{len(seeds)} seeds for {self.num_envs} envs")
             self.rngs = [seeding.np_random(s)[0] for s in seeds]
         for i in range(self.num_envs):
-            self._reset_one(i, options)
+            self._reset_one(i, *resets.of(i))
         self._started = True
         return self._obs(), self._reset_infos()
 
@@ -149,7 +144,7 @@ class MicroConveyorVectorEnv(OwnsConveyor, VectorEnv):
         resetting = self.done.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP else \
             np.zeros(self.num_envs, dtype=bool)
         for i in np.flatnonzero(resetting):
-            self._reset_one(int(i), None)
+            self._reset_one(int(i))
         active = ~resetting
         out = self.conveyor.step(a, active)  # inactive parts report reward 0, MOVING, no firing
         codes = out.outcome.copy()
@@ -184,7 +179,7 @@ class MicroConveyorVectorEnv(OwnsConveyor, VectorEnv):
                 final_info["_" + key] = mask
         for i in idx:
             final_obs[i] = obs[i].copy()
-            self._reset_one(int(i), None)
+            self._reset_one(int(i))
         reset = self._reset_infos()
         infos = dict(infos)
         for key, val in reset.items():

@@ -20,7 +20,7 @@ from .config import EnvConfig
 
 __all__ = ["ALL_ENV_IDS", "ENTRY_POINTS", "ENV_IDS", "GOAL_ENV_IDS", "LATEST", "MAX_ACTUATORS",
            "base_env_id", "check_env_id", "env_config", "nominal", "registered_kwargs",
-           "scene_differences"]
+           "scene_differences", "scene_of"]
 # how an env runs, not what it simulates: may differ between training and evaluation
 RUNTIME_FIELDS = frozenset({"num_threads", "max_steps"})
 # per-episode randomisation: the conditions a policy is tested under, not the scene it acts in
@@ -30,6 +30,7 @@ PERTURBATION_FIELDS = frozenset({"action_noise", "friction_factor_range", "mass_
 # evaluated in the same scene
 REWARD_FIELDS = frozenset({"progress_scale", "progress_horizon", "time_cost", "success_bonus",
                            "detach_penalty"})
+NOT_SCENE = RUNTIME_FIELDS | PERTURBATION_FIELDS | REWARD_FIELDS
 
 
 def check_env_id(env_id: str) -> str:
@@ -67,8 +68,14 @@ def scene_differences(trained: EnvConfig, asked: EnvConfig) -> dict[str, tuple[A
     tasks; runtime knobs, per-episode randomisation and the reward's weights are not the
     scene."""
     a, b = dataclasses.asdict(trained), dataclasses.asdict(asked)
-    skip = RUNTIME_FIELDS | PERTURBATION_FIELDS | REWARD_FIELDS
-    return {k: (a[k], b[k]) for k in a if k not in skip and a[k] != b[k]}
+    return {k: (a[k], b[k]) for k in a if k not in NOT_SCENE and a[k] != b[k]}
+
+
+def scene_of(config: EnvConfig) -> dict[str, Any]:
+    """The fields of ``config`` that are its scene (those :func:`scene_differences` compares),
+    JSON-safe: SI values, ranges as lists."""
+    return {k: list(v) if isinstance(v, tuple) else v
+            for k, v in dataclasses.asdict(config).items() if k not in NOT_SCENE}
 
 
 def nominal(config: EnvConfig) -> EnvConfig:

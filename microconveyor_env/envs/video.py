@@ -10,6 +10,9 @@ frames of ``rgb_array_list`` with ``gymnasium.utils.save_video.save_video`` (mov
 """
 from __future__ import annotations
 
+import math
+import os
+import secrets
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -19,6 +22,11 @@ from gymnasium.wrappers import RecordVideo
 
 EXTRA = 'pip install "microconveyor-env[render]"'
 FORMATS = (".gif", ".mp4")
+# frames per second a video may play at, both formats: a GIF stores each frame's delay in whole
+# centiseconds (Pillow truncates), so 100 fps is its fastest (faster rounds the delay to 0: a
+# video of no length) and 655 s its longest delay; one frame every 10 s is slower than anyone
+# watches an animation
+FPS_RANGE = (0.1, 100.0)
 
 
 class RecordStrokeVideo(RecordVideo):
@@ -86,26 +94,43 @@ def check_writer(path: str | Path) -> Path:
     return p
 
 
+def check_fps(fps: object) -> float:
+    """``fps`` [1/s] as a float if it is a number in :data:`FPS_RANGE`, else ValueError."""
+    lo, hi = FPS_RANGE
+    x = float(fps) if isinstance(fps, (int, float, np.number)) else math.nan
+    if not lo <= x <= hi:  # NaN too
+        raise ValueError(f"fps = {fps!r} is invalid: must be in [{lo:g}, {hi:g}] frames per "
+                         "second (a GIF stores whole centiseconds per frame)")
+    return x
+
+
 def write_video(frames: Sequence[np.ndarray], path: str | Path, fps: float) -> Path:
     """Write ``frames`` (uint8 (H, W, 3)) to ``path``: GIF (looping) or MP4 (H.264, yuv420p)
-    by its suffix, ``fps`` frames per second. Needs imageio (+ imageio-ffmpeg for MP4: the
+    by its suffix, ``fps`` frames per second (:data:`FPS_RANGE`). The video is written to a
+    temporary file beside ``path`` and renamed to it once whole: a failed write leaves an
+    existing file as it was and no partial one. Needs imageio (+ imageio-ffmpeg for MP4: the
     ``render`` extra)."""
     p = check_writer(path)
     if not frames:
         raise ValueError("no frames to write")
-    if not (np.isfinite(fps) and fps > 0):
-        raise ValueError(f"fps = {fps!r} is invalid: must be a positive number")
+    fps = check_fps(fps)
     import imageio.v2 as iio2
     import imageio.v3 as iio
 
     p.parent.mkdir(parents=True, exist_ok=True)
     stack = np.stack(frames)
-    if p.suffix.lower() == ".gif":
-        iio.imwrite(p, stack, extension=".gif", duration=1000.0 / fps, loop=0)
-        return p
-    stack = stack[:, : stack.shape[1] // 2 * 2, : stack.shape[2] // 2 * 2]  # H.264: even sizes
-    with iio2.get_writer(p, format="FFMPEG", mode="I", fps=fps, codec="libx264",
-                         pixelformat="yuv420p", macro_block_size=1) as writer:
-        for frame in stack:
-            writer.append_data(frame)  # type: ignore[attr-defined]
+    # same folder (the rename is atomic), same suffix (the writer picks the format by it)
+    tmp = p.with_name(f".{p.stem}.{secrets.token_hex(4)}.partial{p.suffix}")
+    try:
+        if p.suffix.lower() == ".gif":
+            iio.imwrite(tmp, stack, extension=".gif", duration=1000.0 / fps, loop=0)
+        else:
+            stack = stack[:, : stack.shape[1] // 2 * 2, : stack.shape[2] // 2 * 2]  # even sizes
+            with iio2.get_writer(tmp, format="FFMPEG", mode="I", fps=fps, codec="libx264",
+                                 pixelformat="yuv420p", macro_block_size=1) as writer:
+                for frame in stack:
+                    writer.append_data(frame)  # type: ignore[attr-defined]
+        os.replace(tmp, p)
+    finally:
+        tmp.unlink(missing_ok=True)
     return p

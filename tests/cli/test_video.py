@@ -75,3 +75,63 @@ def test_missing_writer_names_the_extra(monkeypatch):
         check_writer("x.mp4")
     assert "microconveyor-env[render]" in missing_extra(err.value)
     assert check_writer("x.gif").suffix == ".gif"  # a GIF needs no ffmpeg
+
+
+@pytest.mark.parametrize("fps", ["1e-9", "1e9", "0", "nan"])
+def test_fps_out_of_range_is_refused_before_any_work(tmp_path, fps):
+    """Exit 2 with one line naming --fps and its range, before the episode: an existing file
+    is left as it was and nothing is written."""
+    gif = tmp_path / "existing.gif"
+    gif.write_bytes(b"precious")
+    r = run("--fps", fps, "--out", str(gif), "--env-kwargs", "n_actuators:2")
+    assert r.returncode == 2, r.stdout
+    line = r.stderr.strip()
+    assert "\n" not in line and "--fps" in line and "[0.1, 100]" in line, r.stderr
+    assert "internal error" not in line
+    assert gif.read_bytes() == b"precious" and sorted(tmp_path.iterdir()) == [gif]
+
+
+def test_a_failed_write_leaves_the_existing_file_and_no_partial_one(tmp_path, monkeypatch):
+    import numpy as np
+
+    from microconveyor_env.envs import video
+
+    frames = [np.full((8, 8, 3), 60 * k, np.uint8) for k in range(3)]  # distinct: GIF merges
+    gif = tmp_path / "existing.gif"
+    gif.write_bytes(b"precious")
+
+    def broken(path, *args, **kwargs):  # writes half a file, then fails
+        with open(path, "wb") as fh:
+            fh.write(b"GIF89a")
+        raise OSError("disk full")
+
+    monkeypatch.setattr(iio, "imwrite", broken)
+    with pytest.raises(OSError, match="disk full"):
+        video.write_video(frames, gif, 10.0)
+    assert gif.read_bytes() == b"precious" and sorted(tmp_path.iterdir()) == [gif]
+    with pytest.raises(ValueError, match=r"fps = 1000.0 .*\[0.1, 100\]"):
+        video.write_video(frames, gif, 1000.0)
+    monkeypatch.undo()
+    assert video.write_video(frames, gif, 10.0) == gif  # success replaces it, whole
+    assert _frames(gif) == 3 and sorted(tmp_path.iterdir()) == [gif]
+
+
+def test_default_fps_is_held_to_the_range(tmp_path, monkeypatch):
+    """Without --fps the video plays at the env's render_fps (4 x frames per stroke), at most
+    100 fps: 26 frames per stroke would be 104 fps, which a GIF cannot store."""
+    from microconveyor_env.cli import video
+    from microconveyor_env.envs import env_config
+    from microconveyor_env.envs import video as env_video
+
+    def fake_write(frames, path, fps):  # no encoding: only the rate asked for matters
+        path.write_bytes(b"GIF8")
+        return path
+
+    monkeypatch.setattr(env_video, "write_video", fake_write)
+    p = argparse.ArgumentParser()
+    video.video_args(p)
+    args = p.parse_args(["--out", str(tmp_path / "v.gif"), "--frames-per-stroke", "26"])
+    args.out = tmp_path / "v.gif"
+    cfg = env_config("MicroConveyor-v1", n_actuators=1)
+    act, _ = video.schedule_actor(argparse.Namespace(freq=None, stroke=None, delay=None), cfg)
+    assert video.make_video(args, cfg, act)["fps"] == 100.0

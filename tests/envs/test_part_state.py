@@ -2,7 +2,9 @@
 uninterrupted episode (bit for bit on the same machine), in the single and the batched env, with
 and without per-episode randomisation; bad states are refused with the field named."""
 import json
+import math
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -100,8 +102,12 @@ def test_state_round_trips_through_json():
     (dict(noise=[[0.0] * 3] * 5), "noise"),
 ])
 def test_bad_states_are_refused_naming_the_field(change, match):
-    env = MicroConveyorEnv(config=env_config("MicroConveyor-v1"))
-    state = {**PartState(1e-3, 0.01, 1e-3, 1, 4e-3).to_dict(), **change}
+    from microconveyor_env.envs.versions import scene_of
+
+    cfg = env_config("MicroConveyor-v1")
+    env = MicroConveyorEnv(config=cfg)
+    saved = PartState(1e-3, 0.01, 1e-3, 1, 4e-3, env_id="MicroConveyor-v1", scene=scene_of(cfg))
+    state = {**saved.to_dict(), **change}
     with pytest.raises(ValueError, match=match):
         env.reset(options={"state": state})
 
@@ -115,3 +121,96 @@ def test_state_and_target_together_are_refused():
     vec = MicroConveyorVectorEnv(2, config=env_config("MicroConveyor-v1"))
     with pytest.raises(ValueError, match="2 envs"):
         vec.reset(options={"state": [PartState(0.0, 0.0, 0.0, 0, 1e-3)] * 3})
+
+
+GENTLE = np.array([-1.0, -1.0, -1.0], np.float32)
+
+
+def _saved(env_id="MicroConveyor-v1", **kwargs):
+    """A state after one gentle firing in ``gym.make(env_id, **kwargs)``."""
+    env = gym.make(env_id, **kwargs)
+    env.reset(seed=1, options={"target": 5e-3})
+    env.step(GENTLE)
+    return env.unwrapped.get_state()
+
+
+@pytest.mark.parametrize("field, value, shown", [
+    ("velocity_m_s", 1e300, r"velocity_m_s = 1e\+300 .*within ±15062.6 mm/s"),
+    ("velocity_m_s", -16.0, r"velocity_m_s = -16.0 .*within ±15062.6 mm/s"),
+    ("position_m", 20.0, r"position_m = 20.0 .*within \[-15062.8, 15062.5\] mm"),
+    ("noise", 1e300, r"noise\[0\]\[0\] = 1e\+300 .*within ±13 "),
+    ("noise", -14.0, r"noise\[0\]\[0\] = -14.0 .*within ±13 "),
+])
+def test_values_beyond_the_scene_are_refused_naming_field_value_and_range(field, value, shown):
+    """Finite but impossible values: faster than the scene's fastest surface can move a part,
+    farther than it can go in the episode's time, noise draws no standard normal gives."""
+    state = _saved(**RANDOMISED)
+    d = state.to_dict()
+    if field == "noise":
+        d["noise"][0][0] = value
+    else:
+        d[field] = value
+    env = MicroConveyorEnv(config=env_config("MicroConveyor-v1", **RANDOMISED))
+    with pytest.raises(ValueError, match=shown) as err:
+        env.reset(options={"state": d})
+    assert "\n" not in str(err.value)
+
+
+def test_state_bounds_follow_the_scene():
+    """The bounds (module docstring of part_state): twice the stroke's peak surface speed
+    (15/4) h f plus a slide down the highest bump sqrt(2 g h); the distance at that speed for
+    the whole episode from the start; standard normals within 13."""
+    from microconveyor_env.envs.part_state import NOISE_BOUND, state_bounds
+
+    cfg = env_config("MicroConveyor-v1", stroke_range=(100e-6, 150e-6), freq_range=(200.0, 4e3))
+    b = state_bounds(cfg)
+    speed = 2 * 3.75 * 150e-6 * 4e3 + math.sqrt(2 * 9.81 * 150e-6)
+    assert b.speed_m_s == pytest.approx(speed, rel=1e-12)
+    assert b.position_m == pytest.approx((-cfg.start_offset - cfg.start_jitter - speed * cfg.max_time,
+                                          -cfg.start_offset + cfg.start_jitter + speed * cfg.max_time))
+    assert NOISE_BOUND == 13.0
+
+
+def test_json_names_env_id_and_scene():
+    from microconveyor_env.envs.versions import scene_of
+
+    d = json.loads(json.dumps(_saved().to_dict()))
+    assert d["env_id"] == "MicroConveyor-v1"
+    assert d["scene"] == json.loads(json.dumps(scene_of(env_config("MicroConveyor-v1"))))
+    assert d["scene"]["n_actuators"] == 5 and "action_noise" not in d["scene"]
+    vec = gym.make_vec("MicroConveyor-v1", num_envs=2, vectorization_mode="vector_entry_point")
+    vec.reset(seed=0)
+    assert vec.unwrapped.get_state(1).to_dict()["env_id"] == "MicroConveyor-v1"
+    assert PartState.from_dict(d) == _saved()  # and back, equal
+
+
+def test_state_of_another_scene_is_refused_saying_what_differs():
+    state = _saved()
+    for env, differs in ((gym.make("MicroConveyor-v0"), r"preset: saved 'conveyor', here "
+                                                         r"'feasibility'"),
+                         (gym.make("MicroConveyor-v1", n_actuators=7),
+                          r"n_actuators: saved 5, here 7"),
+                         (MicroConveyorVectorEnv(2, config=env_config(
+                             "MicroConveyor-v1", tolerance=20e-6)), "tolerance")):
+        for given in (state, state.to_dict(), json.loads(json.dumps(state.to_dict()))):
+            states = [given, given] if isinstance(env, MicroConveyorVectorEnv) else given
+            with pytest.raises(ValueError, match="saved in MicroConveyor-v1.*" + differs) as e:
+                env.reset(options={"state": states})
+            assert "\n" not in str(e.value)
+    # randomisation and runtime knobs are not the scene: the same scene takes the state
+    for kwargs in ({"action_noise": 0.01}, {"max_steps": 10**6}):
+        env = gym.make("MicroConveyor-v1", **kwargs)
+        env.reset(options={"state": state.to_dict()})
+        assert env.unwrapped.get_state().position_m == state.position_m
+
+
+def test_json_without_env_id_and_scene_is_refused_state_built_in_code_is_taken():
+    state = _saved()
+    old = {k: v for k, v in state.to_dict().items() if k not in ("env_id", "scene")}
+    env = gym.make("MicroConveyor-v1")
+    with pytest.raises(ValueError, match=r"names no env id and scene .*PartState\(\*\*d\)"):
+        env.reset(options={"state": old})
+    with pytest.raises(ValueError, match="names no env id and scene"):
+        PartState.from_dict(old)
+    obs, _ = env.reset(options={"state": PartState(**old)})  # code vouches for its scene
+    assert env.unwrapped.get_state().velocity_m_s == state.velocity_m_s
