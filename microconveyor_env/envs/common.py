@@ -63,12 +63,6 @@ def check_render_mode(render_mode: str | None, supported: Sequence[str]) -> None
                          f"{list(supported)}{hint}")
 
 
-def raise_if_beyond_table(outcome: str, sim: Simulator) -> None:
-    if outcome == "load_beyond_table":
-        raise TableRangeError(f"the normal load left the contact table ({sim.table.max_load:.3g} "
-                              "N) during a stroke; rebuild the table with a larger load_ratio")
-
-
 class OwnsConveyor:
     """What both envs expose of the :class:`~.state.Conveyor` they own (``self.conveyor``)."""
 

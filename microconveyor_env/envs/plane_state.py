@@ -4,8 +4,7 @@ one compiled call per step, serial or numba's parallel loop as :class:`.threads.
 picks; results bit-identical either way)."""
 from __future__ import annotations
 
-import time
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -15,12 +14,10 @@ from ..physics.materials import ParameterError
 from ..physics.plane import PlaneSimulator
 from ..presets import load_preset
 from . import actions, plane_task
-from .common import raise_if_beyond_table
 from .plane_config import PlaneEnvConfig
 from .plane_step import ACTION_DIM, NO_RECORD, PlaneConstants, PlaneOutputs, PlaneParts, \
     observe_all, step_parallel, step_serial
-from .state import BoundCall
-from .threads import ThreadChooser, threads
+from .core.parts import PartsBase
 
 
 def make_plane_simulator(cfg: PlaneEnvConfig) -> PlaneSimulator:
@@ -73,7 +70,17 @@ def check_plane_target(target: object) -> tuple[float, float]:
     return float(arr[0]), float(arr[1])
 
 
-class PlaneConveyor:
+class PlaneResets(NamedTuple):
+    """Checked reset options of a batch of plane parts (None: each part draws its target)."""
+
+    targets: list[tuple[float, float]] | None
+
+    def of(self, i: int) -> tuple[tuple[float, float] | None]:
+        """Part ``i``'s arguments to :meth:`PlaneConveyor.reset_part` after its generator."""
+        return (None if self.targets is None else self.targets[i],)
+
+
+class PlaneConveyor(PartsBase):
     """``n`` parts on one :class:`PlaneEnvConfig`: their state and step (see :mod:`.plane_step`
     for ``parts``, ``consts``, ``action``, ``task``, ``out``). ``num_threads``: as
     :class:`.threads.ThreadChooser` (the single env passes 1). The compiled calls hold these very
@@ -101,18 +108,24 @@ class PlaneConveyor:
             frequency=np.zeros(n), stroke=np.zeros(n), delay=np.zeros(n),
             obs=np.zeros((n, plane_task.OBS_DIM), dtype=np.float32),
             kernel=np.zeros((n, plane_kernel.N_OUT)))
-        self.threads = ThreadChooser(num_threads, n)
-        self.action_input: np.ndarray = np.zeros((n, ACTION_DIM))
-        self._active = np.ones(n, dtype=np.bool_)
-        self._all_active = True
-        self._bind()
+        self.obs_dim: int = plane_task.OBS_DIM
+        self.obs_bound: float = plane_task.OBS_BOUND
+        self._start(n, ACTION_DIM, num_threads)
 
-    def _bind(self) -> None:
-        args = (self.action_input, self._active, self.parts, self.consts, self.action, self.task,
-                self.out)
-        self._serial = BoundCall(step_serial, args)
-        self._parallel = BoundCall(step_parallel, args)
-        self._observe = BoundCall(observe_all, (self.parts, self.task, self.out.obs))
+    @property
+    def obs(self) -> np.ndarray:
+        """Every part's observation after the last step or observe (``out.obs``)."""
+        return self.out.obs
+
+    def compiled(self) -> tuple[Any, Any, Any, tuple[Any, ...]]:
+        return step_serial, step_parallel, observe_all, (self.parts, self.task, self.out.obs)
+
+    def table_simulator(self) -> Any:
+        return self.sim.line
+
+    def check_reset(self, options: dict[str, Any] | None, batched: bool) -> PlaneResets:
+        """Every part's reset from reset ``options``, all checked before any part changes."""
+        return PlaneResets(self.check_targets(options, batched))
 
     def check_targets(self, options: dict[str, Any] | None,
                       batched: bool) -> list[tuple[float, float]] | None:
@@ -155,43 +168,3 @@ class PlaneConveyor:
         """Every part's observation, into (and returned as) ``out.obs``: copy to keep it."""
         self._observe()
         return self.out.obs
-
-    def step(self, a: np.ndarray, active: np.ndarray | None = None) -> PlaneOutputs:
-        """Fire one actuator for each part (``active``: those parts only) with the actions ``a``
-        (N, 5) (as checked by :func:`check_plane_actions`); returns ``out``. Raises
-        ``TableRangeError`` if a stroke loaded a part beyond the contact table."""
-        if a is not self.action_input:
-            self.action_input[:] = a
-        if active is not None:
-            self._active[:] = active
-            self._all_active = False
-        elif not self._all_active:
-            self._active.fill(True)
-            self._all_active = True
-        chooser = self.threads
-        if chooser.fixed is not None:
-            beyond = self._run(chooser.fixed)
-        else:
-            k = chooser.choose()
-            t0 = time.perf_counter()
-            beyond = self._run(k)
-            chooser.record(k, time.perf_counter() - t0, int(self._active.sum()))
-        if beyond:
-            raise_if_beyond_table("load_beyond_table", self.sim.line)
-        return self.out
-
-    def _run(self, k: int) -> int:
-        if k == 1:
-            return int(self._serial())
-        with threads(k):
-            return int(self._parallel())
-
-    def __getstate__(self) -> dict[str, Any]:
-        state = self.__dict__.copy()
-        for name in ("_serial", "_parallel", "_observe"):
-            del state[name]
-        return state
-
-    def __setstate__(self, state: dict[str, Any]) -> None:
-        self.__dict__.update(state)
-        self._bind()

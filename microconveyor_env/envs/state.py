@@ -12,27 +12,26 @@ owns them and implements, once for both envs,
   (:func:`.task.initial_state`), its randomisation streams (derived from the part's generator,
   re-derived when the generator is replaced) and draws (:mod:`.randomisation`), or a saved state;
 * the step of all parts: one compiled call (:func:`.step.step_serial` or, chosen by
-  :class:`.threads.ThreadChooser`, :func:`.step.step_parallel`) with its arguments built once.
+  :class:`.threads.ThreadChooser`, :func:`.step.step_parallel`) with its arguments built once,
+  through the container every scene shares (:class:`.core.parts.PartsBase`).
 
 Everything Gym-specific (spaces, seeding, info dicts, autoreset, rendering) stays in the envs.
 """
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from typing import Any, NamedTuple, TypeVar
 
-import numba
 import numpy as np
 
 from ..physics import dynamics_kernel as kernel
 from . import actions, randomisation, task
-from .common import check_target, make_simulator, raise_if_beyond_table
+from .common import check_target, make_simulator
+from .core.parts import PartsBase
 from .config import EnvConfig
 from .part_state import PartState, check_state, reset_state
 from .step import (NO_NOISE, NO_RECORD, Constants, Outputs, Parts, observe_all, step_parallel,
                    step_serial)
-from .threads import ThreadChooser, threads
 from .versions import scene_of
 
 Streams = tuple[np.random.Generator, np.random.Generator]
@@ -64,40 +63,7 @@ def _part(i: int, check: Callable[..., T], *args: Any) -> T:
         raise ValueError(f"env {i}: {exc}") from None
 
 
-class BoundCall:
-    """A compiled function bound to arguments whose numba types never change (arrays that are
-    only ever written in place, immutable NamedTuples).
-
-    The first call goes through numba's dispatcher (which compiles or loads the cache and picks
-    the overload from the arguments' types); later calls go straight to that overload's native
-    entry point. numba's dispatcher has no fast path for NamedTuples: resolving the types of the
-    step's ~40 fields costs ~15 us per call (measured: 18 us against 3 us for the whole call of
-    a single part that only observes), half of a typical single-env step. Where the entry point
-    cannot be had (JIT disabled, or numba picked an overload for converted types), every call
-    goes through the dispatcher.
-    """
-
-    __slots__ = ("fn", "args", "entry")
-
-    def __init__(self, fn: Callable[..., Any], args: tuple[Any, ...]) -> None:
-        self.fn = fn
-        self.args = args
-        self.entry: Callable[..., Any] | None = None
-
-    def __call__(self) -> Any:
-        entry = self.entry
-        if entry is not None:
-            return entry(*self.args)
-        result = self.fn(*self.args)
-        try:
-            sig = tuple(numba.typeof(a) for a in self.args)
-            self.entry = self.fn.get_overload(sig)  # type: ignore[attr-defined]
-        except (AttributeError, KeyError, TypeError, ValueError):
-            self.entry = self.fn
-        return result
-
-
-class Conveyor:
+class Conveyor(PartsBase):
     """``n`` parts on one configuration: their state, per-episode randomisation and step.
 
     ``parts`` (x, v, t, fired, target), ``consts`` (dt, min_steps, positions, P, noise, tables),
@@ -130,7 +96,6 @@ class Conveyor:
                            stroke=np.zeros(n), delay=np.zeros(n),
                            obs=np.zeros((n, task.OBS_DIM), dtype=np.float32),
                            kernel=np.zeros((n, kernel.N_OUT)))
-        self.threads = ThreadChooser(num_threads, n)
         # per-episode randomisation (randomisation.py): the factors drawn, and each part's streams
         # with the generator they were derived from (re-derived when it is replaced)
         self.randomised: bool = config.randomised
@@ -143,23 +108,16 @@ class Conveyor:
         # the compiled step's own rows (``out.obs``, the same array: nothing is copied)
         self.history_len: int = config.observe_history
         self.obs_dim: int = task.OBS_DIM + self.history_len * HISTORY_ROW
+        self.obs_bound: float = task.OBS_BOUND
         self.obs: np.ndarray = (self.out.obs if self.history_len == 0 else
                                 np.zeros((n, self.obs_dim), dtype=np.float32))
         # the compiled calls' inputs (owned, so their types never change) and the calls; the envs
         # check their actions straight into ``action_input`` (actions.check_actions(out=...))
-        self.action_input: np.ndarray = np.zeros((n, actions.ACTION_DIM))
-        self._active = np.ones(n, dtype=np.bool_)
-        self._all_active = True
-        self._bind()
+        self._start(n, actions.ACTION_DIM, num_threads)
 
-    def _bind(self) -> None:
-        """The compiled calls, their arguments built once."""
-        args = (self.action_input, self._active, self.parts, self.consts, self.action, self.task,
-                self.out)
-        self._serial = BoundCall(step_serial, args)
-        self._parallel = BoundCall(step_parallel, args)
-        self._observe = BoundCall(observe_all, (self.parts, self.positions, self.task,
-                                                self.out.obs))
+    def compiled(self) -> tuple[Any, Any, Any, tuple[Any, ...]]:
+        return step_serial, step_parallel, observe_all, (self.parts, self.positions, self.task,
+                                                         self.out.obs)
 
     # ------------------------------------------------------------------ reset
     def check_reset(self, options: dict[str, Any] | None, batched: bool) -> Resets:
@@ -258,31 +216,9 @@ class Conveyor:
             self.obs[:, :task.OBS_DIM] = self.out.obs
         return self.obs
 
-    def step(self, a: np.ndarray, active: np.ndarray | None = None) -> Outputs:
-        """Fire the next actuator of each part (``active``: those parts only; default all) with
-        the actions ``a`` (N, 3) (as checked by :func:`.actions.check_actions`); returns ``out``.
-        Raises ``TableRangeError`` if a stroke loaded a part beyond the contact table."""
-        if a is not self.action_input:
-            self.action_input[:] = a
-        if active is not None:
-            self._active[:] = active
-            self._all_active = False
-        elif not self._all_active:
-            self._active.fill(True)
-            self._all_active = True
-        chooser = self.threads
-        if chooser.fixed is not None:  # nothing to choose or measure
-            beyond = self._run(chooser.fixed)
-        else:
-            k = chooser.choose()
-            t0 = time.perf_counter()
-            beyond = self._run(k)
-            chooser.record(k, time.perf_counter() - t0, int(self._active.sum()))
-        if beyond:
-            raise_if_beyond_table("load_beyond_table", self.sim)
+    def _after_step(self) -> None:
         if self.history_len:
             self._remember(self._all_active)
-        return self.out
 
     def _remember(self, everyone: bool) -> None:
         """After a step: each active part's history shifts by one slot and slot 0 takes the
@@ -299,21 +235,3 @@ class Conveyor:
         hist[rows, 1:] = hist[rows, :-1].copy()
         hist[rows, 0] = latest
         self.obs[:, :od] = self.out.obs
-
-    def _run(self, k: int) -> int:
-        """Step with ``k`` threads; the number of parts that left the contact table."""
-        if k == 1:
-            return int(self._serial())
-        with threads(k):
-            return int(self._parallel())
-
-    # ------------------------------------------------------------------ pickling
-    def __getstate__(self) -> dict[str, Any]:
-        state = self.__dict__.copy()
-        for name in ("_serial", "_parallel", "_observe"):  # native entry points do not pickle
-            del state[name]
-        return state
-
-    def __setstate__(self, state: dict[str, Any]) -> None:
-        self.__dict__.update(state)
-        self._bind()

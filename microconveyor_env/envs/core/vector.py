@@ -1,0 +1,194 @@
+"""The batched env every scene shares: N independent sub-envs stepped by one compiled call.
+
+:class:`BatchedEnv` is Gymnasium's ``VectorEnv`` written once: argument checks, per-sub-env
+generators seeded ``seed + i`` (as ``SyncVectorEnv`` seeds them, so a batched rollout is the
+single envs' rollouts bit for bit), reset options checked whole before any sub-env changes,
+``NEXT_STEP`` and ``SAME_STEP`` autoreset (``final_obs`` / ``final_info``), and the step's info
+dict. A scene subclasses it with its config class, its part container (:mod:`.parts`), how its
+reset options are checked and what its info rows hold.
+"""
+from __future__ import annotations
+
+import numbers
+from typing import Any, ClassVar
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from ...physics import dynamics_kernel as kernel
+from ..common import check_render_mode
+
+MAX_ENVS = 1_000_000  # parts in one batch (each costs ~1 kB of state)
+
+
+class BatchedEnv(VectorEnv):
+    """``num_envs`` independent copies of a scene's single env (see the subclasses:
+    :class:`~..vector.MicroConveyorVectorEnv`, :class:`~..plane_vector.MicroConveyor2DVectorEnv`).
+
+    A subclass sets :attr:`config_class`, :attr:`step_info` (the per-firing info keys: name,
+    the output array's field, the value a sub-env reset in the same step reports) and
+    implements :meth:`_conveyor` (its part container), :meth:`_episode_limit` (the most steps
+    an episode of the config takes), :meth:`_check_reset` (every sub-env's reset arguments from
+    the options, checked before any changes), :meth:`_check_actions` and :meth:`_infos`.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 4,
+                "autoreset_mode": AutoresetMode.NEXT_STEP}
+    config_class: ClassVar[type]
+    step_info: ClassVar[tuple[tuple[str, str, float], ...]] = ()
+    conveyor: Any
+
+    def __init__(self, num_envs: int = 1, render_mode: str | None = None,
+                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+                 config: Any = None, max_episode_steps: int | None = None,
+                 **kwargs: Any) -> None:
+        if (isinstance(num_envs, bool) or not isinstance(num_envs, numbers.Integral)
+                or not 1 <= num_envs <= MAX_ENVS):
+            raise ValueError(f"num_envs = {num_envs!r} is invalid: must be an integer in "
+                             f"[1, {MAX_ENVS}]")
+        check_render_mode(render_mode, self.metadata["render_modes"])
+        self.autoreset_mode: AutoresetMode = AutoresetMode(autoreset_mode)
+        if self.autoreset_mode == AutoresetMode.DISABLED:
+            raise ValueError("autoreset_mode DISABLED is not supported; use NEXT_STEP or SAME_STEP")
+        self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
+        if config is not None and kwargs:
+            raise ValueError("give either config= or keyword overrides, not both")
+        name = self.config_class.__name__
+        if config is not None and not isinstance(config, self.config_class):
+            article = "an" if name[0] in "AEIOU" else "a"
+            raise ValueError(f"config must be {article} {name}, got {type(config).__name__}")
+        self.config = config or self.config_class.from_yaml(**kwargs)
+        # make_vec passes the spec's step limit; an episode ends by itself within
+        # _episode_limit() steps, so a lower limit (which the single env's TimeLimit would
+        # apply) is refused
+        limit, what = self._episode_limit()
+        if max_episode_steps is not None and max_episode_steps < limit:
+            raise ValueError(f"max_episode_steps={max_episode_steps} is below {what}: episodes "
+                             f"would be cut short; pass max_episode_steps={limit}")
+        self.num_envs = n = int(num_envs)
+        self.render_mode = render_mode
+        self.conveyor = self._conveyor(n)
+        c = self.conveyor
+        self.single_action_space = spaces.Box(-1.0, 1.0, (c.action_input.shape[1],), np.float32)
+        self.single_observation_space = spaces.Box(-c.obs_bound, c.obs_bound, (c.obs_dim,),
+                                                   np.float32)
+        self.action_space = batch_space(self.single_action_space, n)
+        self.observation_space = batch_space(self.single_observation_space, n)
+        self.done: np.ndarray = np.zeros(n, dtype=bool)
+        self.rngs: list[np.random.Generator] = [seeding.np_random(None)[0] for _ in range(n)]
+        self._started: bool = False
+
+    # ------------------------------------------------------------------ what a scene adds
+    def _conveyor(self, n: int) -> Any:
+        raise NotImplementedError
+
+    def _episode_limit(self) -> tuple[int, str]:
+        """The most steps an episode takes, and how to say it."""
+        raise NotImplementedError
+
+    def _check_reset(self, options: dict | None) -> Any:
+        """Every sub-env's reset from ``options``, checked whole: an object whose ``of(i)``
+        gives sub-env ``i``'s arguments to the container's ``reset_part``."""
+        raise NotImplementedError
+
+    def _check_actions(self, actions: Any) -> np.ndarray:
+        raise NotImplementedError
+
+    def _infos(self, outcome: np.ndarray, success: np.ndarray) -> dict:
+        """The info rows every step and reset returns (with their ``_key`` masks)."""
+        raise NotImplementedError
+
+    # ------------------------------------------------------------------ resets
+    def _reset_one(self, i: int, *args: Any) -> None:
+        self.conveyor.reset_part(i, self.rngs[i], *args)
+        self.done[i] = False
+
+    def reset(self, *, seed: int | list | None = None,
+              options: dict | None = None) -> tuple[np.ndarray, dict]:
+        resets = self._check_reset(options)  # before anything changes
+        if seed is not None:
+            seeds = ([int(seed) + i for i in range(self.num_envs)]
+                     if isinstance(seed, (int, np.integer)) else [int(s) for s in seed])
+            if len(seeds) != self.num_envs:
+                raise ValueError(f"{len(seeds)} seeds for {self.num_envs} envs")
+            self.rngs = [seeding.np_random(s)[0] for s in seeds]
+        for i in range(self.num_envs):
+            self._reset_one(i, *resets.of(i))
+        self._started = True
+        return self._obs(), self._reset_infos()
+
+    # ------------------------------------------------------------------ step
+    def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
+        if not self._started:
+            raise RuntimeError("call reset() before step()")
+        a = self._check_actions(actions)
+        resetting = self.done.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP else \
+            np.zeros(self.num_envs, dtype=bool)
+        for i in np.flatnonzero(resetting):
+            self._reset_one(int(i))
+        active = ~resetting
+        out = self.conveyor.step(a, active)  # inactive parts report reward 0, MOVING, no firing
+        codes = out.outcome.copy()
+        terminated = active & ((codes == kernel.REST) | (codes == kernel.DETACHED))
+        truncated = active & ((codes == kernel.MAX_TIME) | (codes == kernel.TOO_MANY_EVENTS))
+        rew = np.where(active, out.reward, 0.0)
+        self.done = terminated | truncated
+        obs = self.conveyor.obs.copy()
+        infos = self._infos(np.array(kernel.OUTCOMES, dtype=object)[codes], active & out.success)
+        for key, field, _ in self.step_info:
+            infos[key], infos["_" + key] = getattr(out, field).copy(), active.copy()
+        if self.autoreset_mode == AutoresetMode.SAME_STEP and self.done.any():
+            infos = self._same_step_reset(obs, infos)
+            obs = self._obs()
+        return obs, rew, terminated, truncated, infos
+
+    def _same_step_reset(self, obs: np.ndarray, infos: dict) -> dict:
+        """Reset finished sub-envs now; as SyncVectorEnv does, their last observation and info go
+        to ``final_obs`` / ``final_info`` and the top-level info rows become the reset info."""
+        finished = self.done.copy()
+        idx = np.flatnonzero(finished)
+        final_obs = np.full(self.num_envs, None, dtype=object)
+        final_info: dict[str, Any] = {}
+        for key, val in infos.items():
+            if not key.startswith("_"):
+                mask = np.zeros(self.num_envs, bool)
+                mask[idx] = infos["_" + key][idx]
+                blank = (np.full(self.num_envs, None, dtype=object) if val.dtype == object
+                         else np.zeros_like(val))
+                shaped = mask.reshape((-1,) + (1,) * (val.ndim - 1))
+                final_info[key] = np.where(shaped, val, blank)
+                final_info["_" + key] = mask
+        for i in idx:
+            final_obs[i] = obs[i].copy()
+            self._reset_one(int(i))
+        reset = self._reset_infos()
+        infos = dict(infos)
+        for key, val in reset.items():
+            if not key.startswith("_"):
+                infos[key] = infos[key].copy()
+                infos[key][idx] = val[idx]
+        for key, _, after_reset in self.step_info:  # step-only keys: absent after a reset
+            infos[key] = np.where(finished, after_reset, infos[key])
+            infos["_" + key] = infos["_" + key] & ~finished
+        infos["final_obs"], infos["_final_obs"] = final_obs, finished
+        infos["final_info"], infos["_final_info"] = final_info, finished.copy()
+        return infos
+
+    # ------------------------------------------------------------------ helpers
+    def _obs(self) -> np.ndarray:
+        return self.conveyor.observe().copy()
+
+    def _reset_infos(self) -> dict:
+        return self._infos(np.full(self.num_envs, "moving", dtype=object),
+                           np.zeros(self.num_envs, dtype=bool))
+
+    @staticmethod
+    def _with_masks(infos: dict, n: int) -> dict:
+        """``infos`` with a ``_key`` mask (all True) beside each key."""
+        ok = np.ones(n, dtype=bool)
+        for key in list(infos):
+            infos["_" + key] = ok.copy()
+        return infos
