@@ -69,34 +69,4 @@ def encode_actions(f: npt.ArrayLike, h: npt.ArrayLike, delay: npt.ArrayLike,
                     -1).astype(np.float32)
 
 
-def check_actions(actions: npt.ArrayLike, n: int | None,
-                  out: np.ndarray | None = None) -> np.ndarray:
-    """float64 ``(n, 3)`` copy of the actions, checked (written into ``out``, a float64
-    ``(n, 3)`` array, when given, and returned).
-
-    ``n = None`` is the single env: exactly shape ``(3,)``; otherwise exactly ``(n, 3)``. A wrong
-    shape, a non-numeric dtype (bool, complex, str, object) or NaN/inf raise ``ValueError``.
-    """
-    expected = (3,) if n is None else (n, 3)
-    what = ("one action of 3 components (frequency, stroke, delay)" if n is None else
-            f"{n} actions of 3 components (frequency, stroke, delay)")
-    try:
-        raw = np.asarray(actions)
-    except (TypeError, ValueError) as exc:  # ragged nested sequences
-        raise ValueError(f"expected {what}, shape {expected}; got {type(actions).__name__} "
-                         f"that is not an array ({exc})") from None
-    if raw.shape != expected:
-        raise ValueError(f"expected {what}, shape {expected}; got shape {raw.shape}")
-    if raw.dtype.kind not in "iuf":
-        raise ValueError(f"expected {what} as real numbers; got dtype {raw.dtype}")
-    if out is None:
-        a = raw.astype(np.float64).reshape(-1, 3)
-    else:
-        a = out
-        a[...] = raw.reshape(-1, 3)  # the cast astype would do
-    if not np.isfinite(a).all():
-        raise ValueError(f"action contains NaN or inf: {a.tolist()}")
-    return a
-
-
 refresh_jit_cache(globals())

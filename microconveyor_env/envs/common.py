@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -53,14 +52,6 @@ def check_target(target: object) -> float:
         raise ValueError(f"options['target'] = {target!r} is invalid: must be a finite distance "
                          f"beyond actuator 1 within ±{limit * 1e3:g} mm")
     return t
-
-
-def check_render_mode(render_mode: str | None, supported: Sequence[str]) -> None:
-    if render_mode is not None and render_mode not in supported:
-        hint = "" if "human" in supported else (" (a window: the single env's render_mode "
-                                                 "'human', with the render extra)")
-        raise ValueError(f"render_mode {render_mode!r} not supported; use None or one of "
-                         f"{list(supported)}{hint}")
 
 
 class OwnsConveyor:

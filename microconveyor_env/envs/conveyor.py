@@ -10,7 +10,8 @@ from gymnasium.core import RenderFrame
 
 from ..physics import dynamics_kernel as kernel
 from . import actions, task
-from .common import OwnsConveyor, check_render_mode, spec_id
+from .common import OwnsConveyor, spec_id
+from .core.checks import check_actions, check_render_mode
 from .part_state import PartState
 from .config import EnvConfig
 from .frames import EnvRenderer, check_frames_per_stroke
@@ -198,7 +199,7 @@ class MicroConveyorEnv(OwnsConveyor, gym.Env):
         if self._done:
             raise RuntimeError("step() called on a finished episode: call reset() first")
         c = self.conveyor
-        a = actions.check_actions(action, None, out=c.action_input)
+        a = check_actions(action, None, out=c.action_input)
         k = int(c.parts.fired[0])
         xa = float(c.positions[k])
         # the state before the firing, kept only to draw it (rgb_array_list, human)

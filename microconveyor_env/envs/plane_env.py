@@ -10,7 +10,7 @@ from gymnasium.core import RenderFrame
 
 from ..physics import dynamics_kernel as kernel
 from . import plane_task
-from .common import check_render_mode
+from .core.checks import check_render_mode
 from .plane_config import PlaneEnvConfig
 from .plane_state import PlaneConveyor, check_plane_actions
 from .plane_step import ACTION_DIM

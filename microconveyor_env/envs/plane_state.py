@@ -17,6 +17,7 @@ from . import actions, plane_task
 from .plane_config import PlaneEnvConfig
 from .plane_step import ACTION_DIM, NO_RECORD, PlaneConstants, PlaneOutputs, PlaneParts, \
     observe_all, step_parallel, step_serial
+from .core.checks import check_actions
 from .core.parts import PartsBase
 
 
@@ -33,26 +34,12 @@ def make_plane_simulator(cfg: PlaneEnvConfig) -> PlaneSimulator:
     return sim
 
 
+PLANE_COMPONENTS = ("aim x", "aim y", "frequency", "stroke", "delay")
+
+
 def check_plane_actions(raw_actions: Any, n: int | None, out: np.ndarray) -> np.ndarray:
-    """Check actions into ``out`` (float64 ``(n, 5)``) and return it: ``n = None`` is the single
-    env (exactly shape ``(5,)``), otherwise exactly ``(n, 5)``; a wrong shape, a non-numeric
-    dtype or NaN/inf raise ``ValueError`` (values outside [-1, 1] are clipped when decoded)."""
-    expected = (ACTION_DIM,) if n is None else (n, ACTION_DIM)
-    what = ("one action of 5 components (aim x, aim y, frequency, stroke, delay)" if n is None
-            else f"{n} actions of 5 components (aim x, aim y, frequency, stroke, delay)")
-    try:
-        raw = np.asarray(raw_actions)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"expected {what}, shape {expected}; got "
-                         f"{type(raw_actions).__name__} that is not an array ({exc})") from None
-    if raw.shape != expected:
-        raise ValueError(f"expected {what}, shape {expected}; got shape {raw.shape}")
-    if raw.dtype.kind not in "iuf":
-        raise ValueError(f"expected {what} as real numbers; got dtype {raw.dtype}")
-    out[...] = raw.reshape(-1, ACTION_DIM)
-    if not np.isfinite(out).all():
-        raise ValueError(f"action contains NaN or inf: {raw.tolist()}")
-    return out
+    """:func:`.core.checks.check_actions` of the plane's five components, into ``out``."""
+    return check_actions(raw_actions, n, out, PLANE_COMPONENTS)
 
 
 def check_plane_target(target: object) -> tuple[float, float]:

@@ -112,7 +112,7 @@ class Conveyor(PartsBase):
         self.obs: np.ndarray = (self.out.obs if self.history_len == 0 else
                                 np.zeros((n, self.obs_dim), dtype=np.float32))
         # the compiled calls' inputs (owned, so their types never change) and the calls; the envs
-        # check their actions straight into ``action_input`` (actions.check_actions(out=...))
+        # check their actions straight into ``action_input`` (core.checks.check_actions(out=...))
         self._start(n, actions.ACTION_DIM, num_threads)
 
     def compiled(self) -> tuple[Any, Any, Any, tuple[Any, ...]]:

@@ -6,9 +6,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from . import actions as act
 from .common import OwnsConveyor, check_target, conveyor_field, spec_id
 from .config import EnvConfig
+from .core.checks import check_actions
 from .core.vector import MAX_ENVS, BatchedEnv
 from .part_state import PartState
 from .state import Conveyor, Resets
@@ -53,7 +53,7 @@ class MicroConveyorVectorEnv(OwnsConveyor, BatchedEnv):
         return self.conveyor.check_reset(options, batched=True)
 
     def _check_actions(self, actions: Any) -> np.ndarray:
-        return act.check_actions(actions, self.num_envs, out=self.conveyor.action_input)
+        return check_actions(actions, self.num_envs, out=self.conveyor.action_input)
 
     # the parts' state (arrays, one element per sub-env; written in place) and configuration
     x = conveyor_field("parts.x", "Positions [m].")

@@ -19,7 +19,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from ...physics import dynamics_kernel as kernel
-from ..common import check_render_mode
+from .checks import check_render_mode
 
 MAX_ENVS = 1_000_000  # parts in one batch (each costs ~1 kB of state)
 

@@ -1,0 +1,50 @@
+"""Checks every scene's envs apply to what a user passes: actions, render modes."""
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import numpy.typing as npt
+
+
+def check_actions(actions: npt.ArrayLike, n: int | None, out: np.ndarray | None = None,
+                  components: Sequence[str] = ("frequency", "stroke", "delay")) -> np.ndarray:
+    """float64 ``(n, k)`` copy of the actions, checked (written into ``out``, a float64
+    ``(n, k)`` array, when given, and returned); ``k`` is the number of ``components`` (named in
+    messages).
+
+    ``n = None`` is the single env: exactly shape ``(k,)``; otherwise exactly ``(n, k)``. A wrong
+    shape, a non-numeric dtype (bool, complex, str, object) or NaN/inf raise ``ValueError``
+    (values outside [-1, 1] are clipped when decoded).
+    """
+    k = len(components)
+    expected = (k,) if n is None else (n, k)
+    names = ", ".join(components)
+    what = (f"one action of {k} components ({names})" if n is None else
+            f"{n} actions of {k} components ({names})")
+    try:
+        raw = np.asarray(actions)
+    except (TypeError, ValueError) as exc:  # ragged nested sequences
+        raise ValueError(f"expected {what}, shape {expected}; got {type(actions).__name__} "
+                         f"that is not an array ({exc})") from None
+    if raw.shape != expected:
+        raise ValueError(f"expected {what}, shape {expected}; got shape {raw.shape}")
+    if raw.dtype.kind not in "iuf":
+        raise ValueError(f"expected {what} as real numbers; got dtype {raw.dtype}")
+    if out is None:
+        a = raw.astype(np.float64).reshape(-1, k)
+    else:
+        a = out
+        a[...] = raw.reshape(-1, k)  # the cast astype would do
+    if not np.isfinite(a).all():
+        raise ValueError(f"action contains NaN or inf: {a.tolist()}")
+    return a
+
+
+def check_render_mode(render_mode: str | None, supported: Sequence[str]) -> None:
+    """ValueError unless ``render_mode`` is None or one of ``supported``."""
+    if render_mode is not None and render_mode not in supported:
+        hint = "" if "human" in supported else (" (a window: the single env's render_mode "
+                                                 "'human', with the render extra)")
+        raise ValueError(f"render_mode {render_mode!r} not supported; use None or one of "
+                         f"{list(supported)}{hint}")
