@@ -11,17 +11,14 @@ refuses a folder whose files do not match) and the folder format.
 """
 from __future__ import annotations
 
-import datetime
 import json
-import platform
 import sys
 
-import numpy as np
 
 from agents.rl.checkpoint import MODEL, NORMALIZATION, sha256
 from agents.rl.policy_files import PLANE_ENV_IDS, policy_scene
 from agents.rl.evaluate import fixed_targets, load_policy, rollout, summarize
-from agents.rl.shipped import shipped_path
+from agents.rl.shipped import provenance, shipped_path
 
 # policy name -> {evaluation key: which env config ("nominal": the trained scene without
 # randomisation, "trained": with the run's randomisation)}
@@ -29,20 +26,6 @@ EVALUATIONS = {"ppo": {"evaluation": "nominal", "evaluation_fresh": "nominal"},
                "ppo_refined": {"evaluation": "nominal", "evaluation_fresh": "nominal"},
                "ppo_randomised": {"evaluation": "trained", "evaluation_nominal": "nominal"}}
 EPISODES = "episodes.json"
-
-
-def provenance() -> dict:
-    import stable_baselines3
-    import torch
-
-    import microconveyor_env
-
-    return {"package_version": microconveyor_env.__version__, "torch": torch.__version__,
-            "stable_baselines3": stable_baselines3.__version__, "numpy": np.__version__,
-            "machine": platform.machine(), "python": platform.python_version(),
-            "recorded_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(
-                timespec="seconds"),
-            "command": "python scripts/record_shipped_evaluations.py"}
 
 
 def record(env_id: str, name: str) -> None:

@@ -25,7 +25,7 @@ from agents.rl.checkpoint import MODEL, NORMALIZATION, sha256  # noqa: E402
 from agents.rl.evaluate_plane import (PLANE_TARGET_SEED, plane_rollout, plane_summary,  # noqa: E402
                                       plane_targets)
 from agents.rl.policy_files import load_policy  # noqa: E402
-from agents.rl.shipped import shipped_path  # noqa: E402
+from agents.rl.shipped import provenance, shipped_path  # noqa: E402
 
 ENV_ID = "MicroConveyor2D-v0"
 EPISODES = "episodes.json"
@@ -67,8 +67,6 @@ def ship(run: Path, folder: Path) -> None:
 
 
 def record(folder: Path) -> dict:
-    from record_shipped_evaluations import provenance  # scripts/ (same folder)
-
     meta_path = folder / "metadata.json"
     meta = json.loads(meta_path.read_text())
     meta.pop("files", None)                      # re-hashed below

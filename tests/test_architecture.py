@@ -91,3 +91,81 @@ def test_the_checker_reports_climbing_imports(tmp_path):
                                  "from . import forces\nimport numpy\n")
     bad = violations(tmp_path)
     assert len(bad) == 2 and "mce.envs" in bad[0] and "agents" in bad[1]
+
+
+def import_circles(root: Path) -> list[list[str]]:
+    """Every circle of imports (module-level or inside a function) among the package modules
+    and between the scripts (which import each other by file name): strongly connected
+    components of more than one module, each sorted."""
+    files = (sorted(root.glob("microconveyor_env/**/*.py")) + sorted(root.glob("agents/**/*.py")))
+    modules = {}
+    for path in files:
+        rel = path.relative_to(root).with_suffix("")
+        modules[".".join(rel.parts[:-1] if rel.name == "__init__" else rel.parts)] = path
+    scripts = {p.stem: p for p in sorted(root.glob("scripts/*.py"))}
+    graph: dict[str, set[str]] = {m: set() for m in [*modules, *scripts]}
+    for module, path in [*modules.items(), *scripts.items()]:
+        for _, target, _ in _imports(path, root):
+            if module in scripts:
+                if target in scripts and target != module:
+                    graph[module].add(target)
+                continue
+            parts = target.split(".")
+            while parts and ".".join(parts) not in modules:
+                parts.pop()
+            found = ".".join(parts)
+            # a module importing its own package (or a package its own module) is no circle
+            if found and found != module and not module.startswith(found + ".") \
+                    and not found.startswith(module + "."):
+                graph[module].add(found)
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    circles: list[list[str]] = []
+
+    def visit(v: str) -> None:        # Tarjan's strongly connected components
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                circles.append(sorted(comp))
+
+    for v in graph:
+        if v not in index:
+            visit(v)
+    return circles
+
+
+def test_no_import_circles():
+    circles = import_circles(ROOT)
+    assert not circles, "modules that import each other (directly or through others):\n" + \
+        "\n".join(" <-> ".join(c) for c in circles)
+
+
+def test_the_circle_checker_finds_circles(tmp_path):
+    """Not vacuous: a circle through a function-level import, and one between scripts."""
+    pkg = tmp_path / "microconveyor_env" / "envs"
+    pkg.mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "a.py").write_text("from . import b\n")
+    (pkg / "b.py").write_text("def f():\n    from .c import x\n")
+    (pkg / "c.py").write_text("from microconveyor_env.envs.a import y\n")
+    (pkg / "d.py").write_text("from . import a\n")                   # reaches it, not in it
+    (tmp_path / "scripts").mkdir()
+    (tmp_path / "scripts" / "one.py").write_text("from two import g\n")
+    (tmp_path / "scripts" / "two.py").write_text("def g():\n    import one\n")
+    found = import_circles(tmp_path)
+    assert sorted(found) == [["microconveyor_env.envs.a", "microconveyor_env.envs.b",
+                              "microconveyor_env.envs.c"], ["one", "two"]]

@@ -4,8 +4,11 @@
 files' sha256) and ``episodes.json`` (every evaluated episode)."""
 from __future__ import annotations
 
+import datetime
+import platform
 from importlib import resources
 from pathlib import Path
+from typing import Any
 
 DEFAULT_ENV_ID = "MicroConveyor-v0"
 
@@ -32,3 +35,20 @@ def require_shipped(env_id: str = DEFAULT_ENV_ID, name: str = "ppo") -> Path:
         raise ValueError(f"no shipped {name!r} policy for {env_id} (shipped: {have}); train one "
                          "(microconveyor train --env ...) and pass --policy")
     return path
+
+
+def provenance(command: str = "python scripts/record_shipped_evaluations.py") -> dict[str, Any]:
+    """What a recorded evaluation of a shipped policy was computed with: package, torch, SB3,
+    numpy and Python versions, the machine, the time (UTC) and the ``command`` that records."""
+    from importlib.metadata import version
+
+    import numpy as np
+    import stable_baselines3
+    import torch
+
+    return {"package_version": version("microconveyor-env"), "torch": torch.__version__,
+            "stable_baselines3": stable_baselines3.__version__, "numpy": np.__version__,
+            "machine": platform.machine(), "python": platform.python_version(),
+            "recorded_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(
+                timespec="seconds"),
+            "command": command}

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import math
 import numbers
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -14,8 +14,6 @@ from ..presets import simulator
 from . import task
 from .config import EnvConfig
 
-if TYPE_CHECKING:
-    from .state import Conveyor
 
 
 def make_simulator(cfg: EnvConfig) -> Simulator:
@@ -54,36 +52,7 @@ def check_target(target: object) -> float:
     return t
 
 
-class OwnsConveyor:
-    """What both envs expose of the :class:`~.state.Conveyor` they own (``self.conveyor``)."""
-
-    conveyor: Conveyor
-
-    @property
-    def sim(self) -> Simulator:
-        """The simulator (its constants, contact table and integrator settings)."""
-        return self.conveyor.sim
-
-    @property
-    def positions(self) -> np.ndarray:
-        """Actuator positions [m] (float64)."""
-        return self.conveyor.positions
-
-
 def spec_id(env: Any) -> str | None:
     """The registered id ``env`` was made with (``gym.make``, ``make_vec``); None without."""
     spec = getattr(env, "spec", None)
     return None if spec is None else str(spec.id)
-
-
-def conveyor_field(path: str, doc: str) -> Any:
-    """A read-only property for ``self.conveyor.<path>`` (dotted), e.g. ``"parts.x"``."""
-    names = path.split(".")
-
-    def get(self: OwnsConveyor) -> Any:
-        obj: Any = self.conveyor
-        for name in names:
-            obj = getattr(obj, name)
-        return obj
-
-    return property(get, doc=doc)

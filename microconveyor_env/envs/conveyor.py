@@ -10,12 +10,12 @@ from gymnasium.core import RenderFrame
 
 from ..physics import dynamics_kernel as kernel
 from . import actions, task
-from .common import OwnsConveyor, spec_id
+from .common import spec_id
 from .core.checks import check_actions, check_render_mode
 from .part_state import PartState
 from .config import EnvConfig
 from .frames import EnvRenderer, check_frames_per_stroke
-from .state import Conveyor
+from .state import Conveyor, OwnsConveyor
 
 
 class MicroConveyorEnv(OwnsConveyor, gym.Env):

@@ -25,6 +25,7 @@ from typing import Any, NamedTuple, TypeVar
 import numpy as np
 
 from ..physics import dynamics_kernel as kernel
+from ..physics.simulator import Simulator
 from . import actions, randomisation, task
 from .common import check_target, make_simulator
 from .core.parts import PartsBase
@@ -235,3 +236,32 @@ class Conveyor(PartsBase):
         hist[rows, 1:] = hist[rows, :-1].copy()
         hist[rows, 0] = latest
         self.obs[:, :od] = self.out.obs
+
+
+class OwnsConveyor:
+    """What both envs expose of the :class:`~.state.Conveyor` they own (``self.conveyor``)."""
+
+    conveyor: Conveyor
+
+    @property
+    def sim(self) -> Simulator:
+        """The simulator (its constants, contact table and integrator settings)."""
+        return self.conveyor.sim
+
+    @property
+    def positions(self) -> np.ndarray:
+        """Actuator positions [m] (float64)."""
+        return self.conveyor.positions
+
+
+def conveyor_field(path: str, doc: str) -> Any:
+    """A read-only property for ``self.conveyor.<path>`` (dotted), e.g. ``"parts.x"``."""
+    names = path.split(".")
+
+    def get(self: OwnsConveyor) -> Any:
+        obj: Any = self.conveyor
+        for name in names:
+            obj = getattr(obj, name)
+        return obj
+
+    return property(get, doc=doc)

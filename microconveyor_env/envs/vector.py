@@ -6,12 +6,12 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from .common import OwnsConveyor, check_target, conveyor_field, spec_id
+from .common import check_target, spec_id
 from .config import EnvConfig
 from .core.checks import check_actions
 from .core.vector import MAX_ENVS, BatchedEnv
 from .part_state import PartState
-from .state import Conveyor, Resets
+from .state import Conveyor, OwnsConveyor, Resets, conveyor_field
 
 __all__ = ["MAX_ENVS", "MicroConveyorVectorEnv"]
 

@@ -20,11 +20,10 @@ from scipy.interpolate import CubicHermiteSpline
 
 from .materials import ContactParams, ParameterError
 from .rough_surface import Normalised, SurfaceIntegrals
-# the builder's and the cache's names, importable from here as before the split (re-exports)
+# the builder's and the cache's public names, importable from here too (re-exports)
 from .table_build import DEFAULT_LOAD_RATIO, DEFAULT_SPACING, BaseTable, _per_asperity, \
     build_base_table  # noqa: F401
-from .table_cache import _MEMO, TABLE_FORMAT, _code_hash, _describe, _load_cached, _store, \
-    base_table, cache_dir, consistent, table_key  # noqa: F401
+from .table_cache import TABLE_FORMAT, base_table, cache_dir, consistent, table_key  # noqa: F401
 
 
 class DetachmentError(RuntimeError):

@@ -45,12 +45,12 @@ def _code_hash() -> str:
     (a fit, the quadrature, the portable arithmetic, the derived contact quantities, the builder,
     this cache) invalidates cached tables by itself, without relying on someone bumping
     TABLE_FORMAT."""
-    from . import contact_table, gauss_rules, materials, portable_math, table_build
-
+    here = Path(__file__).parent
     h = hashlib.sha256()
-    for mod in (asperity, rough_surface, gauss_rules, portable_math, materials, table_build,
-                contact_table):
-        h.update(Path(str(mod.__file__)).read_bytes())
+    # by file, not by import: contact_table imports this module (no import circle)
+    for name in ("asperity", "rough_surface", "gauss_rules", "portable_math", "materials",
+                 "table_build", "contact_table"):
+        h.update((here / f"{name}.py").read_bytes())
     h.update(Path(__file__).read_bytes())
     return h.hexdigest()[:16]
 

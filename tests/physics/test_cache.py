@@ -54,7 +54,7 @@ def test_corrupt_cache_is_rebuilt_not_trusted(monkeypatch, tmp_path):
     arrays = t.arrays()
     arrays["q"] = np.full_like(arrays["q"], np.nan)
     np.savez(path, key=np.array(key), **arrays)
-    assert ct._load_cached(path, key) is None
+    assert tc._load_cached(path, key) is None
     monkeypatch.setattr(tc, "_MEMO", {})
     assert np.all(np.isfinite(ct.ContactTable(p, spacing=0.02).base.q))
 
@@ -67,9 +67,10 @@ def test_unwritable_cache_still_works(monkeypatch, tmp_path):
 
 
 def test_contact_table_reexports_the_cache():
-    """contact_table re-exports the cache's names; the memory cache and the builder are looked
-    up in table_cache, so that is where these tests replace them (patching ct changes nothing)."""
-    assert ct._MEMO is tc._MEMO and ct.build_base_table is tc.build_base_table
+    """contact_table re-exports the cache's public names; the memory cache and the builder are
+    looked up in table_cache, so that is where these tests replace them (patching ct changes
+    nothing)."""
+    assert ct.build_base_table is tc.build_base_table
     assert ct.base_table is tc.base_table and ct.table_key is tc.table_key
 
 
@@ -148,10 +149,10 @@ def test_parseable_but_inconsistent_cache_is_rebuilt(monkeypatch, tmp_path, how)
     good = ct.ContactTable(p, spacing=0.02)
     path = next(tmp_path.glob("ke-table-*.npz"))
     key = ct.table_key(p, 0.02, ct.DEFAULT_LOAD_RATIO)
-    assert ct._load_cached(path, key) is not None
+    assert tc._load_cached(path, key) is not None
     np.savez(path, key=np.array(key), **_tampered(good.base.arrays(), how))
-    assert ct._load_cached(path, key) is None
+    assert tc._load_cached(path, key) is None
     monkeypatch.setattr(tc, "_MEMO", {})
     rebuilt = ct.ContactTable(p, spacing=0.02)
     np.testing.assert_array_equal(rebuilt.base.q, good.base.q)
-    assert ct._load_cached(path, key) is not None  # and the good table was written back
+    assert tc._load_cached(path, key) is not None  # and the good table was written back
