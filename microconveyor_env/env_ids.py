@@ -7,29 +7,84 @@ is made (:mod:`microconveyor_env.envs.versions`). Package infrastructure: import
 from __future__ import annotations
 
 import functools
+from dataclasses import dataclass
 from importlib import resources
 from typing import Any
 
-ENV_IDS = ("MicroConveyor-v0", "MicroConveyor-v1")
+@dataclass(frozen=True)
+class Registration:
+    """One registered env id: what ``gym.make`` builds and what the rest of the package needs
+    to know of it.
+
+    ``geometry``: ``"line"`` (:class:`~.envs.config.EnvConfig`) or ``"plane"``
+    (:class:`~.envs.plane_config.PlaneEnvConfig`); ``config``: the config class
+    (``module:Class``) whose ``from_yaml(None, **kwargs)`` makes the env's config;
+    ``entry_point`` / ``vector_entry_point``: the single and batched envs (None: Gymnasium's
+    Sync/Async wrappers); ``base``: the scene version (itself, or the version an interface
+    variant wraps: the goal env); ``defaults``: whether ``configs/envs/<base>.yaml`` holds
+    defaults beyond the config class's own, registered as ``spec.kwargs`` (the plane's config
+    class reads its file itself); ``max_episode_steps``: ``spec.max_episode_steps`` (None: no
+    TimeLimit, as v0 always was); ``not_scene``: the config fields that are not the scene (how
+    the env runs, per-episode randomisation, the reward's weights), so a policy trained with
+    other values of them still acts in the same scene."""
+
+    env_id: str
+    geometry: str
+    config: str
+    entry_point: str
+    vector_entry_point: str | None
+    base: str
+    defaults: bool
+    max_episode_steps: int | None
+    not_scene: frozenset[str]
+
+
+MAX_ACTUATORS = 1000  # an episode has at most this many steps (one firing per actuator)
+PLANE_MAX_FIRINGS = 1000  # spec.max_episode_steps: the most firings a 2-D config allows
+_ENVS = "microconveyor_env.envs"
+# how an env runs, not what it simulates: may differ between training and evaluation
+RUNTIME_FIELDS = frozenset({"num_threads", "max_steps"})
+# per-episode randomisation: the conditions a policy is tested under, not the scene it acts in
+PERTURBATION_FIELDS = frozenset({"action_noise", "friction_factor_range", "mass_factor_range"})
+# how training scores an episode: the scene, the targets, the episode's end and success (at rest
+# within the tolerance) do not depend on them, so a policy trained with another reward scale is
+# evaluated in the same scene
+REWARD_FIELDS = frozenset({"progress_scale", "progress_horizon", "time_cost", "success_bonus",
+                           "detach_penalty"})
+NOT_SCENE = RUNTIME_FIELDS | PERTURBATION_FIELDS | REWARD_FIELDS
+
+REGISTRY: dict[str, Registration] = {r.env_id: r for r in (
+    Registration("MicroConveyor-v0", "line", f"{_ENVS}.config:EnvConfig",
+                 f"{_ENVS}.conveyor:MicroConveyorEnv", f"{_ENVS}.vector:MicroConveyorVectorEnv",
+                 "MicroConveyor-v0", False, None, NOT_SCENE),
+    Registration("MicroConveyor-v1", "line", f"{_ENVS}.config:EnvConfig",
+                 f"{_ENVS}.conveyor:MicroConveyorEnv", f"{_ENVS}.vector:MicroConveyorVectorEnv",
+                 "MicroConveyor-v1", True, MAX_ACTUATORS, NOT_SCENE),
+    Registration("MicroConveyorGoal-v1", "line", f"{_ENVS}.config:EnvConfig",
+                 f"{_ENVS}.goal:MicroConveyorGoalEnv", None,
+                 "MicroConveyor-v1", True, MAX_ACTUATORS, NOT_SCENE),
+    Registration("MicroConveyor2D-v0", "plane", f"{_ENVS}.plane_config:PlaneEnvConfig",
+                 f"{_ENVS}.plane_env:MicroConveyor2DEnv",
+                 f"{_ENVS}.plane_vector:MicroConveyor2DVectorEnv",
+                 "MicroConveyor2D-v0", False, PLANE_MAX_FIRINGS, NOT_SCENE),
+)}
+DEFAULT_ENV_ID = "MicroConveyor-v1"   # what every command and function uses unless told
+FIRST_ENV_ID = "MicroConveyor-v0"     # what a policy whose metadata names no env id was trained on
+
+# views of the registry
+ALL_ENV_IDS = tuple(REGISTRY)
+ENV_IDS = tuple(i for i, r in REGISTRY.items() if r.geometry == "line" and r.base == i)
 LATEST = ENV_IDS[-1]
 # interface variants: the scene and defaults of their base version, another observation
-GOAL_ENV_IDS = {"MicroConveyorGoal-v1": "MicroConveyor-v1"}   # Dict observation (envs/goal.py)
-ALL_ENV_IDS = ENV_IDS + tuple(GOAL_ENV_IDS)
-ENTRY_POINTS = {**{i: "microconveyor_env.envs.conveyor:MicroConveyorEnv" for i in ENV_IDS},
-                **{i: "microconveyor_env.envs.goal:MicroConveyorGoalEnv" for i in GOAL_ENV_IDS}}
-VECTOR_ENTRY_POINT = "microconveyor_env.envs.vector:MicroConveyorVectorEnv"  # ENV_IDS only
-MAX_ACTUATORS = 1000  # an episode has at most this many steps (one firing per actuator)
-# the plane (issue 22): its own config (envs/plane_config.py, defaults in
-# configs/envs/MicroConveyor2D-v0.yaml), registered with kwargs {} as v0 is
-PLANE_ENV_IDS = ("MicroConveyor2D-v0",)
-PLANE_ENTRY_POINT = "microconveyor_env.envs.plane_env:MicroConveyor2DEnv"
-PLANE_VECTOR_ENTRY_POINT = "microconveyor_env.envs.plane_vector:MicroConveyor2DVectorEnv"
-PLANE_MAX_FIRINGS = 1000  # spec.max_episode_steps: the most firings a 2-D config allows
+GOAL_ENV_IDS = {i: r.base for i, r in REGISTRY.items() if r.base != i}   # Dict observation
+PLANE_ENV_IDS = tuple(i for i, r in REGISTRY.items() if r.geometry == "plane")
+ENTRY_POINTS = {i: r.entry_point for i, r in REGISTRY.items()}
 
 
 def base_id(env_id: str) -> str:
     """The scene version of ``env_id`` (itself, or the version an interface variant wraps)."""
-    return GOAL_ENV_IDS.get(env_id, env_id)
+    reg = REGISTRY.get(env_id)
+    return env_id if reg is None else reg.base
 
 
 @functools.cache
@@ -37,7 +92,8 @@ def _overrides(env_id: str) -> tuple[tuple[str, Any], ...]:
     import yaml
 
     base = base_id(env_id)
-    if base == ENV_IDS[0]:
+    reg = REGISTRY.get(env_id)
+    if reg is None or not reg.defaults:
         return ()
     text = (resources.files("microconveyor_env.configs") / "envs" / f"{base}.yaml").read_text()
     data = yaml.safe_load(text) or {}   # the package's own file
@@ -51,7 +107,20 @@ def overrides(env_id: str) -> dict[str, Any]:
 
 
 def max_episode_steps(env_id: str) -> int | None:
-    """``spec.max_episode_steps``: None for v0 (registered as it always was), else
-    :data:`MAX_ACTUATORS`, the longest episode any config can have (one step per actuator),
-    so the TimeLimit ``gym.make`` adds never cuts an episode short, whatever ``n_actuators``."""
-    return None if env_id == ENV_IDS[0] else MAX_ACTUATORS
+    """``spec.max_episode_steps``: None for v0 (registered as it always was), else the longest
+    episode any config of the id can have (:data:`MAX_ACTUATORS`: one step per actuator;
+    :data:`PLANE_MAX_FIRINGS`), so the TimeLimit ``gym.make`` adds never cuts an episode
+    short."""
+    return REGISTRY[env_id].max_episode_steps
+
+
+def register_all() -> None:
+    """Register every id of :data:`REGISTRY` with Gymnasium (idempotent): its entry points,
+    ``spec.kwargs`` (its defaults file's values) and episode limit."""
+    from gymnasium.envs.registration import register, registry
+
+    for env_id, reg in REGISTRY.items():
+        if env_id not in registry:
+            register(id=env_id, entry_point=reg.entry_point,
+                     vector_entry_point=reg.vector_entry_point, kwargs=overrides(env_id),
+                     max_episode_steps=reg.max_episode_steps, disable_env_checker=False)

@@ -93,10 +93,9 @@ def test_the_checker_reports_climbing_imports(tmp_path):
     assert len(bad) == 2 and "mce.envs" in bad[0] and "agents" in bad[1]
 
 
-def import_circles(root: Path) -> list[list[str]]:
-    """Every circle of imports (module-level or inside a function) among the package modules
-    and between the scripts (which import each other by file name): strongly connected
-    components of more than one module, each sorted."""
+def import_graph(root: Path) -> dict[str, set[str]]:
+    """Module -> the modules it imports (module-level or inside a function), for the package
+    modules and, between themselves, the scripts (which import each other by file name)."""
     files = (sorted(root.glob("microconveyor_env/**/*.py")) + sorted(root.glob("agents/**/*.py")))
     modules = {}
     for path in files:
@@ -118,12 +117,19 @@ def import_circles(root: Path) -> list[list[str]]:
             if found and found != module and not module.startswith(found + ".") \
                     and not found.startswith(module + "."):
                 graph[module].add(found)
+    return graph
+
+
+def import_circles(root: Path) -> list[list[str]]:
+    """Every circle of imports (:func:`import_graph`): its strongly connected components of
+    more than one module, each sorted (Tarjan's algorithm)."""
+    graph = import_graph(root)
     index: dict[str, int] = {}
     low: dict[str, int] = {}
     stack: list[str] = []
     circles: list[list[str]] = []
 
-    def visit(v: str) -> None:        # Tarjan's strongly connected components
+    def visit(v: str) -> None:
         index[v] = low[v] = len(index)
         stack.append(v)
         for w in graph[v]:
@@ -134,13 +140,10 @@ def import_circles(root: Path) -> list[list[str]]:
                 low[v] = min(low[v], index[w])
         if low[v] == index[v]:
             comp = []
-            while True:
-                w = stack.pop()
+            while (w := stack.pop()) != v:
                 comp.append(w)
-                if w == v:
-                    break
-            if len(comp) > 1:
-                circles.append(sorted(comp))
+            if comp:
+                circles.append(sorted([*comp, v]))
 
     for v in graph:
         if v not in index:

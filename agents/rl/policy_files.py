@@ -18,7 +18,6 @@ model's shapes are checked against the plane env's spaces.
 """
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -27,7 +26,8 @@ import numpy as np
 
 from microconveyor_env.envs import EnvConfig, env_config, scene_differences
 from microconveyor_env.envs.plane_config import PlaneEnvConfig
-from microconveyor_env.envs.versions import check_env_id, nominal
+from microconveyor_env.envs.versions import FIRST_ENV_ID, PLANE_ENV_IDS, check_env_id, nominal, \
+    scene_config
 from microconveyor_env.physics.materials import ParameterError
 from microconveyor_env.presets import PresetError
 
@@ -37,12 +37,9 @@ from .normalization import NORMALIZATION, NormalizationError, ObsNormalizer
 from .actor_net import ActorNet, load_actor
 from .sb3_files import ALGOS, ModelFileError, algo_of, check_spaces, read_data
 
-FIRST_ENV_ID = "MicroConveyor-v0"  # what a policy without an env id in its metadata was trained on
-# plane config fields that are not the scene: how the env runs, and how training scores an episode
-PLANE_NOT_SCENE = frozenset({"num_threads", "max_steps", "progress_scale", "progress_horizon",
-                             "time_cost", "success_bonus", "detach_penalty"})
 AnyConfig = EnvConfig | PlaneEnvConfig
-PLANE_ENV_IDS = ("MicroConveyor2D-v0",)   # ids whose scene is a PlaneEnvConfig (issue 22)
+__all__ = ["FIRST_ENV_ID", "PLANE_ENV_IDS", "Policy", "PolicyError", "load_policy",
+           "policy_scene", "policy_env_kwargs", "read_policy_meta", "check_scene"]
 
 
 class PolicyError(ValueError):
@@ -166,37 +163,23 @@ def policy_env_kwargs(meta: dict[str, Any]) -> dict[str, Any]:
 
 
 def policy_scene(meta: dict[str, Any], where: str = "metadata") -> AnyConfig:
-    """The config of the env a policy was trained on: ``env_config(env_id, **env_kwargs)`` (an
-    :class:`EnvConfig`), or for the plane ``PlaneEnvConfig.from_yaml(**env_kwargs)``."""
+    """The config of the env a policy was trained on: ``scene_config(env_id, **env_kwargs)``
+    (an :class:`EnvConfig`, or the plane's :class:`PlaneEnvConfig`)."""
     env_id = str(meta.get("env_id", FIRST_ENV_ID))
     kwargs = policy_env_kwargs(meta)
     if "path" in kwargs:
         raise PolicyError(f"{where}: env_kwargs name a file ('path'); a policy's scene is "
                           "its env id and field values")
     try:
-        if env_id in PLANE_ENV_IDS:
-            return PlaneEnvConfig.from_yaml(None, **kwargs)
-        return env_config(check_env_id(env_id), **kwargs)
+        return scene_config(check_env_id(env_id), **kwargs)
     except (ParameterError, PresetError) as exc:
         raise PolicyError(f"{where}: the env the policy was trained on cannot be made ({exc})") \
             from None
 
 
-def _plane_differences(trained: PlaneEnvConfig, asked: Any) -> dict[str, tuple[Any, Any]]:
-    if not isinstance(asked, PlaneEnvConfig):
-        return {"env": ("MicroConveyor2D-v0 (the plane)", f"a {type(asked).__name__} (1-D)")}
-    a, b = dataclasses.asdict(trained), dataclasses.asdict(asked)
-    return {k: (a[k], b[k]) for k in a if k not in PLANE_NOT_SCENE and a[k] != b[k]}
-
-
 def check_scene(trained: AnyConfig, asked: AnyConfig, meta: dict[str, Any], where: str) -> None:
     """PolicyError when ``asked`` is another scene than the one the policy was trained in."""
-    if isinstance(trained, PlaneEnvConfig):
-        diff = _plane_differences(trained, asked)
-    elif isinstance(asked, PlaneEnvConfig):
-        diff = {"env": (f"a {type(trained).__name__} (1-D)", "MicroConveyor2D-v0 (the plane)")}
-    else:
-        diff = scene_differences(trained, asked)
+    diff = scene_differences(trained, asked)
     if diff:
         fields = "; ".join(f"{k}: trained {a!r}, asked {b!r}" for k, (a, b) in diff.items())
         raise PolicyError(f"{where}: the policy was trained on {meta.get('env_id', FIRST_ENV_ID)}"
@@ -228,8 +211,8 @@ def load_policy(path: str | Path, config: AnyConfig | None = None) -> Policy:
     trained = policy_scene(meta, repr(str(folder / META))) if meta else None
     if trained is not None and config is not None:
         check_scene(trained, config, meta, repr(str(folder / META)))
-    if trained is not None and not isinstance(trained, PlaneEnvConfig):
-        trained = nominal(trained)   # the plane has no per-episode randomisation to turn off
+    if trained is not None:
+        trained = nominal(trained)
     cfg = config or trained or env_config(FIRST_ENV_ID)
     env_id = str(meta.get("env_id", FIRST_ENV_ID))
     try:

@@ -13,24 +13,17 @@ import dataclasses
 from typing import Any
 
 # the ids themselves live in the light ..env_ids (registration imports only it); re-exported
-from ..env_ids import ALL_ENV_IDS, ENTRY_POINTS, ENV_IDS, GOAL_ENV_IDS, LATEST, MAX_ACTUATORS, \
-    base_id, overrides
+from ..env_ids import ALL_ENV_IDS, DEFAULT_ENV_ID, ENTRY_POINTS, FIRST_ENV_ID, ENV_IDS, GOAL_ENV_IDS, LATEST, \
+    MAX_ACTUATORS, NOT_SCENE, PERTURBATION_FIELDS, PLANE_ENV_IDS, REGISTRY, REWARD_FIELDS, \
+    RUNTIME_FIELDS, base_id, overrides
 from ..physics.materials import ParameterError
 from .config import EnvConfig
 
-__all__ = ["ALL_ENV_IDS", "ENTRY_POINTS", "ENV_IDS", "GOAL_ENV_IDS", "LATEST", "MAX_ACTUATORS",
-           "base_env_id", "check_env_id", "env_config", "nominal", "registered_kwargs",
-           "scene_differences", "scene_of"]
-# how an env runs, not what it simulates: may differ between training and evaluation
-RUNTIME_FIELDS = frozenset({"num_threads", "max_steps"})
-# per-episode randomisation: the conditions a policy is tested under, not the scene it acts in
-PERTURBATION_FIELDS = frozenset({"action_noise", "friction_factor_range", "mass_factor_range"})
-# how training scores an episode: the scene, the targets, the episode's end and success (at rest
-# within the tolerance) do not depend on them, so a policy trained with another reward scale is
-# evaluated in the same scene
-REWARD_FIELDS = frozenset({"progress_scale", "progress_horizon", "time_cost", "success_bonus",
-                           "detach_penalty"})
-NOT_SCENE = RUNTIME_FIELDS | PERTURBATION_FIELDS | REWARD_FIELDS
+__all__ = ["ALL_ENV_IDS", "DEFAULT_ENV_ID", "ENTRY_POINTS", "FIRST_ENV_ID", "ENV_IDS", "GOAL_ENV_IDS", "LATEST",
+           "MAX_ACTUATORS", "PLANE_ENV_IDS", "base_env_id", "check_env_id", "config_class",
+           "env_config", "nominal", "registered_kwargs", "scene_config", "scene_differences",
+           "scene_of"]
+_ = (PERTURBATION_FIELDS, REWARD_FIELDS, RUNTIME_FIELDS)   # re-exported for their users
 
 
 def check_env_id(env_id: str) -> str:
@@ -45,41 +38,85 @@ def base_env_id(env_id: str) -> str:
     return base_id(check_env_id(env_id))
 
 
+def config_class(env_id: str) -> type:
+    """The config class of a registered ``env_id`` (:class:`EnvConfig`, or the plane's
+    :class:`~.plane_config.PlaneEnvConfig`), as its registration names it."""
+    import importlib
+
+    module, name = REGISTRY[check_env_id(env_id)].config.split(":")
+    cls: type = getattr(importlib.import_module(module), name)
+    return cls
+
+
 def registered_kwargs(env_id: str) -> dict[str, Any]:
-    """The keyword arguments ``env_id`` is registered with (its defaults beyond v0's), checked
-    against :class:`EnvConfig`'s fields."""
+    """The keyword arguments ``env_id`` is registered with (its defaults beyond its config
+    class's own), checked against that class's fields."""
     kw = overrides(check_env_id(env_id))
-    unknown = sorted(set(kw) - {f.name for f in dataclasses.fields(EnvConfig)})
+    unknown = sorted(set(kw) - {f.name for f in dataclasses.fields(config_class(env_id))})
     if unknown:
         raise ParameterError(f"configs/envs/{base_id(env_id)}.yaml: unknown keys {unknown}")
     return kw
 
 
-def env_config(env_id: str = LATEST, **overrides: Any) -> EnvConfig:
-    """The validated config of ``gym.make(env_id, **overrides)`` (SI units)."""
+def env_config(env_id: str = DEFAULT_ENV_ID, **overrides: Any) -> EnvConfig:
+    """The validated config of ``gym.make(env_id, **overrides)`` (SI units) of the line's ids
+    (:class:`EnvConfig`); :func:`scene_config` takes every registered id."""
+    if REGISTRY[check_env_id(env_id)].geometry != "line":
+        raise ParameterError(f"{env_id} is not a conveyor line (its config is a "
+                             f"{config_class(env_id).__name__}); use scene_config")
+    config: EnvConfig = scene_config(env_id, **overrides)
+    return config
+
+
+def scene_config(env_id: str = DEFAULT_ENV_ID, **overrides: Any) -> Any:
+    """The validated config of ``gym.make(env_id, **overrides)`` (SI units) of any registered
+    id: its config class's ``from_yaml`` with the id's registered kwargs, then ``overrides``."""
+    cls: Any = config_class(env_id)
     if "path" in overrides:
-        raise ParameterError("EnvConfig: unknown key 'path' (an env is made from its id and "
-                             "field values; EnvConfig.from_yaml reads a file)")
-    return EnvConfig.from_yaml(None, **{**registered_kwargs(env_id), **overrides})
+        raise ParameterError(f"{cls.__name__}: unknown key 'path' (an env is made from its id "
+                             "and field values; from_yaml reads a file)")
+    return cls.from_yaml(None, **{**registered_kwargs(env_id), **overrides})
 
 
-def scene_differences(trained: EnvConfig, asked: EnvConfig) -> dict[str, tuple[Any, Any]]:
+def scene_differences(trained: Any, asked: Any) -> dict[str, tuple[Any, Any]]:
     """Fields (name -> (trained, asked)) in which two configs describe different scenes or
     tasks; runtime knobs, per-episode randomisation and the reward's weights are not the
-    scene."""
+    scene. Configs of two geometries (the line and the plane) differ in ``"config"``."""
+    if type(trained) is not type(asked):
+        return {"geometry": (_geometry(trained), _geometry(asked))}
     a, b = dataclasses.asdict(trained), dataclasses.asdict(asked)
-    return {k: (a[k], b[k]) for k in a if k not in NOT_SCENE and a[k] != b[k]}
+    skip = not_scene(trained)
+    return {k: (a[k], b[k]) for k in a if k not in skip and a[k] != b[k]}
 
 
-def scene_of(config: EnvConfig) -> dict[str, Any]:
+def _geometry(config: Any) -> str:
+    """``"the line (EnvConfig)"`` or ``"the plane (PlaneEnvConfig)"``, for messages."""
+    kind = next((reg.geometry for reg in REGISTRY.values()
+                 if config_class(reg.env_id) is type(config)), "unknown")
+    return f"the {kind} ({type(config).__name__})"
+
+
+def not_scene(config: Any) -> frozenset[str]:
+    """The fields of ``config`` that are not its scene, as its registrations say."""
+    for reg in REGISTRY.values():
+        if config_class(reg.env_id) is type(config):
+            return reg.not_scene
+    return NOT_SCENE
+
+
+def scene_of(config: Any) -> dict[str, Any]:
     """The fields of ``config`` that are its scene (those :func:`scene_differences` compares),
     JSON-safe: SI values, ranges as lists."""
+    skip = not_scene(config)
     return {k: list(v) if isinstance(v, tuple) else v
-            for k, v in dataclasses.asdict(config).items() if k not in NOT_SCENE}
+            for k, v in dataclasses.asdict(config).items() if k not in skip}
 
 
-def nominal(config: EnvConfig) -> EnvConfig:
-    """``config`` with per-episode randomisation off (its scene under nominal conditions)."""
-    off: dict[str, Any] = {f.name: f.default for f in dataclasses.fields(EnvConfig)
+def nominal(config: Any) -> Any:
+    """``config`` with per-episode randomisation off (its scene under nominal conditions); a
+    config without randomisation (the plane's) as it is."""
+    off: dict[str, Any] = {f.name: f.default for f in dataclasses.fields(type(config))
                            if f.name in PERTURBATION_FIELDS}
+    if not off:
+        return config
     return dataclasses.replace(config, **off)

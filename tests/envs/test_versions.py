@@ -90,3 +90,28 @@ def test_registering_stays_light():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=120, check=True).stdout.split()
     assert out == ["MicroConveyorEnv", "load_preset"]
+
+
+def test_every_registered_id_builds_through_the_one_registry():
+    """Each id of the registry is registered with Gymnasium as the registry says, its config
+    comes from scene_config, and its single and batched envs build with that config."""
+    import gymnasium as gym
+
+    from microconveyor_env.env_ids import DEFAULT_ENV_ID, REGISTRY
+    from microconveyor_env.envs.versions import config_class, registered_kwargs, scene_config
+
+    assert DEFAULT_ENV_ID == "MicroConveyor-v1" and DEFAULT_ENV_ID in REGISTRY
+    for env_id, reg in REGISTRY.items():
+        spec = gym.spec(env_id)
+        assert (spec.entry_point, spec.vector_entry_point, spec.max_episode_steps) == \
+            (reg.entry_point, reg.vector_entry_point, reg.max_episode_steps), env_id
+        assert spec.kwargs == registered_kwargs(env_id)
+        cfg = scene_config(env_id)
+        assert isinstance(cfg, config_class(env_id))
+        env = gym.make(env_id)
+        assert env.unwrapped.config == cfg, env_id
+        env.close()
+        if reg.vector_entry_point is not None:
+            venv = gym.make_vec(env_id, num_envs=2)
+            assert venv.unwrapped.config == cfg, env_id
+            venv.close()
