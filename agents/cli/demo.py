@@ -13,8 +13,8 @@ def _demo_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="out", help="output folder for charts and the summary JSON")
     p.add_argument("--policy", default=None,
                    help="policy folder (default: the one shipped for --env, if any)")
-    add_env_args(p, what=" of the episode and the policy (its surface also for the contact, "
-                         "firing and sweep charts unless --preset is given)")
+    add_env_args(p, what=" of the episode and the policy (its surface, --preset included, also "
+                         "for the contact, firing and sweep charts)")
 
 
 @command("demo", "the main job: contact report, a firing, a frequency sweep, an env episode and "
@@ -30,12 +30,9 @@ def cmd_demo(args: argparse.Namespace) -> None:
 
     from ..rl.shipped import shipped_path
 
-    from microconveyor_env.cli.base import DEFAULT_PRESET
-
     args.env_kwargs_dict = env_kwargs_of(args)
     cfg = env_config_of(args)
-    if args.preset == DEFAULT_PRESET:  # the physics part shows the env's surface
-        args.preset = cfg.preset
+    args.preset = cfg.preset  # the physics part shows the env's surface
     no_policy = None
     if importlib.util.find_spec("stable_baselines3") is None:
         no_policy = ("shipped policy skipped: it needs the train extra (pip install "

@@ -3,16 +3,19 @@ from __future__ import annotations
 
 import json
 
-from .base import ARGS, command, emit, json_default
+from .base import ARGS, DEFAULT_PRESET, command, emit, json_default, preset_arg
 
 
 def _demo_args(p):
+    preset_arg(p)
     p.add_argument("--out", default="out", help="output folder for charts and the summary JSON")
 
 
 @command("demo", "the main job: contact report, a firing, a frequency sweep and an env episode, "
                  "charts written to --out")
 def cmd_demo(args):
+    # the episode on MicroConveyor-v0 with the same surface as the charts
+    args.env_kwargs_dict = {} if args.preset == DEFAULT_PRESET else {"preset": args.preset}
     summary = demo_summary(args)
     emit(args, summary, "\n".join(f"wrote {c}" for c in summary["charts"] + [summary["summary_json"]]))
 

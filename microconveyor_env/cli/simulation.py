@@ -5,10 +5,11 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from .base import ARGS, command, count, emit, plot_path
+from .base import ARGS, command, count, emit, plot_path, preset_arg
 
 
 def _scene_args(p: argparse.ArgumentParser, sweep: bool = False) -> None:
+    preset_arg(p)
     num = str if sweep else float
     p.add_argument("--freq", type=num, default=None if sweep else 950.0,
                    help="stroke frequency f [Hz] (stroke lasts 1/f)")
@@ -220,6 +221,7 @@ def _episode_text(study: dict[str, Any]) -> str:
 
 
 def _accuracy_args(p: argparse.ArgumentParser) -> None:
+    preset_arg(p)
     p.add_argument("--plot", metavar="FILE.png", type=plot_path, help="write the chart")
     p.add_argument("--repeats", type=count(1, 10_000), default=30,
                    help="timed repeats per setting")
@@ -258,6 +260,7 @@ def cmd_bench(args: argparse.Namespace) -> None:
 
 
 def _bench_args(p: argparse.ArgumentParser) -> None:
+    preset_arg(p)
     p.add_argument("--repeats", type=count(1, 1_000_000), default=500,
                    help="timed repeats per mode")
     p.add_argument("--skip-reference", action="store_true",
