@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import Any
 
 from microconveyor_env.cli.base import command, emit
 
@@ -24,7 +25,7 @@ def cmd_demo(args: argparse.Namespace) -> None:
     from pathlib import Path
 
     from microconveyor_env.cli.base import json_default
-    from microconveyor_env.cli.demo import demo_summary
+    from microconveyor_env.cli.demo import demo_summary, demo_text
 
     import importlib.util
 
@@ -47,11 +48,10 @@ def cmd_demo(args: argparse.Namespace) -> None:
         summary["policy_demo"] = None
         Path(summary["summary_json"]).write_text(json.dumps(summary, indent=2,
                                                             default=json_default))
-        emit(args, summary, no_policy + "\n" + "\n".join(
-                                f"wrote {c}" for c in summary["charts"] + [summary["summary_json"]]))
+        emit(args, summary, no_policy + "\n" + demo_text(summary))
         return
 
-    from ..experiments.demo import load_demo_policy, policy_demo, table
+    from ..experiments.demo import load_demo_policy, policy_demo
 
     policy = load_demo_policy(args.policy, cfg, args.env)  # a bad --policy fails at once
     summary = demo_summary(args)
@@ -59,8 +59,20 @@ def cmd_demo(args: argparse.Namespace) -> None:
     summary["policy_demo"] = demo
     summary["charts"].append(demo["chart"])
     Path(summary["summary_json"]).write_text(json.dumps(summary, indent=2, default=json_default))
-    text = table(demo)
+    text = policy_table(demo)
     if args.json:
         print(text, file=sys.stderr)
-    emit(args, summary, text + "\n" + "\n".join(f"wrote {c}" for c in summary["charts"] +
-                                                [summary["summary_json"]]))
+    emit(args, summary, demo_text(summary) + "\n" + text)
+
+
+def policy_table(demo: dict[str, Any]) -> str:
+    """The policy's episodes of the demo, one line per target, in the units people read."""
+    steps = demo["trained_steps"]
+    lines = [f"policy {demo['policy']}" + (f" ({steps:,} steps)" if steps else ""),
+             f"{'target [mm]':>11} {'final [mm]':>10} {'error [µm]':>10} {'time [ms]':>9}  "
+             f"success (±{demo['tolerance_m'] * 1e6:.0f} µm)"]
+    for r in demo["rows"]:
+        lines.append(f"{r['target_m'] * 1e3:11.3f} {r['final_position_m'] * 1e3:10.3f} "
+                     f"{r['error_m'] * 1e6:10.1f} {r['time_s'] * 1e3:9.1f}  "
+                     f"{'yes' if r['success'] else 'no (' + r['outcome'] + ')'}")
+    return "\n".join(lines)

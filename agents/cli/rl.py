@@ -98,9 +98,14 @@ def _refine_folder(policy: str, out: Any, settings: Any, eval_targets: int) -> d
 
 
 def _success_line(ev: dict[str, Any]) -> str:
-    return (f"success +-50/100/250 um: {ev['success_rate_50um']:.2f} / "
-            f"{ev['success_rate_100um']:.2f} / {ev['success_rate_250um']:.2f}, median "
-            f"|error| {ev['median_abs_error_m'] * 1e6:.1f} um")
+    return (f"success within ±50/100/250 µm: {100 * ev['success_rate_50um']:.1f} / "
+            f"{100 * ev['success_rate_100um']:.1f} / {100 * ev['success_rate_250um']:.1f} %, "
+            f"median |error| {ev['median_abs_error_m'] * 1e6:.1f} µm")
+
+
+def _kwargs_text(kwargs: dict[str, Any] | None) -> str:
+    """Env kwargs as ``key=value, ...`` (values as given)."""
+    return ", ".join(f"{k}={v}" for k, v in (kwargs or {}).items())
 
 
 @command("train", "train PPO, SAC or TQC on the conveyor (checkpoints, evaluations, resume)",
@@ -128,7 +133,8 @@ def cmd_train(args: argparse.Namespace) -> None:
                  env_kwargs=env_kwargs_of(args), fork_seed=args.fork_seed)
     meta["out"] = args.out
     ev = meta["evaluation"]
-    text = (f"{meta['env_id']} {meta.get('env_kwargs') or ''}: {meta['steps']} steps in "
+    kwargs = _kwargs_text(meta.get("env_kwargs"))
+    text = (f"{meta['env_id']}{f' ({kwargs})' if kwargs else ''}: {meta['steps']} steps in "
             f"{meta['wall_time_s']:.0f} s -> {args.out}")
     if ev:
         text += "\n" + _success_line(ev)

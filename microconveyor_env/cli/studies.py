@@ -21,6 +21,7 @@ from typing import Any
 from collections.abc import Callable
 
 from .base import command, count, emit, plot_path, preset_arg, raise_if_interrupted
+from .human import format_result
 
 
 def table_path(text: str) -> str:
@@ -293,7 +294,8 @@ def _fidelity_args(p: argparse.ArgumentParser) -> None:
     _engine_args(p, "fidelity.csv")
     p.add_argument("--repeats", type=int, default=3, help="timed repeats per level")
     p.add_argument("--scenes", default="single,episode_near,episode_far",
-                   help="comma-separated scenes")
+                   help="comma-separated scenes: single (the reference firing), episode_near and "
+                        "episode_far (5 firings ending near the start and ~2 mm downstream)")
 
 
 def cmd_fidelity(args: argparse.Namespace) -> None:
@@ -316,7 +318,8 @@ def cmd_fidelity(args: argparse.Namespace) -> None:
             plot_fidelity(res, files.stage(args.plot))
             res["plot"] = str(Path(args.plot))
     res.pop("rows")
-    emit(args, res)
+    shown = {k: v for k, v in res.items() if k != "scenes"}   # described in --json and --help
+    emit(args, res, format_result({**shown, "scenes_run": list(scenes)}))
 
 
 # ----------------------------------------------------------------------------- stretch
