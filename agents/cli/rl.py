@@ -267,7 +267,7 @@ def _plane_evaluation(args: argparse.Namespace, path: Any) -> bool:
     tolerance (Euclidean). False: not a plane policy."""
     from microconveyor_env.envs.plane_config import PlaneEnvConfig
 
-    from ..rl.evaluate_plane import plane_rollout, plane_summary, plane_targets
+    from ..rl.evaluate_plane import plane_evaluation, plane_rollout, plane_summary, plane_targets
     from ..rl.policy_files import PLANE_ENV_IDS, load_policy, policy_env_kwargs, read_policy_meta
 
     meta = read_policy_meta(path)
@@ -287,12 +287,13 @@ def _plane_evaluation(args: argparse.Namespace, path: Any) -> bool:
         raise ValueError(f"{str(path)!r} is not a MicroConveyor2D-v0 policy (its metadata says "
                          f"{meta.get('env_id')!r})")
     res = plane_rollout(pol, plane_targets(cfg, args.targets, args.seed), cfg)
-    out = plane_summary(res, cfg.tolerance if args.tolerance is None else args.tolerance)
+    out = plane_evaluation(plane_summary(res, cfg.tolerance if args.tolerance is None
+                                         else args.tolerance))
     out.update(seed=args.seed, target_box_m=[list(b) for b in cfg.grid_box], policy=str(pol.path),
                env_id=pol.env_id, env_kwargs=policy_env_kwargs(pol.metadata))
     emit(args, out, f"{pol.env_id}: {out['n_targets']} targets, success within "
                     f"{out['tolerance_m'] * 1e6:.0f} µm (at rest, Euclidean) "
-                    f"{out['success_rate']:.1%}, median error {out['median_error_m'] * 1e6:.1f} µm, "
+                    f"{out['success_rate']:.1%}, median error {out['median_abs_error_m'] * 1e6:.1f} µm, "
                     f"detached {out['detach_rate']:.1%}")
     return True
 
