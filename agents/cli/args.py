@@ -77,30 +77,47 @@ def env_kwarg(text: str) -> tuple[str, Any]:
     return key, list(value) if isinstance(value, tuple) else value
 
 
+class _EnvPreset(argparse.Action):
+    """``--preset NAME``: the env's preset, appended to ``--env-kwargs`` as ``preset:NAME`` (so
+    everything that reads the env kwargs, a policy's scene check included, sees it)."""
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
+                 values: Any, option_string: str | None = None) -> None:
+        items = list(getattr(namespace, self.dest, None) or [])
+        items.append(("preset", values))
+        setattr(namespace, self.dest, items)
+
+
 def add_env_args(p: argparse.ArgumentParser, default: str | None = "MicroConveyor-v0",
                  what: str = "", default_text: str | None = None, goal: bool = False,
                  extra_ids: tuple[str, ...] = ()) -> None:
     """``--env ID`` (a registered version; with ``goal`` also the goal-conditioned variants;
-    ``extra_ids`` also these, e.g. the plane's) and ``--env-kwargs KEY:VALUE ...`` (its
-    overrides, as ``gym.make(ID, **kwargs)``); ``default_text`` says what a ``None`` default
+    ``extra_ids`` also these, e.g. the plane's), ``--env-kwargs KEY:VALUE ...`` (its overrides,
+    as ``gym.make(ID, **kwargs)``; repeated, the lists add up) and ``--preset NAME`` (the env's
+    surface: ``--env-kwargs preset:NAME``); ``default_text`` says what a ``None`` default
     means."""
+    from microconveyor_env.cli.base import PRESET_HELP, preset_name
     from microconveyor_env.envs import ENV_IDS
     from microconveyor_env.envs.versions import ALL_ENV_IDS
 
     p.add_argument("--env", choices=(ALL_ENV_IDS if goal else ENV_IDS) + tuple(extra_ids),
                    default=default,
                    help=f"env id{what} (default: {default or default_text})")
-    p.add_argument("--env-kwargs", type=env_kwarg, nargs="+", default=None, metavar="KEY:VALUE",
+    p.add_argument("--env-kwargs", type=env_kwarg, nargs="+", action="extend", default=None,
+                   metavar="KEY:VALUE",
                    help="env overrides as gym.make(ID, **kwargs): SI units, e.g. n_actuators:7 "
                         "'target_range:(0.5e-3, 6e-3)'")
+    p.add_argument("--preset", type=preset_name, action=_EnvPreset, dest="env_kwargs",
+                   metavar="NAME", help="the env's surface, as --env-kwargs preset:NAME (default: "
+                                        f"the env's own): {PRESET_HELP}")
 
 
 def env_kwargs_of(args: argparse.Namespace) -> dict[str, Any]:
-    """``--env-kwargs`` as a dict (a key given twice is an error)."""
+    """``--env-kwargs`` (with ``--preset``) as a dict (a key given twice is an error)."""
     out: dict[str, Any] = {}
     for key, value in args.env_kwargs or []:
         if key in out:
-            raise ValueError(f"--env-kwargs: {key} given twice")
+            raise ValueError(f"--env-kwargs/--preset: {key} given twice")
         out[key] = value
     return out
 

@@ -63,8 +63,8 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    help="MPC: episodes of the model before the first firing and per re-plan "
                         f"(default {MPC_SETTINGS.first_budget},{MPC_SETTINGS.replan_budget}, "
                         "--quick 100,50; 0: no MPC)")
-    p.add_argument("--mpc-method", choices=("de", "cmaes"), default="de",
-                   help="the MPC's planner")
+    p.add_argument("--mpc-method", choices=("de", "cmaes"), default=None,
+                   help="the MPC's planner (default: de; not with --mpc-budgets 0)")
     p.add_argument("--robust-mpc", type=mpc_budgets, nargs="?", default=None,
                    const=(ROBUST_MPC_SETTINGS.first_budget, ROBUST_MPC_SETTINGS.replan_budget),
                    metavar="FIRST,REPLAN",
@@ -126,8 +126,11 @@ def run(args: Any) -> None:
     budget_list = args.budgets or quick.get("budgets", [1000])
     mb = args.mpc_budgets or quick.get("mpc_budgets") or (MPC_SETTINGS.first_budget,
                                                           MPC_SETTINGS.replan_budget)
-    mpc = None if mb == (0, 0) else MPCSettings(method=args.mpc_method, first_budget=mb[0],
-                                                 replan_budget=mb[1], seed=args.seed)
+    if mb == (0, 0) and args.mpc_method is not None:
+        raise ValueError("--mpc-method chooses the MPC's planner; --mpc-budgets 0 runs no MPC")
+    mpc = None if mb == (0, 0) else MPCSettings(method=args.mpc_method or "de",
+                                                 first_budget=mb[0], replan_budget=mb[1],
+                                                 seed=args.seed)
     res = compare(n_targets=n_targets, seed=args.seed, budgets=budget_list, methods=methods,
                   policy=args.policy, randomised_policy=args.randomised_policy,
                   amortise_over=args.amortise_over, noise_ladder=args.noise,

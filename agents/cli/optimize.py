@@ -50,8 +50,9 @@ def run(args: argparse.Namespace) -> None:
         Path(args.plot).parent.mkdir(parents=True, exist_ok=True)
     if args.problem == "dissertation":
         if args.env or args.env_kwargs:
-            raise ValueError("--env/--env-kwargs belong to --problem target; the dissertation "
-                             "problem is its own model (5 actuators, chapter 4's surface)")
+            raise ValueError("--env/--env-kwargs/--preset belong to --problem target; the "
+                             "dissertation problem is its own model (5 actuators, chapter 4's "
+                             "surface)")
         out, text = _dissertation(args)
     else:
         if args.explain:

@@ -32,8 +32,9 @@ def cmd_reach(args: argparse.Namespace) -> None:
 
     def progress(r: dict[str, Any]) -> None:
         print(f"target {r['target_m'] * 1e3:6.2f} mm  best |err| {r['best_abs_error_m'] * 1e6:10.2f}"
-              f" um  noisy success {r['noisy_success_rate']:.2f} / best "
-              f"{r['best_noisy_success_rate']:.2f}  ({r['wall_time_s']:.1f} s)", file=sys.stderr,
+              f" µm  noisy success {100 * r['noisy_success_rate']:.1f} % / best "
+              f"{100 * r['best_noisy_success_rate']:.1f} %  ({r['wall_time_s']:.1f} s)",
+              file=sys.stderr,
               flush=True)
 
     kwargs = env_kwargs_of(args)
@@ -48,9 +49,21 @@ def cmd_reach(args: argparse.Namespace) -> None:
                              f"apart, preset {cfg.preset}, action noise σ = {args.sigma:g}")
     if args.plot:
         study["plot"] = plot_reach(study, args.plot)  # after the scene label is in
-    rows = "\n".join(f"{r['target_m'] * 1e3:6.2f} mm  {r['best_abs_error_m'] * 1e6:10.2f} um  "
-                     f"{r['best_noisy_success_rate']:.2f}  {'robust' if r['robust'] else ''}"
-                     for r in study["rows"])
-    emit(args, study, rows + f"\nrobust target range: {study['robust_target_range_m']}")
+    emit(args, study, reach_text(study))
+
+
+def reach_text(study: dict[str, Any]) -> str:
+    """The reach study in the units people read: per target the best nominal error, the success
+    under action noise of the better plan, and the widest robust target range."""
+    lines = [study["scene_label"],
+             f"{'target':>9}  {'best |error|':>12}  {'noisy success':>13}",
+             *(f"{r['target_m'] * 1e3:6.2f} mm  {r['best_abs_error_m'] * 1e6:9.2f} µm  "
+               f"{100 * r['best_noisy_success_rate']:11.1f} %  {'robust' if r['robust'] else ''}"
+               .rstrip() for r in study["rows"])]
+    rng = study["robust_target_range_m"]
+    lines.append("robust target range (noisy success >= "
+                 f"{100 * study['robust_rate']:.0f} % within {study['tolerance_m'] * 1e6:.0f} µm): "
+                 + (f"{rng[0] * 1e3:.2f} to {rng[1] * 1e3:.2f} mm" if rng else "none"))
+    return "\n".join(lines)
 
 

@@ -96,9 +96,14 @@ def _refine_folder(policy: str, out: Any, settings: Any, eval_targets: int) -> d
 
 
 def _success_line(ev: dict[str, Any]) -> str:
-    return (f"success +-50/100/250 um: {ev['success_rate_50um']:.2f} / "
-            f"{ev['success_rate_100um']:.2f} / {ev['success_rate_250um']:.2f}, median "
-            f"|error| {ev['median_abs_error_m'] * 1e6:.1f} um")
+    return (f"success within ±50/100/250 µm: {100 * ev['success_rate_50um']:.1f} / "
+            f"{100 * ev['success_rate_100um']:.1f} / {100 * ev['success_rate_250um']:.1f} %, "
+            f"median |error| {ev['median_abs_error_m'] * 1e6:.1f} µm")
+
+
+def _kwargs_text(kwargs: dict[str, Any] | None) -> str:
+    """Env kwargs as ``key=value, ...`` (values as given)."""
+    return ", ".join(f"{k}={v}" for k, v in (kwargs or {}).items())
 
 
 @command("train", "train PPO, SAC or TQC on the conveyor (checkpoints, evaluations, resume)",
@@ -126,7 +131,8 @@ def cmd_train(args: argparse.Namespace) -> None:
                  env_kwargs=env_kwargs_of(args), fork_seed=args.fork_seed)
     meta["out"] = args.out
     ev = meta["evaluation"]
-    text = (f"{meta['env_id']} {meta.get('env_kwargs') or ''}: {meta['steps']} steps in "
+    kwargs = _kwargs_text(meta.get("env_kwargs"))
+    text = (f"{meta['env_id']}{f' ({kwargs})' if kwargs else ''}: {meta['steps']} steps in "
             f"{meta['wall_time_s']:.0f} s -> {args.out}")
     if ev:
         text += "\n" + _success_line(ev)
@@ -258,7 +264,7 @@ def _plane_evaluation(args: argparse.Namespace, path: Any) -> bool:
     tolerance (Euclidean). False: not a plane policy."""
     from microconveyor_env.envs.plane_config import PlaneEnvConfig
 
-    from ..rl.evaluate_plane import plane_rollout, plane_summary, plane_targets
+    from ..rl.evaluate_plane import plane_evaluation, plane_rollout, plane_summary, plane_targets
     from ..rl.policy_files import PLANE_ENV_IDS, load_policy, policy_env_kwargs, read_policy_meta
 
     meta = read_policy_meta(path)
@@ -278,12 +284,13 @@ def _plane_evaluation(args: argparse.Namespace, path: Any) -> bool:
         raise ValueError(f"{str(path)!r} is not a MicroConveyor2D-v0 policy (its metadata says "
                          f"{meta.get('env_id')!r})")
     res = plane_rollout(pol, plane_targets(cfg, args.targets, args.seed), cfg)
-    out = plane_summary(res, cfg.tolerance if args.tolerance is None else args.tolerance)
+    out = plane_evaluation(plane_summary(res, cfg.tolerance if args.tolerance is None
+                                         else args.tolerance))
     out.update(seed=args.seed, target_box_m=[list(b) for b in cfg.grid_box], policy=str(pol.path),
                env_id=pol.env_id, env_kwargs=policy_env_kwargs(pol.metadata))
     emit(args, out, f"{pol.env_id}: {out['n_targets']} targets, success within "
                     f"{out['tolerance_m'] * 1e6:.0f} µm (at rest, Euclidean) "
-                    f"{out['success_rate']:.1%}, median error {out['median_error_m'] * 1e6:.1f} µm, "
+                    f"{out['success_rate']:.1%}, median error {out['median_abs_error_m'] * 1e6:.1f} µm, "
                     f"detached {out['detach_rate']:.1%}")
     return True
 

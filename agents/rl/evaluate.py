@@ -84,10 +84,16 @@ def evaluate(policy: Actor, n_targets: int = 100, seed: int = 0, tolerance: floa
     """Success and errors of ``policy`` on ``n_targets`` fixed targets drawn with ``seed`` from
     the target range of ``config`` (default: the scene a loaded :class:`Policy` was trained in,
     randomisation off; else MicroConveyor-v0's defaults); ``tolerance`` [m] of the success
-    figure (default: the config's)."""
+    figure (default: the config's). Its keys are those of every evaluation, the plane's
+    included (:func:`.evaluate_plane.plane_evaluation`): :func:`summarize`'s, the 90th
+    percentile of the absolute error ``p90_abs_error_m``, ``rest_rate``, ``mean_firings``, the
+    ``seed`` and the targets' ``target_range_m``."""
     cfg = config or getattr(policy, "config", None) or EnvConfig.from_yaml()
     targets = fixed_targets(cfg, n_targets, seed)
     res = rollout(policy, targets, cfg, seed=seed)
     out = summarize(res, cfg.tolerance if tolerance is None else tolerance)
-    out.update(seed=seed, target_range_m=list(cfg.target_range))
+    out.update(p90_abs_error_m=float(np.percentile(np.abs(res["error_m"]), 90)),
+               rest_rate=float(np.mean(res["outcome"] == "rest")),
+               mean_firings=float(np.mean(res["firings"])),
+               seed=seed, target_range_m=list(cfg.target_range))
     return out

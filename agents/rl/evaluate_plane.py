@@ -79,6 +79,18 @@ def plane_summary(res: dict, tolerance: float) -> dict:
     return out
 
 
+# plane_summary's names (those of the stored records) -> the names of every evaluation (the
+# line's agents.rl.evaluate.evaluate): the Euclidean error is an absolute error
+EVALUATION_NAMES = {"median_error_m": "median_abs_error_m", "p90_error_m": "p90_abs_error_m"}
+
+
+def plane_evaluation(summary: dict) -> dict:
+    """:func:`plane_summary`'s figures under the keys every evaluation uses, on the line and in
+    the plane (``median_abs_error_m``, ``p90_abs_error_m``: of the Euclidean error); the
+    ``evaluate`` command's JSON."""
+    return {EVALUATION_NAMES.get(k, k): v for k, v in summary.items()}
+
+
 def evaluate_plane(policy: Actor, config: PlaneEnvConfig, n_targets: int = 100,
                    seed: int = PLANE_TARGET_SEED) -> dict:
     """:func:`plane_summary` of ``policy`` on ``n_targets`` targets drawn with ``seed``."""

@@ -1,4 +1,20 @@
-"""Hyperparameters from ``configs/<algo>.yml`` (rl-zoo3's format, keyed by env id)."""
+"""Hyperparameters from ``configs/<algo>.yml`` (rl-zoo3's format, keyed by env id).
+
+An entry holds what rl-zoo3 reads (``python -m rl_zoo3.train --conf-file FILE`` runs it as it
+is). Keys only this package's trainer reads (:data:`PACKAGE_KEYS`, the run phases of
+:mod:`.phases`), which rl-zoo3 would hand to the algorithm and the algorithm refuse, go in the
+file's :data:`PACKAGE_SECTION` section, keyed by env id like the entries::
+
+    MicroConveyor-v1:
+      n_envs: 256
+      ...
+    microconveyor:            # read by `microconveyor train` only
+      MicroConveyor-v1:
+        exploration_restart: {at: 0.667, log_std: -2.0}
+
+:func:`load` merges an env's package keys into its entry. A file of your own may also keep
+them in the entry itself (then rl-zoo3 cannot run that entry).
+"""
 from __future__ import annotations
 
 import json
@@ -10,9 +26,13 @@ from typing import Any
 import yaml
 
 ENV_ID = "MicroConveyor-v1"  # what `train` trains on unless told (v0: --env MicroConveyor-v0)
+# keys only this package's trainer reads (rl-zoo3 would pass them to the algorithm)
+PACKAGE_KEYS = ("exploration_restart", "exploration_shift", "freeze_obs_stats_at")
+# the section of a config file holding them, per env id (rl-zoo3 reads only its --env's entry)
+PACKAGE_SECTION = "microconveyor"
 # keys the trainer handles itself (the rest go to PPO(...))
 RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs", "vec_env_wrapper",
-            "exploration_restart", "exploration_shift", "freeze_obs_stats_at")
+            *PACKAGE_KEYS)
 
 
 def number_in(name: str, val: Any, lo: float = -math.inf, hi: float = math.inf, *,
@@ -29,7 +49,8 @@ def number_in(name: str, val: Any, lo: float = -math.inf, hi: float = math.inf, 
 
 def load(path: str | None = None, env_id: str = ENV_ID, algo: str = "ppo") -> dict:
     """The hyperparameters of ``env_id`` from ``path`` (default: the shipped
-    ``configs/<algo>.yml``), with the ``dict(...)`` strings (``policy_kwargs``, ``normalize``,
+    ``configs/<algo>.yml``): its entry with its keys of the :data:`PACKAGE_SECTION` section
+    merged in, and the ``dict(...)`` strings (``policy_kwargs``, ``normalize``,
     ``replay_buffer_kwargs``) parsed as rl-zoo3 writes them (as data: nothing is evaluated)."""
     if path is None:
         try:
@@ -40,17 +61,48 @@ def load(path: str | None = None, env_id: str = ENV_ID, algo: str = "ppo") -> di
         with open(path) as fh:
             text = fh.read()
     data = yaml.safe_load(text) or {}
+    where = path or f"configs/{algo}.yml"
+    if not isinstance(data, dict):
+        raise ValueError(f"{where} is not a mapping of env ids to hyperparameters")
+    package = data.pop(PACKAGE_SECTION, None) or {}
     if env_id not in data:
-        raise ValueError(f"{path or f'configs/{algo}.yml'} has no entry for {env_id!r} (it has "
+        raise ValueError(f"{where} has no entry for {env_id!r} (it has "
                          f"{', '.join(map(str, data)) or 'none'}): give the env id of one of "
                          "them (--env) or add an entry")
     hp = dict(data[env_id])
+    hp.update(_package_keys(package, env_id, hp, where))
     for key in ("policy_kwargs", "normalize", "replay_buffer_kwargs"):
         if isinstance(hp.get(key), str):
             hp[key] = _eval_dict(hp[key])
     if hp.get("normalize") is True:
         hp["normalize"] = {}
     return hp
+
+
+def _package_keys(section: Any, env_id: str, entry: dict, where: str) -> dict:
+    """``env_id``'s keys of a file's :data:`PACKAGE_SECTION` section (checked: only
+    :data:`PACKAGE_KEYS`, none also in the entry itself)."""
+    if not isinstance(section, dict):
+        raise ValueError(f"{where}: {PACKAGE_SECTION} must map env ids to keys, got {section!r}")
+    keys = section.get(env_id) or {}
+    if not isinstance(keys, dict):
+        raise ValueError(f"{where}: {PACKAGE_SECTION}.{env_id} must be a mapping, got {keys!r}")
+    other = sorted(set(keys) - set(PACKAGE_KEYS))
+    if other:
+        raise ValueError(f"{where}: {PACKAGE_SECTION}.{env_id} holds only "
+                         f"{', '.join(PACKAGE_KEYS)}; {', '.join(other)} belong in the entry")
+    twice = sorted(set(keys) & set(entry))
+    if twice:
+        raise ValueError(f"{where}: {', '.join(twice)} given both in the {env_id} entry and in "
+                         f"{PACKAGE_SECTION}.{env_id}")
+    return dict(keys)
+
+
+def split_package_keys(hp: dict) -> tuple[dict, dict]:
+    """``hp`` as (the rl-zoo3 entry, its :data:`PACKAGE_KEYS`): what a config file writes in
+    the entry and in its :data:`PACKAGE_SECTION` section."""
+    return ({k: v for k, v in hp.items() if k not in PACKAGE_KEYS},
+            {k: v for k, v in hp.items() if k in PACKAGE_KEYS})
 
 
 def normalize_kwargs(hp: dict) -> dict | None:

@@ -106,16 +106,48 @@ def count(lo: int, hi: int | None = None) -> Callable[[str], int]:
 
 
 DEFAULT_PRESET = "feasibility"
+PRESET_HELP = ("feasibility: chapter 3's surface; conveyor: chapter 4's; ke: uncalibrated; "
+               "silicon, polysilicon, silicon_oxide, silicon_nitride, gold: MEMS pairs, pure KE; "
+               "or a YAML path")
+
+
+def shipped_presets() -> list[str]:
+    """The names of the presets shipped with the package (``configs/*.yaml``), without loading
+    any (argument parsing stays light)."""
+    from importlib import resources
+
+    files = resources.files("microconveyor_env.configs")
+    return sorted(f.name[:-5] for f in files.iterdir() if f.name.endswith(".yaml"))
+
+
+def preset_name(text: str) -> str:
+    """``--preset`` value: a shipped preset's name (or a deprecated alias of one) or the path of
+    an existing ``.yaml``/``.yml`` file; anything else is refused with the list of names."""
+    from pathlib import Path
+
+    names = shipped_presets()
+    if text in names:
+        return text
+    path = Path(text)
+    if path.suffix in (".yaml", ".yml") and path.is_file():
+        return text
+    from ..presets import RENAMED_PRESETS
+
+    if text in RENAMED_PRESETS:
+        return text
+    raise argparse.ArgumentTypeError(f"unknown preset {text!r}; available: {', '.join(names)} "
+                                     "(or a path to a .yaml file)")
 
 
 def common_args(p: argparse.ArgumentParser) -> None:
-    """The options of every command: ``--json`` and ``--preset``."""
+    """The option of every command: ``--json``."""
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    p.add_argument("--preset", default=DEFAULT_PRESET,
-                   help="preset name (feasibility: chapter 3's surface; conveyor: chapter 4's; "
-                        "ke: uncalibrated; silicon, polysilicon, silicon_oxide, silicon_nitride, "
-                        "gold: MEMS pairs, pure KE) or YAML path")
 
+
+def preset_arg(p: argparse.ArgumentParser) -> None:
+    """``--preset NAME`` of the physics and study commands: the surface they simulate."""
+    p.add_argument("--preset", type=preset_name, default=DEFAULT_PRESET,
+                   help=f"the surface simulated (default: {DEFAULT_PRESET}): {PRESET_HELP}")
 
 
 DESCRIPTION = "microconveyor-env: micropart conveyor simulator, studies and agents"

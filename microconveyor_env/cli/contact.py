@@ -5,10 +5,11 @@ import argparse
 import time
 from typing import Any
 
-from .base import ARGS, command, emit, plot_path
+from .base import ARGS, command, emit, plot_path, preset_arg
 
 
 def _contact_args(p: argparse.ArgumentParser) -> None:
+    preset_arg(p)
     p.add_argument("--plot", metavar="FILE.png", type=plot_path,
                    help="draw P, F_s, N and Q versus separation")
     p.add_argument("--check-table", action="store_true",

@@ -3,18 +3,42 @@ from __future__ import annotations
 
 import json
 
-from .base import ARGS, command, emit, json_default
+from .base import ARGS, DEFAULT_PRESET, command, emit, json_default, preset_arg
 
 
 def _demo_args(p):
+    preset_arg(p)
     p.add_argument("--out", default="out", help="output folder for charts and the summary JSON")
 
 
 @command("demo", "the main job: contact report, a firing, a frequency sweep and an env episode, "
                  "charts written to --out")
 def cmd_demo(args):
+    # the episode on MicroConveyor-v0 with the same surface as the charts
+    args.env_kwargs_dict = {} if args.preset == DEFAULT_PRESET else {"preset": args.preset}
     summary = demo_summary(args)
-    emit(args, summary, "\n".join(f"wrote {c}" for c in summary["charts"] + [summary["summary_json"]]))
+    emit(args, summary, demo_text(summary))
+
+
+def demo_text(summary: dict) -> str:
+    """The demo's figures in the units people read, then the files it wrote."""
+    from .human import format_value
+
+    def show(key: str, v: object) -> str:
+        return format_value(key, v)[1]
+
+    c, f, e = summary["contact"], summary["reference_firing"], summary["episode"]
+    window = summary["window_hz"]
+    lines = [f"preset {summary['preset']}: pull-off {show('f_N', c['pull_off_force_N'])}, "
+             f"friction at weight {show('f_N', c['friction_at_weight_N'])}",
+             f"reference firing (950 Hz, 200 µm): travel {show('d_m', f['displacement_m'])}, "
+             f"{f['outcome']}",
+             "feasible window: " + (f"{show('w_hz', window[0])} to {show('w_hz', window[1])}"
+                                    if window else "none"),
+             f"{e['env_id']} episode, a fixed schedule to 1 mm: {e['outcome']}, error "
+             f"{show('e_m', e['position_error_m'])}"]
+    lines += [f"wrote {c}" for c in summary["charts"] + [summary["summary_json"]]]
+    return "\n".join(lines)
 
 
 def demo_summary(args) -> dict:

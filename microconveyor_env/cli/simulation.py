@@ -5,10 +5,11 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from .base import ARGS, command, count, emit, plot_path
+from .base import ARGS, command, count, emit, plot_path, preset_arg
 
 
 def _scene_args(p: argparse.ArgumentParser, sweep: bool = False) -> None:
+    preset_arg(p)
     num = str if sweep else float
     p.add_argument("--freq", type=num, default=None if sweep else 950.0,
                    help="stroke frequency f [Hz] (stroke lasts 1/f)")
@@ -157,7 +158,8 @@ def _sweep_text(res: dict[str, Any]) -> str:
     key = "window" + res["values_key"][len(res["param"]):]
     window = res.get(key)
     if window is not None:
-        lines.append(f"feasible window: {window} {res['unit']}")
+        lo, hi = (format_value(res["values_key"], v)[1] for v in window)
+        lines.append(f"feasible window: {lo} to {hi}")
     elif res.get("no_window_reason"):  # a window was looked for and there is none: say why
         lines.append(res["no_window_reason"])
     return "\n".join(lines)
@@ -183,8 +185,28 @@ def cmd_accuracy(args: argparse.Namespace) -> None:
         from ..plots import plot_accuracy
 
         study["plot"] = str(plot_accuracy(study, args.plot))
+    emit(args, study, _accuracy_text(study))
+
+
+def _accuracy_text(study: dict[str, Any]) -> str:
+    """The speed/accuracy table of one firing and the default it picks, in the units people
+    read."""
+    from .human import format_table, format_value
+
+    def show(key: str, v: Any) -> str:
+        return format_value(key, v)[1]
+
+    lines = [f"the firing: {show('freq_hz', study['freq_hz'])}, stroke "
+             f"{show('stroke_m', study['stroke_m'])}, start {show('x0_m', study['x0_m'])}; error "
+             f"against the reference dt = {show('reference_dt_s', study['reference_dt_s'])}, "
+             f"tolerance {show('tolerance_m', study['tolerance_m'])}",
+             format_table(study["rows"])]
     d = study["default"]
-    emit(args, study, f"default: {d}" if d else "no setting within tolerance")
+    lines.append(f"default: {d['mode']} mode, {d['kinematics']} kinematics, dt = "
+                 f"{show('dt_s', d['dt_s'])} ({d['steps_per_stroke']} steps per stroke): error "
+                 f"{show('error_m', d['error_m'])}, {show('wall_time_s', d['wall_time_s'])} per "
+                 "firing" if d else "default: no setting within the tolerance")
+    return "\n".join(lines)
 
 
 def _accuracy_episode(args: argparse.Namespace) -> None:
@@ -202,24 +224,36 @@ def _accuracy_episode(args: argparse.Namespace) -> None:
 
 
 def _episode_text(study: dict[str, Any]) -> str:
-    lines = [f"{study['episodes']} episodes {study['counts']}, reference event dt = "
-             f"{study['reference_dt_s']:g} s (halving it moves no final position by more than "
-             f"{study['reference_half_dt_check']['max_error_m']:.1e} m)",
-             f"{'mode':>8} {'dt [s]':>9} {'min':>4} {'median':>9} {'p95':>9} {'max':>9} "
-             f"{'outc.':>5} {'succ.':>5} {'steps':>6} {'us/ep':>7}"]
+    """The episode accuracy table and the recommended default, in the units people read."""
+    from .human import format_value
+
+    def show(key: str, v: Any) -> str:
+        return "n/a" if v is None else format_value(key, v)[1]
+
+    counts = ", ".join(f"{n} {c}" for c, n in study["counts"].items())
+    lines = [f"{study['episodes']} episodes ({counts}); reference: event mode, dt = "
+             f"{show('dt_s', study['reference_dt_s'])} (halving it moves no final position by more "
+             f"than {show('error_m', study['reference_half_dt_check']['max_error_m'])})",
+             "errors of the final position against the reference (episodes of the same outcome); "
+             "outc./succ.: outcome and success disagreements",
+             f"{'mode':>8} {'dt':>9} {'min':>4} {'median':>10} {'p95':>10} {'max':>10} "
+             f"{'outc.':>5} {'succ.':>5} {'steps':>6} {'per episode':>11}"]
     for r in study["rows"]:
-        lines.append(f"{r['mode']:>8} {r['dt_s']:9.3g} {r['min_steps']:4d} "
-                     f"{r['median_error_m']:9.2e} {r['p95_error_m']:9.2e} {r['max_error_m']:9.2e} "
+        lines.append(f"{r['mode']:>8} {show('dt_s', r['dt_s']):>9} {r['min_steps']:4d} "
+                     f"{show('e_m', r['median_error_m']):>10} {show('e_m', r['p95_error_m']):>10} "
+                     f"{show('e_m', r['max_error_m']):>10} "
                      f"{r['outcome_disagreements']:5d} {r['success_disagreements']:5d} "
                      f"{r['rk4_steps_per_episode']:6.0f} "
-                     f"{r['wall_per_episode_s'] * 1e6:7.1f}")
+                     f"{show('t_s', r['wall_per_episode_s']):>11}")
     rec = study["recommended"]
-    lines.append("recommended default: " + (f"{rec['mode']}, dt = {rec['dt_s']:g} s, min_steps = "
-                                            f"{rec['min_steps']}" if rec else "none meets the bar"))
+    lines.append("recommended default: " + (f"{rec['mode']} mode, dt = {show('dt_s', rec['dt_s'])}, "
+                                            f"min_steps = {rec['min_steps']}" if rec
+                                            else "none meets the bar"))
     return "\n".join(lines)
 
 
 def _accuracy_args(p: argparse.ArgumentParser) -> None:
+    preset_arg(p)
     p.add_argument("--plot", metavar="FILE.png", type=plot_path, help="write the chart")
     p.add_argument("--repeats", type=count(1, 10_000), default=30,
                    help="timed repeats per setting")
@@ -258,6 +292,7 @@ def cmd_bench(args: argparse.Namespace) -> None:
 
 
 def _bench_args(p: argparse.ArgumentParser) -> None:
+    preset_arg(p)
     p.add_argument("--repeats", type=count(1, 1_000_000), default=500,
                    help="timed repeats per mode")
     p.add_argument("--skip-reference", action="store_true",

@@ -20,7 +20,8 @@ from pathlib import Path
 from typing import Any
 from collections.abc import Callable
 
-from .base import command, count, emit, plot_path, raise_if_interrupted
+from .base import command, count, emit, plot_path, preset_arg, raise_if_interrupted
+from .human import format_result
 
 
 def table_path(text: str) -> str:
@@ -76,6 +77,7 @@ def positive_seconds(text: str) -> float:
 def _engine_args(p: argparse.ArgumentParser, out_default: str) -> None:
     from ..studies.engine import SCHEDULER_TIMEOUT_S
 
+    preset_arg(p)
     p.add_argument("--out", default=out_default, type=table_path,
                    help="result table, .csv or .parquet (one row per simulation)")
     p.add_argument("--plot", metavar="FILE.png", type=chart_path, help="write the chart")
@@ -175,11 +177,14 @@ QUICK_LEVELS = {"dgamma_J_m2": (1.0,), "sigma_m": (20e-9, 30e-9), "stroke_m": (1
 
 def _sensitivity_args(p: argparse.ArgumentParser) -> None:
     _engine_args(p, "sensitivity.csv")
-    p.add_argument("--n-freq", type=int, default=8, help="design frequencies per combination")
-    p.add_argument("--sobol-n", type=int, default=128,
-                   help="Sobol' base sample size N (power of 2; N (2D+2) runs); 0: skip")
+    p.add_argument("--n-freq", type=int, default=None,
+                   help="design frequencies per combination (default 8, --quick 4)")
+    p.add_argument("--sobol-n", type=int, default=None,
+                   help="Sobol' base sample size N (power of 2; N (2D+2) runs); 0: skip "
+                        "(default 128, --quick 4)")
     p.add_argument("--quick", action="store_true",
-                   help="a 8-combination design and N = 4 Sobol' sample (smoke test)")
+                   help="a 8-combination design, 4 design frequencies and N = 4 Sobol' sample "
+                        "(smoke test; an explicit --n-freq or --sobol-n wins)")
 
 
 def cmd_sensitivity(args: argparse.Namespace) -> None:
@@ -187,8 +192,8 @@ def cmd_sensitivity(args: argparse.Namespace) -> None:
     from ..studies.sensitivity import LEVELS
 
     levels = QUICK_LEVELS if args.quick else LEVELS
-    n_freq = 4 if args.quick else args.n_freq
-    sobol_n = (4 if args.sobol_n else 0) if args.quick else args.sobol_n
+    n_freq = args.n_freq if args.n_freq is not None else 4 if args.quick else 8
+    sobol_n = args.sobol_n if args.sobol_n is not None else 4 if args.quick else 128
     _with_engine(args, lambda kw, startup: _sensitivity(args, levels, n_freq, sobol_n, kw,
                                                          startup))
 
@@ -289,7 +294,8 @@ def _fidelity_args(p: argparse.ArgumentParser) -> None:
     _engine_args(p, "fidelity.csv")
     p.add_argument("--repeats", type=int, default=3, help="timed repeats per level")
     p.add_argument("--scenes", default="single,episode_near,episode_far",
-                   help="comma-separated scenes")
+                   help="comma-separated scenes: single (the reference firing), episode_near and "
+                        "episode_far (5 firings ending near the start and ~2 mm downstream)")
 
 
 def cmd_fidelity(args: argparse.Namespace) -> None:
@@ -312,7 +318,8 @@ def cmd_fidelity(args: argparse.Namespace) -> None:
             plot_fidelity(res, files.stage(args.plot))
             res["plot"] = str(Path(args.plot))
     res.pop("rows")
-    emit(args, res)
+    shown = {k: v for k, v in res.items() if k != "scenes"}   # described in --json and --help
+    emit(args, res, format_result({**shown, "scenes_run": list(scenes)}))
 
 
 # ----------------------------------------------------------------------------- stretch

@@ -43,7 +43,23 @@ class MicroConveyorGoalEnv(MicroConveyorEnv):
     """:class:`MicroConveyorEnv` with a Dict observation (``observation``, ``achieved_goal``,
     ``desired_goal``; module docstring) and a vectorised ``compute_reward``. Arguments and
     everything else as the base env; ``info`` also holds ``x_before_m`` [m] and
-    ``t_before_s`` [s], the part's position and time before the step."""
+    ``t_before_s`` [s], the part's position and time before the step.
+
+    SB3's env checker calls ``compute_reward`` on the env it is given, and the wrappers
+    ``gym.make`` puts around this env (``TimeLimit``, ``OrderEnforcing``, the passive checker) do
+    not pass attribute look-ups through in Gymnasium 1.x: ``check_env(gym.make(
+    "MicroConveyorGoal-v1"))`` fails with "'TimeLimit' object has no attribute
+    'compute_reward'". Check the env inside the wrappers::
+
+        import gymnasium as gym
+        import microconveyor_env  # registers MicroConveyorGoal-v1
+        from stable_baselines3.common.env_checker import check_env
+
+        check_env(gym.make("MicroConveyorGoal-v1").unwrapped)
+
+    Training needs nothing of the kind: SB3's ``HerReplayBuffer`` reaches ``compute_reward``
+    through the vectorised env, which looks inside the wrappers.
+    """
 
     def __init__(self, render_mode: str | None = None, config: Any = None, **kwargs: Any) -> None:
         super().__init__(render_mode=render_mode, config=config, **kwargs)

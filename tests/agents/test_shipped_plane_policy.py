@@ -106,7 +106,7 @@ def test_cli_evaluates_the_plane_policy_and_refuses_another_env():
     pol = load_policy(shipped_path("ppo", ENV_ID))
     res = plane_rollout(pol, plane_targets(pol.config, 3, 2026), pol.config)
     assert out["env_id"] == ENV_ID and out["n_targets"] == 3
-    assert abs(out["median_error_m"] - float(np.median(res["error_m"]))) <= EPISODE_TOL_M
+    assert abs(out["median_abs_error_m"] - float(np.median(res["error_m"]))) <= EPISODE_TOL_M
     r = cli("--policy", str(shipped_path("ppo", ENV_ID)), "--env", "MicroConveyor-v1",
             "--targets", "2", "--json")
     assert r.returncode == 2 and "another scene is refused" in r.stdout
