@@ -13,16 +13,16 @@ import dataclasses
 from typing import Any
 
 # the ids themselves live in the light ..env_ids (registration imports only it); re-exported
-from ..env_ids import ALL_ENV_IDS, DEFAULT_ENV_ID, ENTRY_POINTS, FIRST_ENV_ID, ENV_IDS, GOAL_ENV_IDS, LATEST, \
-    MAX_ACTUATORS, NOT_SCENE, PERTURBATION_FIELDS, PLANE_ENV_IDS, REGISTRY, REWARD_FIELDS, \
-    RUNTIME_FIELDS, base_id, overrides
+from ..env_ids import ALL_ENV_IDS, DEFAULT_ENV_ID, ENTRY_POINTS, ENV_IDS, FIRST_ENV_ID, \
+    GOAL_ENV_IDS, LATEST, MAX_ACTUATORS, NOT_SCENE, PERTURBATION_FIELDS, PLANE_ENV_IDS, \
+    REGISTRY, REWARD_FIELDS, RUNTIME_FIELDS, base_id, overrides
 from ..physics.materials import ParameterError
 from .config import EnvConfig
 
-__all__ = ["ALL_ENV_IDS", "DEFAULT_ENV_ID", "ENTRY_POINTS", "FIRST_ENV_ID", "ENV_IDS", "GOAL_ENV_IDS", "LATEST",
-           "MAX_ACTUATORS", "PLANE_ENV_IDS", "base_env_id", "check_env_id", "config_class",
-           "env_config", "nominal", "registered_kwargs", "scene_config", "scene_differences",
-           "scene_of"]
+__all__ = ["ALL_ENV_IDS", "DEFAULT_ENV_ID", "ENTRY_POINTS", "FIRST_ENV_ID", "ENV_IDS",
+           "GOAL_ENV_IDS", "LATEST", "MAX_ACTUATORS", "PLANE_ENV_IDS", "base_env_id",
+           "check_env_id", "config_class", "env_config", "nominal", "registered_kwargs",
+           "scene_config", "scene_differences", "scene_of"]
 _ = (PERTURBATION_FIELDS, REWARD_FIELDS, RUNTIME_FIELDS)   # re-exported for their users
 
 
