@@ -33,7 +33,7 @@ def test_v0_is_flagged_out_of_date_by_gymnasium():
 
 def test_registered_and_idempotent():
     assert microconveyor_env.ENV_ID in gym.registry
-    microconveyor_env._register()  # a second registration is a no-op
+    microconveyor_env.env_ids.register_all()  # a second registration is a no-op
     spec = gym.spec("MicroConveyor-v0")
     assert spec.vector_entry_point.endswith("MicroConveyorVectorEnv")
     venv = gym.make_vec("MicroConveyor-v0", num_envs=3)
