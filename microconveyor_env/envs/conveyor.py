@@ -11,7 +11,7 @@ from gymnasium.core import RenderFrame
 from ..physics import dynamics_kernel as kernel
 from . import actions, task
 from .common import spec_id
-from .core.checks import check_actions, check_render_mode
+from .core.checks import check_actions, check_render_mode, config_of
 from .part_state import PartState
 from .config import EnvConfig
 from .frames import EnvRenderer, check_frames_per_stroke
@@ -143,11 +143,7 @@ class MicroConveyorEnv(OwnsConveyor, gym.Env):
 
     def __init__(self, render_mode: str | None = None, config: EnvConfig | None = None,
                  render_frames_per_stroke: int = 1, **kwargs: Any) -> None:
-        if config is not None and kwargs:
-            raise ValueError("give either config= or keyword overrides, not both")
-        if config is not None and not isinstance(config, EnvConfig):
-            raise ValueError(f"config must be an EnvConfig, got {type(config).__name__}")
-        self.config = config or EnvConfig.from_yaml(**kwargs)
+        self.config = config_of(EnvConfig, config, kwargs)
         check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
         n_frames = check_frames_per_stroke(render_frames_per_stroke, render_mode)

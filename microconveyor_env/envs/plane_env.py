@@ -10,7 +10,7 @@ from gymnasium.core import RenderFrame
 
 from ..physics import dynamics_kernel as kernel
 from . import plane_task
-from .core.checks import check_render_mode
+from .core.checks import check_render_mode, config_of
 from .plane_config import PlaneEnvConfig
 from .plane_state import PlaneConveyor, check_plane_actions
 from .plane_step import ACTION_DIM
@@ -119,11 +119,7 @@ class MicroConveyor2DEnv(gym.Env):
 
     def __init__(self, render_mode: str | None = None, config: PlaneEnvConfig | None = None,
                  **kwargs: Any) -> None:
-        if config is not None and kwargs:
-            raise ValueError("give either config= or keyword overrides, not both")
-        if config is not None and not isinstance(config, PlaneEnvConfig):
-            raise ValueError(f"config must be a PlaneEnvConfig, got {type(config).__name__}")
-        self.config = config or PlaneEnvConfig.from_yaml(**kwargs)
+        self.config = config_of(PlaneEnvConfig, config, kwargs)
         check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
         self.conveyor = PlaneConveyor(self.config, 1, num_threads=1)

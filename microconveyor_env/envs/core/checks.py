@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -48,3 +49,14 @@ def check_render_mode(render_mode: str | None, supported: Sequence[str]) -> None
                                                  "'human', with the render extra)")
         raise ValueError(f"render_mode {render_mode!r} not supported; use None or one of "
                          f"{list(supported)}{hint}")
+
+
+def config_of(cls: Any, config: Any, kwargs: dict[str, Any]) -> Any:
+    """An env's config: ``config`` (which must be a ``cls``) or ``cls.from_yaml(**kwargs)``
+    (its defaults file, then the keyword overrides), not both."""
+    if config is not None and kwargs:
+        raise ValueError("give either config= or keyword overrides, not both")
+    if config is not None and not isinstance(config, cls):
+        article = "an" if cls.__name__[0] in "AEIOU" else "a"
+        raise ValueError(f"config must be {article} {cls.__name__}, got {type(config).__name__}")
+    return config or cls.from_yaml(**kwargs)

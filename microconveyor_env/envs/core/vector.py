@@ -19,7 +19,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from ...physics import dynamics_kernel as kernel
-from .checks import check_render_mode
+from .checks import check_render_mode, config_of
 
 MAX_ENVS = 1_000_000  # parts in one batch (each costs ~1 kB of state)
 
@@ -54,13 +54,7 @@ class BatchedEnv(VectorEnv):
         if self.autoreset_mode == AutoresetMode.DISABLED:
             raise ValueError("autoreset_mode DISABLED is not supported; use NEXT_STEP or SAME_STEP")
         self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
-        if config is not None and kwargs:
-            raise ValueError("give either config= or keyword overrides, not both")
-        name = self.config_class.__name__
-        if config is not None and not isinstance(config, self.config_class):
-            article = "an" if name[0] in "AEIOU" else "a"
-            raise ValueError(f"config must be {article} {name}, got {type(config).__name__}")
-        self.config = config or self.config_class.from_yaml(**kwargs)
+        self.config = config_of(self.config_class, config, kwargs)
         # make_vec passes the spec's step limit; an episode ends by itself within
         # _episode_limit() steps, so a lower limit (which the single env's TimeLimit would
         # apply) is refused
