@@ -185,7 +185,7 @@ def check_scene(trained: AnyConfig, asked: AnyConfig, meta: dict[str, Any], wher
         raise PolicyError(f"{where}: the policy was trained on {meta.get('env_id', FIRST_ENV_ID)}"
                           f" with env kwargs {policy_env_kwargs(meta)}, and the env asked for "
                           f"differs in {fields}. Evaluating a policy on another scene is refused; "
-                          "give the policy's own --env/--env-kwargs (or none)")
+                          "give the policy's own --env/--env-kwargs/--preset (or none)")
 
 
 def load_policy(path: str | Path, config: AnyConfig | None = None) -> Policy:

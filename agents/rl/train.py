@@ -5,7 +5,7 @@ bar, tensorboard logs (``OUT/tb``), one line per checkpoint and per evaluation (
 a checkpoint generation every ``checkpoint_freq`` steps in ``OUT/checkpoints`` (written
 atomically, :mod:`.checkpoint`; ``resume=True`` continues from the newest complete one, so a
 kill loses at most one interval) and an evaluation on a fixed seeded target set every
-``eval_freq`` steps (success at +-50/100/250 um, to tensorboard and ``OUT/evaluations.jsonl``).
+``eval_freq`` steps (success within ±50/100/250 µm, to tensorboard and ``OUT/evaluations.jsonl``).
 At the end ``OUT`` holds the final ``model.zip``, ``normalization.json`` and ``metadata.json``.
 
 A folder is used by one training at a time (``OUT/.lock``). ``resume`` refuses what it cannot
@@ -105,10 +105,10 @@ class Periodic(BaseCallback):
         with open(self.out / "evaluations.jsonl", "a") as fh:
             fh.write(json.dumps(res) + "\n")
         if self.log:
-            self.log(f"eval: step {res['steps']}, {res['wall_time_s']:.0f} s: success +-50/100/250 "
-                     f"um {res['success_rate_50um']:.2f}/{res['success_rate_100um']:.2f}/"
-                     f"{res['success_rate_250um']:.2f}, median |error| "
-                     f"{res['median_abs_error_m'] * 1e6:.1f} um")
+            self.log(f"eval: step {res['steps']:,}, {res['wall_time_s']:.0f} s: within ±50/100/250 "
+                     f"µm {res['success_rate_50um']:.0%}/{res['success_rate_100um']:.0%}/"
+                     f"{res['success_rate_250um']:.0%}, median |error| "
+                     f"{res['median_abs_error_m'] * 1e6:.1f} µm")
         self.last_eval = res
         return res
 

@@ -27,14 +27,14 @@ from ..physics.schedule import ActuatorArray, Schedule
 from .engine import run_tasks, simulator
 
 SCENES: dict[str, dict[str, Any]] = {
-    "single": {"what": "the reference firing: 950 Hz, h = 200 um, start 0.125 mm beside the actuator",
+    "single": {"what": "the reference firing: 950 Hz, h = 200 µm, start 0.125 mm beside the actuator",
                "count": 1, "spacing_m": 0.5e-3, "freq_hz": 950.0, "stroke_m": 200e-6,
                "delay_s": 0.0, "x0_m": 0.125e-3},
-    "episode_near": {"what": "5 firings, spacing 0.5 mm, 500 Hz, h = 150 um, 1 ms delays, start "
+    "episode_near": {"what": "5 firings, spacing 0.5 mm, 500 Hz, h = 150 µm, 1 ms delays, start "
                              "0.15 mm upstream: ends within ~0.1 mm of its start",
                      "count": 5, "spacing_m": 0.5e-3, "freq_hz": 500.0, "stroke_m": 150e-6,
                      "delay_s": 1e-3, "x0_m": -0.15e-3},
-    "episode_far": {"what": "5 firings, spacing 0.3 mm, 950 Hz, h = 200 um, 1 ms delays, start "
+    "episode_far": {"what": "5 firings, spacing 0.3 mm, 950 Hz, h = 200 µm, 1 ms delays, start "
                             "0.15 mm upstream: ends ~2 mm downstream",
                     "count": 5, "spacing_m": 0.3e-3, "freq_hz": 950.0, "stroke_m": 200e-6,
                     "delay_s": 1e-3, "x0_m": -0.15e-3},
