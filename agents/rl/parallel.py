@@ -78,7 +78,7 @@ _watcher: threading.Thread | None = None
 def exit_with_parent(hook: Callable[[], None] | None = None) -> bool:
     """In a process started by :mod:`multiprocessing`: end it (exit status
     :data:`EXIT_ORPHANED`) as soon as its parent process ends, whatever ended it (kill -9
-    included), after running the ``hook``\\ s registered so far (at most :data:`HOOK_S` s in
+    included), after running the hooks registered so far (at most :data:`HOOK_S` s in
     all; a hook's error is ignored). A thread waits on the parent's sentinel: a pipe whose only
     writer is the parent, so it reads end-of-file exactly when the parent is gone. Returns
     False (and does nothing) in a process that multiprocessing did not start."""

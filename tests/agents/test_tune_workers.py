@@ -227,7 +227,7 @@ def test_tune_workers_end_and_fail_their_trials_when_the_command_is_killed(tmp_p
 def test_a_killed_train_seeds_worker_fails_only_its_seed(tmp_path):
     conf = tmp_path / "conf.yml"
     conf.write_text(f"{ENV}:\n  n_envs: 8\n  n_steps: 32\n  batch_size: 64\n  n_epochs: 2\n"
-                    "  policy: MlpPolicy\n  n_timesteps: 16384\n")
+                    "  policy: MlpPolicy\n  n_timesteps: 8192\n")
     out = tmp_path / "runs"
     p = subprocess.Popen(CLI + ["train-seeds", "--json", "--env", ENV, "--seeds", "0", "1",
                                 "--workers", "2", "--conf-file", str(conf), "--eval-freq", "0",
