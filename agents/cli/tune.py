@@ -51,6 +51,10 @@ def _tune_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--best", default=None,
                    help="where to write the best trial's config entry (rl-zoo3 YAML; default: "
                         "OUT/STUDY/best.yml)")
+    p.add_argument("--heartbeat", type=count(1), default=None, metavar="SECONDS",
+                   help="a new study's heartbeat interval: a running trial without a heartbeat "
+                        "for 3x this (its worker or machine lost) is marked failed (default: "
+                        "60; a study keeps the one it was created with)")
     p.add_argument("--quiet", action="store_true", help="no line per finished trial on stderr")
     _budget_args(p, "environment steps per trial (default: 1,000,000)")
 
@@ -68,8 +72,17 @@ def cmd_tune(args: argparse.Namespace) -> None:
                trial_minutes=args.trial_minutes, eval_freq=args.eval_freq,
                eval_targets=args.eval_targets, seed=args.seed, fixed=fixed,
                prune=not args.no_prune, sampler_seed=args.sampler_seed, best_file=args.best,
-               verbose=not args.quiet)
+               verbose=not args.quiet, heartbeat_s=args.heartbeat)
     emit(args, res, tune_text(res))
+    failed = res["failed"]
+    if failed or res["died"]:
+        first = failed[0] if failed else None
+        raise ValueError(
+            f"{len(failed)} of this run's {len(res['this_run'])} trials failed"
+            + (f" (trial {first['number']}: {first['error']}"
+               + (", ..." if len(failed) > 1 else "") + ")" if first else "")
+            + "".join(f"; {d['not_run']} trial(s) of worker {d['worker']} not run"
+                      for d in res["died"] if d["not_run"]))
 
 
 def tune_text(res: dict) -> str:
@@ -80,8 +93,13 @@ def tune_text(res: dict) -> str:
         mine[r["worker"]] = mine.get(r["worker"], 0) + 1
     lines = [f"study {res['study']!r} in {res['storage']}: {res['trials']} trials ({states}) "
              f"from {len(res['workers'])} worker(s)",
-             f"this run: {len(res['this_run'])} trials, per worker "
+             f"this run: {len(res['this_run'])} trials in {res['wall_time_s']:.0f} s, per worker "
              + ", ".join(f"{w} {n}" for w, n in mine.items())]
+    lines += [f"  failed: trial {f['number']} ({f['worker']}): {f['error']}" for f in res["failed"]]
+    lines += [f"  worker {d['worker']} died ({d['how']})"
+              + (f" in trial {d['trial']}" if d["trial"] is not None else "")
+              + (f"; {d['not_run']} of its trials not run" if d["not_run"] else "")
+              for d in res["died"]]
     b = res["best"]
     if b is None:
         lines.append("no finished trial yet: no best.yml")

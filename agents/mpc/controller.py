@@ -313,7 +313,8 @@ class MPCRollout:
     (default: ``config`` with randomisation off), its searches seeded ``settings.seed + 1000 i``.
     ``workers`` [-] processes share the targets (started once, on the first call, with
     ``spawn``: numba's thread pool does not survive a fork; the results do not depend on the
-    number of workers); :meth:`close` (or ``with``) stops them. The dict also holds the compute
+    number of workers; a worker ends when this process does, however it ends); :meth:`close`
+    (or ``with``) stops them. The dict also holds the compute
     per target: ``episodes`` (of the model) and ``wall_time_s`` (planning)."""
 
     def __init__(self, settings: MPCSettings | None = None, model: EnvConfig | None = None,
@@ -336,8 +337,11 @@ class MPCRollout:
                 import multiprocessing as mp
                 from concurrent.futures import ProcessPoolExecutor
 
-                self._pool = ProcessPoolExecutor(self.workers,
-                                                 mp_context=mp.get_context("spawn"))
+                from ..rl.parallel import exit_with_parent
+
+                # a worker ends with its parent (killed or not), instead of waiting for tasks
+                self._pool = ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"),
+                                                 initializer=exit_with_parent)
             parts = np.array_split(index, k)
             futures = [self._pool.submit(_episodes, config, self.model, self.settings, tg[p],
                                          seeds[p], p, self.prior) for p in parts]

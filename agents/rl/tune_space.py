@@ -36,6 +36,12 @@ def sample(trial: Any, fixed: dict | None = None) -> dict:
     return flat
 
 
+# one point of the space (its smallest sizes, so that building it is quick): the trial that
+# checks a command's settings before its study starts (agents.rl.tune.check_settings)
+PROBE = {"n_envs_pow": 6, "n_steps_pow": 3, "batch_size_pow": 8, "n_epochs": 5,
+         "learning_rate": 3e-4, "net_width": 64, "log_std_init": -1.0, "one_minus_gamma": 0.01}
+
+
 # what a fixed value must be (by key; the rest are whole numbers >= 1)
 MUST = {"learning_rate": "a rate > 0 or lin_<rate>", "log_std_init": "a finite number",
         "gamma": "in (0, 1]"}

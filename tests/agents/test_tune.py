@@ -157,6 +157,6 @@ def test_a_storage_that_cannot_be_opened_is_one_error_without_its_password(tmp_p
         if url.startswith("postgresql"):
             assert "postgresql://tuner:***@127.0.0.1:1/optuna" in msg
             try:
-                import psycopg2  # noqa: F401
+                import psycopg  # noqa: F401
             except ImportError:
-                assert "pip install psycopg2-binary" in msg
+                assert "pip install 'psycopg[binary]'" in msg
