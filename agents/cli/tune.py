@@ -104,11 +104,12 @@ def tune_text(res: dict) -> str:
     if b is None:
         lines.append("no finished trial yet: no best.yml")
     else:
-        lines += [f"best: trial {b['number']}, value {b['value']:.4g} (success +-50 um "
-                  f"{b['success_rate_50um']:.3f}, median |error| "
-                  f"{b['median_abs_error_m'] * 1e6:.1f} um, {b['steps']} steps) in {b['run']}",
-                  "  " + ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}"
-                                   for k, v in b["params"].items()),
+        lines += [f"best: trial {b['number']}: {b['success_rate_50um']:.0%} within ±50 µm, "
+                  f"median |error| {b['median_abs_error_m'] * 1e6:.1f} µm after "
+                  f"{b['steps']:,} steps ({b['run']})",
+                  "  hyperparameters: " + ", ".join(
+                      f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}"
+                      for k, v in b["params"].items()),
                   f"config entry: {res['best_file']} (microconveyor train --env "
                   f"{res['env_id']} --conf-file {res['best_file']})"]
     return "\n".join(lines)
