@@ -115,6 +115,8 @@ class Conveyor(PartsBase):
         # the compiled calls' inputs (owned, so their types never change) and the calls; the envs
         # check their actions straight into ``action_input`` (core.checks.check_actions(out=...))
         self._start(n, actions.ACTION_DIM, num_threads)
+        if self.history_len:   # each step adds the firing to the observation history
+            self.after_step = self._remember_all
 
     def compiled(self) -> tuple[Any, Any, Any, tuple[Any, ...]]:
         return step_serial, step_parallel, observe_all, (self.parts, self.positions, self.task,
@@ -217,9 +219,8 @@ class Conveyor(PartsBase):
             self.obs[:, :task.OBS_DIM] = self.out.obs
         return self.obs
 
-    def _after_step(self) -> None:
-        if self.history_len:
-            self._remember(self._all_active)
+    def _remember_all(self) -> None:
+        self._remember(self._all_active)
 
     def _remember(self, everyone: bool) -> None:
         """After a step: each active part's history shifts by one slot and slot 0 takes the

@@ -16,22 +16,22 @@ def check_actions(actions: npt.ArrayLike, n: int | None, out: np.ndarray | None 
 
     ``n = None`` is the single env: exactly shape ``(k,)``; otherwise exactly ``(n, k)``. A wrong
     shape, a non-numeric dtype (bool, complex, str, object) or NaN/inf raise ``ValueError``
-    (values outside [-1, 1] are clipped when decoded).
+    (values outside [-1, 1] are clipped when decoded). Every step calls it: the messages are
+    only built when one is needed.
     """
     k = len(components)
     expected = (k,) if n is None else (n, k)
-    names = ", ".join(components)
-    what = (f"one action of {k} components ({names})" if n is None else
-            f"{n} actions of {k} components ({names})")
     try:
         raw = np.asarray(actions)
     except (TypeError, ValueError) as exc:  # ragged nested sequences
-        raise ValueError(f"expected {what}, shape {expected}; got {type(actions).__name__} "
-                         f"that is not an array ({exc})") from None
+        raise ValueError(f"expected {_what(n, components)}, shape {expected}; got "
+                         f"{type(actions).__name__} that is not an array ({exc})") from None
     if raw.shape != expected:
-        raise ValueError(f"expected {what}, shape {expected}; got shape {raw.shape}")
+        raise ValueError(f"expected {_what(n, components)}, shape {expected}; got shape "
+                         f"{raw.shape}")
     if raw.dtype.kind not in "iuf":
-        raise ValueError(f"expected {what} as real numbers; got dtype {raw.dtype}")
+        raise ValueError(f"expected {_what(n, components)} as real numbers; got dtype "
+                         f"{raw.dtype}")
     if out is None:
         a = raw.astype(np.float64).reshape(-1, k)
     else:
@@ -40,6 +40,12 @@ def check_actions(actions: npt.ArrayLike, n: int | None, out: np.ndarray | None 
     if not np.isfinite(a).all():
         raise ValueError(f"action contains NaN or inf: {a.tolist()}")
     return a
+
+
+def _what(n: int | None, components: Sequence[str]) -> str:
+    k, names = len(components), ", ".join(components)
+    return (f"one action of {k} components ({names})" if n is None else
+            f"{n} actions of {k} components ({names})")
 
 
 def check_render_mode(render_mode: str | None, supported: Sequence[str]) -> None:

@@ -131,11 +131,12 @@ class PartsBase:
             chooser.record(k, time.perf_counter() - t0, int(self._active.sum()))
         if beyond:
             raise_if_beyond_table("load_beyond_table", self.table_simulator())
-        self._after_step()
+        if self.after_step is not None:
+            self.after_step()
         return self.out
 
-    def _after_step(self) -> None:
-        """What a scene does after each step (the line: its observation history)."""
+    # what a scene does after each step (the line: its observation history), or None
+    after_step: Callable[[], None] | None = None
 
     def _run(self, k: int) -> int:
         """Step with ``k`` threads; the number of parts that left the contact table."""
