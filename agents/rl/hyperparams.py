@@ -30,6 +30,7 @@ ENV_ID = "MicroConveyor-v1"  # what `train` trains on unless told (v0: --env Mic
 PACKAGE_KEYS = ("exploration_restart", "exploration_shift", "freeze_obs_stats_at")
 # the section of a config file holding them, per env id (rl-zoo3 reads only its --env's entry)
 PACKAGE_SECTION = "microconveyor"
+CONFIG_LIMIT = 1 << 20   # bytes of a config file read
 # keys the trainer handles itself (the rest go to PPO(...))
 RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs", "vec_env_wrapper",
             *PACKAGE_KEYS)
@@ -58,8 +59,12 @@ def load(path: str | None = None, env_id: str = ENV_ID, algo: str = "ppo") -> di
         except FileNotFoundError:
             raise ValueError(f"no shipped config for {algo!r} (configs/{algo}.yml)") from None
     else:
-        with open(path) as fh:
-            text = fh.read()
+        from microconveyor_env.safe_files import UnsafeFileError, read_text
+
+        try:   # a config file may come from someone else: a regular file within bounds
+            text = read_text(path, CONFIG_LIMIT, follow_symlinks=True)
+        except UnsafeFileError as exc:
+            raise ValueError(f"--conf-file: {exc}") from None
     data = yaml.safe_load(text) or {}
     where = path or f"configs/{algo}.yml"
     if not isinstance(data, dict):

@@ -6,7 +6,7 @@ Each worker process loads the study and runs its share of the trials; workers on
 join by running the same command with the same ``storage`` and ``study_name``. A trial is one
 :func:`.train.train` run (``OUT/<study>/trial-<number>``) with sampled hyperparameters
 (:mod:`.tune_space`) over the base config entry, a step budget and an optional wall budget; its
-value is the final fixed-target success within +-50 um, minus ``0.01 x`` the median error [m]
+value is the final fixed-target success within ±50 µm, minus ``0.01 x`` the median error [m]
 (capped at 10 mm, so at most 1e-4: a tie-break that never outweighs one target in 10,000).
 Periodic evaluations report the same value and Optuna's median pruner stops trials below the
 median of earlier ones at the same step.
@@ -45,7 +45,7 @@ CONNECT_TIMEOUT_S = 10      # a database server that does not answer within this
 
 
 def score(ev: dict) -> float:
-    """The objective of an evaluation: success within +-50 um, tie-broken by the median error."""
+    """The objective of an evaluation: success within ±50 µm, tie-broken by the median error."""
     return float(ev["success_rate_50um"]) - 0.01 * min(float(ev["median_abs_error_m"]), 0.01)
 
 
@@ -386,10 +386,10 @@ def _worker(task: dict) -> dict:
         if log:
             a = t.user_attrs
             if "success_rate_50um" in a:
-                what = (f"value {t.value:.4g} (success +-50 um {a['success_rate_50um']:.2f}, "
-                        f"median |error| {a['median_abs_error_m'] * 1e6:.0f} um)")
+                what = (f"{a['success_rate_50um']:.0%} within ±50 µm, median |error| "
+                        f"{a['median_abs_error_m'] * 1e6:.0f} µm")
             elif "pruned_at" in a:
-                what = f"at step {a['pruned_at']} (value {t.value:.4g})"
+                what = f"at step {a['pruned_at']:,}"
             else:
                 what = a.get("error", "")
             log(f"trial {t.number} {t.state.name.lower()} {what}".rstrip())
@@ -659,9 +659,9 @@ def write_best(best: dict, path: str | Path, env_id: str = hyperparams.ENV_ID,
     hp = {**base, **tune_space.overrides(base, best["params"])}
     if env_kwargs:
         hp["env_kwargs"] = {**(base.get("env_kwargs") or {}), **env_kwargs}
-    note = (f"best trial {best['number']} of Optuna study {study_name!r}: value "
-            f"{best['value']:.4f}, success +-50 um {best['success_rate_50um']:.3f}, median "
-            f"|error| {best['median_abs_error_m'] * 1e6:.1f} um after {best['steps']} steps "
+    note = (f"best trial {best['number']} of Optuna study {study_name!r}: objective "
+            f"{best['value']:.4f}, {best['success_rate_50um']:.0%} within ±50 µm, median "
+            f"|error| {best['median_abs_error_m'] * 1e6:.1f} µm after {best['steps']:,} steps "
             f"({best['run']})\ntuned: {json.dumps(best['params'])}")
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -118,11 +118,19 @@ DICT_KEYS = ("policy_kwargs", "normalize", "replay_buffer_kwargs")
 
 def config_yaml(env_id: str, hp: dict, comment: str = "") -> str:
     """An rl-zoo3 config file holding one entry, ``env_id: hp`` (``hp`` parsed, as
-    :func:`.hyperparams.load` returns it), with ``comment`` lines on top."""
+    :func:`.hyperparams.load` returns it), with ``comment`` lines on top; keys only this
+    package reads go to the file's :data:`.hyperparams.PACKAGE_SECTION` section, so the file
+    runs under ``python -m rl_zoo3.train`` as it is and :func:`.hyperparams.load` reads ``hp``
+    back."""
     import yaml
 
+    from .hyperparams import PACKAGE_SECTION, split_package_keys
+
+    zoo, package = split_package_keys(hp)
     entry = {k: dict_text(v) if k in DICT_KEYS and isinstance(v, dict) else v
-             for k, v in hp.items()}
+             for k, v in zoo.items()}
+    doc: dict = {env_id: entry}
+    if package:
+        doc[PACKAGE_SECTION] = {env_id: package}
     head = "".join(f"# {line}\n" for line in comment.splitlines())
-    return head + yaml.safe_dump({env_id: entry}, sort_keys=False, default_flow_style=None,
-                                 width=100)
+    return head + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=100)

@@ -160,3 +160,22 @@ def test_a_storage_that_cannot_be_opened_is_one_error_without_its_password(tmp_p
                 import psycopg  # noqa: F401
             except ImportError:
                 assert "pip install 'psycopg[binary]'" in msg
+
+
+def test_a_written_config_keeps_package_keys_out_of_the_rl_zoo3_entry(tmp_path):
+    """best.yml on the v1 base: the rl-zoo3 entry holds only keys rl-zoo3 knows (the run
+    phases go to the package's section), and loading it gives back every hyperparameter."""
+    import yaml
+
+    from agents.rl import hyperparams
+    from agents.rl.tune_space import config_yaml
+
+    hp = hyperparams.load(None, "MicroConveyor-v1")
+    assert set(hyperparams.PACKAGE_KEYS) & set(hp)          # the v1 recipe has run phases
+    path = tmp_path / "best.yml"
+    path.write_text(config_yaml("MicroConveyor-v1", hp, "a note"))
+    doc = yaml.safe_load(path.read_text())
+    assert not set(hyperparams.PACKAGE_KEYS) & set(doc["MicroConveyor-v1"])
+    assert set(doc[hyperparams.PACKAGE_SECTION]["MicroConveyor-v1"]) <= set(
+        hyperparams.PACKAGE_KEYS)
+    assert hyperparams.load(str(path), "MicroConveyor-v1") == hp
