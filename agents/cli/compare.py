@@ -152,6 +152,11 @@ def run(args: Any) -> None:
     if args.json:
         print(text, file=sys.stderr)
     emit(args, res, text + "".join(f"\nwrote {c}" for c in res.get("charts", [])))
+    lost = sum(r.get("lost_episodes", 0) for r in res["rows"])
+    if res.get("mpc_worker_deaths"):
+        raise ValueError(f"an MPC worker process died {res['mpc_worker_deaths']} time(s): its "
+                         f"episodes ran again in processes of their own ({lost} lost when that "
+                         "process died too, counted as failures above)")
 
 
 def _robust(budgets: tuple[int, int] | None, seed: int) -> Any:

@@ -69,11 +69,16 @@ class _RandomPolicy:
 
 def _rows(name: str, res: dict, targets: np.ndarray, tol: float, **extra: Any) -> dict:
     err = np.asarray(res["error_m"], float)
-    rest = np.asarray(res["outcome"]) == "rest"
+    outcome = np.asarray(res["outcome"])
+    rest = outcome == "rest"
     ok = rest & (np.abs(err) <= tol)
     t = np.asarray(res["time_s"], float)
+    lost = outcome == "worker_died"   # MPC episodes whose worker process died (failures)
+    if lost.any():
+        extra["lost_episodes"] = int(lost.sum())
     return {"method": name, "n_targets": int(len(targets)), "success_rate": float(ok.mean()),
-            "median_abs_error_m": float(np.median(np.abs(err))),
+            "median_abs_error_m": float(np.median(np.abs(err[~lost]))) if (~lost).any()
+            else None,
             "detach_rate": float(np.mean(np.asarray(res["outcome"]) == "detached")),
             "median_travel_time_s": float(np.median(t[rest])) if rest.any() else None,
             "abs_error_m": np.abs(err).tolist(), "rest": rest.tolist(), **extra}
@@ -273,12 +278,14 @@ def _compare(stack: contextlib.ExitStack, cfg: EnvConfig, targets: np.ndarray, p
     if robust is not None:
         runners["ppo_randomised"] = policy_rollout(robust)
     prior = None if mpc_prior is None else str(mpc_prior)
+    mpc_runs: list[Any] = []
     for name, settings, seeded in (("mpc", mpc, None),
                                    ("mpc_ppo", mpc if prior else None, prior),
                                    ("mpc_robust", robust_mpc, prior)):
         if settings is None:
             continue
         run_mpc = stack.enter_context(mpc_rollout(settings, workers=mpc_workers, prior=seeded))
+        mpc_runs.append(run_mpc)
         if progress:
             print(f"{name}: {len(targets)} targets on {mpc_workers} workers ...", file=sys.stderr,
                   flush=True)
@@ -348,4 +355,6 @@ def _compare(stack: contextlib.ExitStack, cfg: EnvConfig, targets: np.ndarray, p
             "ppo_amortised": {"over_targets": amortise_over, "wall_s_per_target": amortised},
             "tolerance": {"tolerances_m": list(TOLERANCES), "success_rate": tol},
             "perturbation": pert, "seeds": seed_stats, "policy": str(ppo.path),
-            "randomised_policy": None if rand_path is None else str(rand_path)}
+            "randomised_policy": None if rand_path is None else str(rand_path),
+            # pools an MPC worker's death broke (its episodes ran again; twice: failed)
+            "mpc_worker_deaths": sum(r.worker_deaths for r in mpc_runs)}

@@ -306,6 +306,18 @@ def _episodes(config: EnvConfig, model: EnvConfig | None, settings: MPCSettings 
             for tg, sd, i in zip(targets, seeds, index, strict=True)]
 
 
+def _episodes_task(task: tuple[Any, ...]) -> list[MPCEpisode]:
+    """:func:`_episodes` of one task tuple (a supervised worker's function)."""
+    return _episodes(*task)
+
+
+def _lost_episodes(task: tuple[Any, ...], why: str) -> list[MPCEpisode]:
+    """The episodes of a batch whose worker died twice: failed, error NaN, no compute."""
+    targets = task[3]
+    return [MPCEpisode(float(t), float("nan"), "worker_died", False, float("nan"), 0, 0, 0.0)
+            for t in targets]
+
+
 class MPCRollout:
     """A rollout function ``(config, targets, seed) -> dict`` as :mod:`agents.experiments.perturb`
     runs them: episode ``i`` is the single env of ``config`` seeded ``seed + i`` (the same episode
@@ -324,6 +336,7 @@ class MPCRollout:
         self.settings, self.model, self.workers = settings, model, workers
         self.prior = None if prior is None else str(prior)
         self._pool: Any = None
+        self.worker_deaths = 0   # pools broken by a dead worker so far
 
     def __call__(self, config: EnvConfig, targets: np.ndarray, seed: int) -> dict:
         tg = np.asarray(targets, float)
@@ -343,9 +356,9 @@ class MPCRollout:
                 self._pool = ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"),
                                                  initializer=exit_with_parent)
             parts = np.array_split(index, k)
-            futures = [self._pool.submit(_episodes, config, self.model, self.settings, tg[p],
-                                         seeds[p], p, self.prior) for p in parts]
-            eps = [e for f in futures for e in f.result()]
+            tasks = [(config, self.model, self.settings, tg[p], seeds[p], p, self.prior)
+                     for p in parts]
+            eps = [e for batch in self._run_batches(tasks) for e in batch]
         out: dict[str, Any] = {
             "targets_m": tg,
             "error_m": np.array([e.error_m for e in eps]),
@@ -358,6 +371,36 @@ class MPCRollout:
             out["friction_factor"] = np.array([e.friction_factor for e in eps])
             out["mass_factor"] = np.array([e.mass_factor for e in eps])
         return out
+
+    def _run_batches(self, tasks: list[tuple[Any, ...]]) -> list[list[MPCEpisode]]:
+        """Each batch of episodes on the pool. When a worker dies, the pool is broken for every
+        batch not yet finished: those batches run again, each in a supervised process of its
+        own (:func:`..rl.parallel.run_local`), and a batch whose process dies again counts as
+        failed episodes (outcome ``"worker_died"``, error NaN) while the others stand."""
+        from concurrent.futures.process import BrokenProcessPool
+
+        done: list[list[MPCEpisode] | None] = [None] * len(tasks)
+        try:   # a worker that died between calls breaks the pool at submit already
+            futures = [self._pool.submit(_episodes, *t) for t in tasks]
+        except BrokenProcessPool:
+            futures = []
+        for i, f in enumerate(futures):
+            try:
+                done[i] = f.result()
+            except BrokenProcessPool:
+                pass
+        redo = [i for i, batch in enumerate(done) if batch is None]
+        if redo:
+            from ..rl.parallel import Died, run_local
+
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            self._pool = None   # started again at the next call
+            self.worker_deaths += 1
+            again = run_local(_episodes_task, [tasks[i] for i in redo], self.workers,
+                              died=lambda task, err: Died(_lost_episodes(task, str(err))))
+            for i, batch in zip(redo, again, strict=True):
+                done[i] = batch
+        return [batch or [] for batch in done]
 
     def close(self) -> None:
         if self._pool is not None:

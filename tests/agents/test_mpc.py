@@ -106,3 +106,31 @@ def test_robust_settings_are_checked():
     cfg = env_config("MicroConveyor-v1")
     ep = MPC(cfg, s).run(MicroConveyorEnv(config=cfg), 2e-3, seed=0)
     assert ep.episodes <= 80 * ep.firings and ep.episodes % 4 == 0
+
+
+def test_a_dead_mpc_worker_costs_only_a_rerun_of_the_unfinished_batches():
+    """A pool worker killed between calls breaks the pool: the next call runs its batches again
+    in supervised processes of their own (the same episodes: results do not depend on the
+    workers), counts the death, and the call after it starts a fresh pool. A batch whose own
+    process dies too comes back as failed episodes."""
+    import os
+    import signal
+
+    from agents.mpc import controller
+
+    cfg = env_config("MicroConveyor-v1")
+    targets = np.array([2e-3, 4e-3, 6e-3, 8e-3])
+    with mpc_rollout(TINY, workers=2) as run:
+        first = run(cfg, targets, 7)
+        victim = next(iter(run._pool._processes))
+        os.kill(victim, signal.SIGKILL)
+        import time
+
+        time.sleep(1.0)                              # the executor notices the death
+        again = run(cfg, targets, 7)
+        assert run.worker_deaths == 1 and run._pool is None
+        np.testing.assert_array_equal(again["error_m"], first["error_m"])
+        third = run(cfg, targets, 7)                 # a fresh pool
+        np.testing.assert_array_equal(third["error_m"], first["error_m"])
+    lost = controller._lost_episodes((cfg, None, TINY, targets[:2], None, None, None), "died")
+    assert [e.outcome for e in lost] == ["worker_died"] * 2 and np.isnan(lost[0].error_m)
