@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 
 import pytest
+from support.storages import open_at_once
 
 pytest.importorskip("stable_baselines3")
 pytest.importorskip("optuna")
@@ -131,16 +132,7 @@ def test_a_dead_worker_costs_only_its_task_and_may_be_replaced(tmp_path):
 def test_workers_end_when_their_parent_is_killed(tmp_path):
     code = ("import time\nfrom agents.rl.parallel import run_local\n"
             "run_local(time.sleep, [600, 600], workers=2)")
-    p = subprocess.Popen([sys.executable, "-c", code])
-    try:
-        workers = _wait(lambda: (lambda c: c if len(c) == 2 else None)(_children(p.pid)),
-                        "two workers")
-        p.kill()
-        p.wait()
-        _wait(lambda: not any(_alive(w) for w in workers), "the workers to end")
-    finally:
-        if p.poll() is None:
-            p.kill()
+    _workers_end_with_parent(code, "two workers")
 
 
 def test_mpc_pool_workers_end_when_their_parent_is_killed(tmp_path):
@@ -150,15 +142,20 @@ def test_mpc_pool_workers_end_when_their_parent_is_killed(tmp_path):
             "from microconveyor_env.envs import env_config\n"
             "with MPCRollout(MPCSettings(first_budget=1000, replan_budget=300), workers=2) as r:\n"
             "    r(env_config('MicroConveyor-v0'), np.full(400, 3e-3), 0)\n")
+    _workers_end_with_parent(code, "the MPC pool", settle_s=2.0)  # episodes under way
+
+
+def _workers_end_with_parent(code: str, what: str, settle_s: float = 0.0) -> None:
+    """Run ``code`` (which starts two worker processes), kill -9 it once both run (and
+    ``settle_s`` later), and wait for both workers to end."""
     p = subprocess.Popen([sys.executable, "-c", code])
     try:
-        workers = _wait(lambda: (lambda c: c if len(c) == 2 else None)(_children(p.pid)),
-                        "the MPC pool")
-        time.sleep(2)  # let them take their episodes
+        workers = _wait(lambda: (lambda c: c if len(c) == 2 else None)(_children(p.pid)), what)
+        time.sleep(settle_s)
         assert p.poll() is None
         p.kill()
         p.wait()
-        _wait(lambda: not any(_alive(w) for w in workers), "the MPC workers to end")
+        _wait(lambda: not any(_alive(w) for w in workers), f"the workers of {what} to end")
     finally:
         if p.poll() is None:
             p.kill()
@@ -301,30 +298,6 @@ def test_a_missing_driver_names_the_package(tmp_path, monkeypatch):
     with pytest.raises(ValueError, match="not installed: pip install pymysql"):
         monkeypatch.setitem(sys.modules, "pymysql", None)
         tune_mod.check_storage("mysql+pymysql://tuner@db.example/optuna")
-
-
-def open_at_once(url: str, n: int, tmp_path: Path) -> list[str]:
-    """``n`` processes open the storage at ``url`` at the same instant (each waits, imported
-    and ready, for a file to appear); what each printed: ``ok`` or its error."""
-    go = tmp_path / f"go-{time.monotonic_ns()}"
-    code = ("import os, sys, time\nimport optuna\nfrom agents.rl.tune import open_storage\n"
-            "optuna.storages.RDBStorage('sqlite://')\n"  # every import done: they start together
-            "print('ready', flush=True)\n"
-            f"while not os.path.exists({str(go)!r}): time.sleep(0.001)\n"
-            "try:\n"
-            f"    open_storage({url!r})\n    print('ok')\n"
-            "except Exception as e:\n    print(type(e).__name__, str(e).splitlines()[0])\n")
-    procs = [subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
-             for _ in range(n)]
-    try:
-        for p in procs:
-            assert p.stdout.readline().strip() == "ready"
-        go.write_text("")
-        return [p.communicate(timeout=DEADLINE_S)[0].strip() for p in procs]
-    finally:
-        for p in procs:
-            if p.poll() is None:
-                p.kill()
 
 
 def test_commands_creating_one_sqlite_storage_at_once_all_open_it(tmp_path):
