@@ -57,6 +57,7 @@ def test_the_wheel_holds_every_module_config_and_policy(wheel):
     assert not any(n.startswith(("tests/", "configs/")) for n in names)   # nothing top-level
 
 
+@pytest.mark.slow   # ~60 s; the wheel's contents are checked in the default suite (above)
 def test_every_command_runs_from_the_installed_wheel(wheel, tmp_path):
     """Installed into a fresh venv (dependencies from this environment's site packages), away
     from the source tree: every module imports and ``microconveyor <cmd> --help`` works."""

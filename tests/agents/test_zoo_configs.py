@@ -91,6 +91,7 @@ def test_a_package_section_holds_only_package_keys(tmp_path, section, message):
         hyperparams.load(str(conf), "MicroConveyor-v1")
 
 
+@pytest.mark.slow   # ~20 s: a real rl-zoo3 training; the entries' models are built above
 def test_python_m_rl_zoo3_train_runs_the_shipped_v1_entry(tmp_path):
     conf = str(CONFIGS / "ppo.yml")
     r = subprocess.run([sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env",
