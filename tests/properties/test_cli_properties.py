@@ -103,6 +103,8 @@ def _refused_by_parser(argv) -> bool:
 @example(line=("sweep", [("--freq", ",")]), json_flag=True)               # empty list
 @example(line=("simulate", [("--plot", "")]), json_flag=True)
 @example(line=("simulate", [("--dt", "1e-12")]), json_flag=True)          # 1e9 steps
+# the old preset names it draws on purpose are still accepted, with their deprecation warning
+@pytest.mark.filterwarnings("ignore:preset '.*' is now called:DeprecationWarning")
 def test_cli_errors_follow_the_contract(tmpdir_, capsys, line, json_flag):
     command, opts = line
     argv = _argv(command, opts, json_flag, tmpdir_)
