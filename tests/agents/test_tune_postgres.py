@@ -29,6 +29,7 @@ import time
 from pathlib import Path
 
 import pytest
+from support.processes import wait_for
 from support.storages import open_at_once
 
 pytest.importorskip("stable_baselines3")
@@ -151,13 +152,7 @@ def _finish(p: subprocess.Popen) -> tuple[int, list[dict], str]:
 
 
 def _wait(cond, what: str):
-    t_end = time.monotonic() + DEADLINE_S
-    while time.monotonic() < t_end:
-        got = cond()
-        if got:
-            return got
-        time.sleep(0.2)
-    raise AssertionError(f"gave up waiting ({DEADLINE_S} s) for {what}")
+    return wait_for(cond, what)
 
 
 def _trials(url: str) -> list:

@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 
 import pytest
+from support.processes import wait_for
 from support.storages import open_at_once
 
 pytest.importorskip("stable_baselines3")
@@ -61,14 +62,8 @@ def _alive(pid: int) -> bool:
     return state != "Z"
 
 
-def _wait(cond, what: str, deadline_s: float = DEADLINE_S):
-    t_end = time.monotonic() + deadline_s
-    while time.monotonic() < t_end:
-        got = cond()
-        if got:
-            return got
-        time.sleep(0.05)
-    raise AssertionError(f"gave up waiting ({deadline_s} s) for {what}")
+def _wait(cond, what: str):
+    return wait_for(cond, what)
 
 
 def _trials(storage, study: str = "s") -> list:
