@@ -245,11 +245,13 @@ def flat_obs(observation_space: Any) -> tuple[int, tuple[str, ...] | None]:
     return int(np.prod(observation_space.shape)), None
 
 
-def load_actor(path: Path, algo: str, observation_space: Any, action_space: Any) -> ActorNet:
+def load_actor(path: Path, algo: str, observation_space: Any, action_space: Any,
+               zf: Any = None) -> ActorNet:
     """The deterministic actor of the model zip at ``path`` (an ``algo`` model for these
-    spaces), rebuilt from its ``policy.pth`` tensors (:class:`~.actor_net.ActorNet`): no SB3
-    model, env, critic or buffer is built, and no pickle is loaded."""
-    zf = open_model(path)
+    spaces; ``zf``: the zip already opened with :func:`~.model_zip.open_model`), rebuilt from
+    its ``policy.pth`` tensors (:class:`~.actor_net.ActorNet`): no SB3 model, env, critic or
+    buffer is built, and no pickle is loaded."""
+    zf = zf or open_model(path)
     data = read_data(path, zf)
     check_spaces(path, data, observation_space, action_space, "the env")
     if data.get("policy_class") is not None:

@@ -35,7 +35,7 @@ from . import normalization
 from .checkpoint import META, MODEL, CheckpointError, read_meta, verify_files
 from .normalization import NORMALIZATION, NormalizationError, ObsNormalizer
 from .actor_net import ActorNet, load_actor
-from .sb3_files import ALGOS, ModelFileError, algo_of, check_spaces, read_data
+from .sb3_files import ALGOS, ModelFileError, algo_of, check_spaces, open_model, read_data
 
 AnyConfig = EnvConfig | PlaneEnvConfig
 __all__ = ["FIRST_ENV_ID", "PLANE_ENV_IDS", "Policy", "PolicyError", "load_policy",
@@ -198,7 +198,8 @@ def load_policy(path: str | Path, config: AnyConfig | None = None) -> Policy:
     folder, model_file = _locate(Path(path))
     meta = _metadata(folder)
     try:
-        data = read_data(model_file)
+        zf = open_model(model_file)   # read once, within its limits
+        data = read_data(model_file, zf)
     except ModelFileError as exc:
         raise PolicyError(f"{exc}; not a stable-baselines3 model") from None
     algo = algo_of(data)
@@ -223,7 +224,7 @@ def load_policy(path: str | Path, config: AnyConfig | None = None) -> Policy:
     try:
         check_spaces(model_file, data, obs_space, act_space, env_id)
         normalizer = _normalizer(folder, model_file, meta, obs_space.shape)
-        actor = load_actor(model_file, algo, obs_space, act_space)
+        actor = load_actor(model_file, algo, obs_space, act_space, zf)
     except ModelFileError as exc:
         raise PolicyError(str(exc)) from None
     return Policy(actor, normalizer, meta, folder, trained)
