@@ -17,7 +17,7 @@ class Registration:
     to know of it.
 
     ``geometry``: ``"line"`` (:class:`~.envs.config.EnvConfig`) or ``"plane"``
-    (:class:`~.envs.plane_config.PlaneEnvConfig`); ``config``: the config class
+    (:class:`~.envs.plane.config.PlaneEnvConfig`); ``config``: the config class
     (``module:Class``) whose ``from_yaml(None, **kwargs)`` makes the env's config;
     ``entry_point`` / ``vector_entry_point``: the single and batched envs (None: Gymnasium's
     Sync/Async wrappers); ``base``: the scene version (itself, or the version an interface
@@ -54,18 +54,18 @@ REWARD_FIELDS = frozenset({"progress_scale", "progress_horizon", "time_cost", "s
 NOT_SCENE = RUNTIME_FIELDS | PERTURBATION_FIELDS | REWARD_FIELDS
 
 REGISTRY: dict[str, Registration] = {r.env_id: r for r in (
-    Registration("MicroConveyor-v0", "line", f"{_ENVS}.config:EnvConfig",
-                 f"{_ENVS}.conveyor:MicroConveyorEnv", f"{_ENVS}.vector:MicroConveyorVectorEnv",
+    Registration("MicroConveyor-v0", "line", f"{_ENVS}.line.config:EnvConfig",
+                 f"{_ENVS}.line.env:MicroConveyorEnv", f"{_ENVS}.line.vector:MicroConveyorVectorEnv",
                  "MicroConveyor-v0", False, None, NOT_SCENE),
-    Registration("MicroConveyor-v1", "line", f"{_ENVS}.config:EnvConfig",
-                 f"{_ENVS}.conveyor:MicroConveyorEnv", f"{_ENVS}.vector:MicroConveyorVectorEnv",
+    Registration("MicroConveyor-v1", "line", f"{_ENVS}.line.config:EnvConfig",
+                 f"{_ENVS}.line.env:MicroConveyorEnv", f"{_ENVS}.line.vector:MicroConveyorVectorEnv",
                  "MicroConveyor-v1", True, MAX_ACTUATORS, NOT_SCENE),
-    Registration("MicroConveyorGoal-v1", "line", f"{_ENVS}.config:EnvConfig",
-                 f"{_ENVS}.goal:MicroConveyorGoalEnv", None,
+    Registration("MicroConveyorGoal-v1", "line", f"{_ENVS}.line.config:EnvConfig",
+                 f"{_ENVS}.line.goal:MicroConveyorGoalEnv", None,
                  "MicroConveyor-v1", True, MAX_ACTUATORS, NOT_SCENE),
-    Registration("MicroConveyor2D-v0", "plane", f"{_ENVS}.plane_config:PlaneEnvConfig",
-                 f"{_ENVS}.plane_env:MicroConveyor2DEnv",
-                 f"{_ENVS}.plane_vector:MicroConveyor2DVectorEnv",
+    Registration("MicroConveyor2D-v0", "plane", f"{_ENVS}.plane.config:PlaneEnvConfig",
+                 f"{_ENVS}.plane.env:MicroConveyor2DEnv",
+                 f"{_ENVS}.plane.vector:MicroConveyor2DVectorEnv",
                  "MicroConveyor2D-v0", False, PLANE_MAX_FIRINGS, NOT_SCENE),
 )}
 DEFAULT_ENV_ID = "MicroConveyor-v1"   # what every command and function uses unless told

@@ -52,7 +52,7 @@ MISS = 1.0  # m: base cost of an episode that does not end at rest (as agents/op
 
 def fixed_targets(n: int) -> np.ndarray:
     """``(n, 2)`` targets [m], uniform on the default grid's box (seeded)."""
-    from microconveyor_env.envs.plane_config import PlaneEnvConfig
+    from microconveyor_env.envs.plane.config import PlaneEnvConfig
 
     (x0, x1), (y0, y1) = PlaneEnvConfig.from_yaml().grid_box
     rng = np.random.default_rng(TARGET_SEED)
@@ -67,7 +67,7 @@ class PlaneSB3VecEnv:
         from gymnasium.vector import AutoresetMode
         from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
-        from microconveyor_env.envs.plane_vector import MicroConveyor2DVectorEnv
+        from microconveyor_env.envs.plane.vector import MicroConveyor2DVectorEnv
 
         class _Vec(VecEnv):
             def __init__(self) -> None:
@@ -173,7 +173,7 @@ def evaluate(args: argparse.Namespace) -> dict[str, Any]:
 
     from stable_baselines3 import PPO
 
-    from microconveyor_env.envs.plane_vector import MicroConveyor2DVectorEnv
+    from microconveyor_env.envs.plane.vector import MicroConveyor2DVectorEnv
 
     model = PPO.load(args.model, device="cpu")
     with open(Path(args.model).parent / "vecnormalize.pkl", "rb") as fh:
@@ -204,7 +204,7 @@ def evaluate(args: argparse.Namespace) -> dict[str, Any]:
 
 def de(args: argparse.Namespace) -> dict[str, Any]:
     from agents.openloop.search import minimize
-    from microconveyor_env.envs.plane_vector import MicroConveyor2DVectorEnv
+    from microconveyor_env.envs.plane.vector import MicroConveyor2DVectorEnv
 
     targets = fixed_targets(args.targets)
     cfg = None

@@ -24,7 +24,7 @@ sys.path.insert(0, str(ROOT))
 
 from agents.rl.evaluate_plane import PLANE_TARGET_SEED, plane_targets  # noqa: E402
 from agents.rl.shipped import shipped_path  # noqa: E402
-from microconveyor_env.envs.plane_config import PlaneEnvConfig  # noqa: E402
+from microconveyor_env.envs.plane.config import PlaneEnvConfig  # noqa: E402
 
 OUT = ROOT / "docs" / "figures" / "plane_v0_errors"
 BUDGETS = (2000, 10000, 20000)

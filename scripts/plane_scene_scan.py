@@ -15,9 +15,9 @@ import argparse
 
 import numpy as np
 
-from microconveyor_env.physics import plane_kernel as K
+from microconveyor_env.physics.plane import kernel as K
 from microconveyor_env.physics.dynamics_kernel import DETACHED
-from microconveyor_env.physics.plane import PlaneSimulator
+from microconveyor_env.physics.plane.simulator import PlaneSimulator
 from microconveyor_env.presets import load_preset
 
 SCENES = ((0.6e-3, 0.35e-3), (0.6e-3, 0.5e-3), (1.0e-3, 0.25e-3), (1.5e-3, 0.5e-3),

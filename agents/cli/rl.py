@@ -262,7 +262,7 @@ def _plane_evaluation(args: argparse.Namespace, path: Any) -> bool:
     """``evaluate`` of a MicroConveyor2D-v0 policy (``--env`` or the policy's metadata say so):
     targets uniform on the grid's box drawn with ``--seed``, success at rest within the
     tolerance (Euclidean). False: not a plane policy."""
-    from microconveyor_env.envs.plane_config import PlaneEnvConfig
+    from microconveyor_env.envs.plane.config import PlaneEnvConfig
 
     from ..rl.evaluate_plane import plane_evaluation, plane_rollout, plane_summary, plane_targets
     from ..rl.policy_files import PLANE_ENV_IDS, load_policy, policy_env_kwargs, read_policy_meta

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from microconveyor_env.envs import EnvConfig, env_config
-from microconveyor_env.envs.actions import encode_actions
+from microconveyor_env.envs.core.actions import encode_actions
 
 from ..mpc.controller import MPCSettings, mpc_rollout
 from ..rl.evaluate import fixed_targets, load_policy, rollout

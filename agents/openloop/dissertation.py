@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from microconveyor_env.envs import EnvConfig
-from microconveyor_env.envs.threads import ThreadChooser, threads
+from microconveyor_env.envs.core.threads import ThreadChooser, threads
 from microconveyor_env.physics.batch import simulate_batch
 from microconveyor_env.physics.materials import ContactParams
 from microconveyor_env.physics.schedule import ActuatorArray, Schedule

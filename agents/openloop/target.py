@@ -1,7 +1,7 @@
 """Open-loop plans for MicroConveyor-v0: solve one target, replay a plan.
 
 A *plan* is the env's own action for every firing, in order: an ``(n_actuators, 3)`` array in
-[-1, 1] (frequency, stroke, delay; decoded as the env decodes them, :mod:`microconveyor_env.envs.actions`).
+[-1, 1] (frequency, stroke, delay; decoded as the env decodes them, :mod:`microconveyor_env.envs.core.actions`).
 It is played without looking at the part, and scored by the env itself (final position, outcome,
 ``is_success``) on :class:`~microconveyor_env.envs.MicroConveyorVectorEnv`, a whole batch of
 plans per call.
@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from microconveyor_env.envs import EnvConfig, MicroConveyorVectorEnv, PartState
-from microconveyor_env.envs.actions import constants as action_constants, decode
+from microconveyor_env.envs.core.actions import constants as action_constants, decode
 
 from .search import SearchResult, minimize
 
@@ -219,7 +219,7 @@ def plan_trajectory(plan: np.ndarray, target_m: float,
     env plays, from ``-start_offset``: without ``start_jitter``): ``t_s`` [s], ``x_m`` [m],
     ``v_m_s`` [m/s]. ``target_m`` [m] is unused by the physics and only checked, so a
     trajectory always belongs to a well-posed episode."""
-    from microconveyor_env.envs.common import check_target, make_simulator
+    from microconveyor_env.envs.line.common import check_target, make_simulator
     from microconveyor_env.physics.schedule import ActuatorArray, Schedule
 
     cfg = config or EnvConfig.from_yaml()

@@ -11,7 +11,7 @@ from typing import Protocol
 
 import numpy as np
 
-from microconveyor_env.envs.plane_config import PlaneEnvConfig
+from microconveyor_env.envs.plane.config import PlaneEnvConfig
 
 PLANE_TARGET_SEED = 2026   # the fixed targets of scripts/plane_agents.py and the shipped record
 PLANE_TOLERANCES = (50e-6, 100e-6, 250e-6)   # [m] success radii reported
@@ -38,7 +38,7 @@ def plane_rollout(policy: Actor, targets: np.ndarray, config: PlaneEnvConfig,
     """One episode per target (batched, one thread): ``error_m`` (Euclidean distance at the end
     [m]), ``outcome``, ``success`` (the env's: at rest within its tolerance), ``firings``,
     ``targets_m``. Sub-env ``i`` is seeded ``seed + i``."""
-    from microconveyor_env.envs.plane_vector import MicroConveyor2DVectorEnv
+    from microconveyor_env.envs.plane.vector import MicroConveyor2DVectorEnv
 
     targets = np.asarray(targets, dtype=float)
     if targets.ndim != 2 or targets.shape[1] != 2:

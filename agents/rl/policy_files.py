@@ -13,7 +13,7 @@ with the observations, the files with their recorded hashes. A disagreement is o
 :class:`PolicyError` naming the file and the mismatch.
 
 A policy of the plane (``MicroConveyor2D-v0``, issue 22) is loaded the same way: its scene is a
-:class:`~microconveyor_env.envs.plane_config.PlaneEnvConfig` made from its env kwargs, and the
+:class:`~microconveyor_env.envs.plane.config.PlaneEnvConfig` made from its env kwargs, and the
 model's shapes are checked against the plane env's spaces.
 """
 from __future__ import annotations
@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from microconveyor_env.envs import EnvConfig, env_config, scene_differences
-from microconveyor_env.envs.plane_config import PlaneEnvConfig
+from microconveyor_env.envs.plane.config import PlaneEnvConfig
 from microconveyor_env.envs.versions import FIRST_ENV_ID, PLANE_ENV_IDS, check_env_id, nominal, \
     scene_config
 from microconveyor_env.physics.materials import ParameterError
@@ -82,7 +82,7 @@ class Policy:
 
     def _act_rows(self, obs: np.ndarray) -> np.ndarray:
         if self.actor.obs_keys is not None:
-            from microconveyor_env.envs.goal import goal_observations
+            from microconveyor_env.envs.line.goal import goal_observations
 
             return self.actor.predict(goal_observations(obs))
         if self.normalizer is not None:
@@ -112,12 +112,12 @@ def _metadata(folder: Path) -> dict[str, Any]:
 
 def _spaces(config: AnyConfig, env_id: str) -> tuple[Any, Any]:
     if isinstance(config, PlaneEnvConfig):
-        from microconveyor_env.envs.plane_env import MicroConveyor2DEnv
+        from microconveyor_env.envs.plane.env import MicroConveyor2DEnv
 
         plane = MicroConveyor2DEnv(config=config)
         return plane.observation_space, plane.action_space
     from microconveyor_env.envs import MicroConveyorEnv
-    from microconveyor_env.envs.goal import MicroConveyorGoalEnv
+    from microconveyor_env.envs.line.goal import MicroConveyorGoalEnv
     from microconveyor_env.envs.versions import GOAL_ENV_IDS
 
     env = (MicroConveyorGoalEnv if env_id in GOAL_ENV_IDS else MicroConveyorEnv)(config=config)

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
-from microconveyor_env.envs.task import LENGTH_SCALE
+from microconveyor_env.envs.line.task import LENGTH_SCALE
 
 from .hyperparams import number_in
 
@@ -57,7 +57,7 @@ class LogErrorShaping(VecEnvWrapper):
         return -self.weight * np.log1p(e / self.scale)
 
     def _start_potential(self, obs: Any) -> np.ndarray:
-        # observation 0 is the position error / LENGTH_SCALE (the env's layout, envs/task.py)
+        # observation 0 is the position error / LENGTH_SCALE (the env's layout, envs/line/task.py)
         return self.potential(np.asarray(obs, float)[:, 0] * LENGTH_SCALE)
 
     def reset(self) -> Any:

@@ -29,7 +29,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecMonitor, VecNormalize
 
 from microconveyor_env.envs import EnvConfig, env_config
 from microconveyor_env.envs.versions import GOAL_ENV_IDS, check_env_id
-from microconveyor_env.envs.sb3 import MicroConveyorSB3VecEnv
+from microconveyor_env.envs.core.sb3 import MicroConveyorSB3VecEnv
 
 from . import checkpoint, hyperparams, normalization, phases, wrappers
 from .algos import ALGO_NAMES, algo_class
@@ -129,7 +129,7 @@ def make_env(cfg: EnvConfig, hp: dict, seed: int, env_id: str = hyperparams.ENV_
     if env_id in GOAL_ENV_IDS:
         from stable_baselines3.common.vec_env import DummyVecEnv
 
-        from microconveyor_env.envs.goal import MicroConveyorGoalEnv
+        from microconveyor_env.envs.line.goal import MicroConveyorGoalEnv
 
         venv = DummyVecEnv([lambda: MicroConveyorGoalEnv(config=cfg)] * n)
     else:

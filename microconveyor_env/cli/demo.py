@@ -87,7 +87,7 @@ def _demo_episode(path, env_id=ENV_ID, env_kwargs=None):
 
     import gymnasium as gym
 
-    from ..envs import actions
+    from ..envs.core import actions
     from ..plots import save_frames
 
     with warnings.catch_warnings():  # the demo picks v0 on purpose: no "out of date" notice

@@ -17,7 +17,7 @@ SCHEDULE = {"freq": ([950.0], "Hz"), "stroke": ([200e-6], "m"), "delay": ([0.0],
 
 def video_file(text: str) -> str:
     """``--out``: a file name ending in .gif or .mp4."""
-    from ..envs.video import check_video_path
+    from ..envs.core.video import check_video_path
 
     try:
         return str(check_video_path(text))
@@ -27,7 +27,7 @@ def video_file(text: str) -> str:
 
 def frames_per_second(text: str) -> float:
     """``--fps``: a number in :data:`..envs.video.FPS_RANGE`, checked before any work."""
-    from ..envs.video import FPS_RANGE, check_fps
+    from ..envs.core.video import FPS_RANGE, check_fps
 
     try:
         return check_fps(float(text))
@@ -50,8 +50,8 @@ def number_list(text: str) -> list[float]:
 
 def video_args(p: argparse.ArgumentParser) -> None:
     """The options every version of the command has."""
-    from ..envs.frames import MAX_FRAMES_PER_STROKE
-    from ..envs.video import FPS_RANGE
+    from ..envs.line.frames import MAX_FRAMES_PER_STROKE
+    from ..envs.core.video import FPS_RANGE
 
     p.add_argument("--out", type=video_file, default="episode.gif",
                    help="the video: .gif or .mp4, the format by the suffix (default: episode.gif)")
@@ -87,7 +87,7 @@ def schedule_actor(args: argparse.Namespace, config: Any) -> tuple[Callable[[Any
                                                                     dict[str, Any]]:
     """``act(env) -> (observation -> action)`` firing the schedule of ``--freq/--stroke/--delay``
     (checked against the env's ranges: the env would clip), and the schedule (SI)."""
-    from ..envs.actions import encode_actions
+    from ..envs.core.actions import encode_actions
 
     values = {k: getattr(args, k) or d for k, (d, _) in SCHEDULE.items()}
     ranges = {"freq": config.freq_range, "stroke": config.stroke_range,
@@ -115,7 +115,7 @@ def make_video(args: argparse.Namespace, config: Any, act: Callable[[Any], Any],
     from pathlib import Path
 
     from ..envs import MicroConveyorEnv
-    from ..envs.video import FPS_RANGE, check_writer, episode_frames, write_video
+    from ..envs.core.video import FPS_RANGE, check_writer, episode_frames, write_video
 
     check_writer(args.out)  # a missing writer fails before the episode is drawn
     env = MicroConveyorEnv(config=config, render_mode="rgb_array_list",

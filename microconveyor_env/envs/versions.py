@@ -17,7 +17,7 @@ from ..env_ids import ALL_ENV_IDS, DEFAULT_ENV_ID, ENTRY_POINTS, ENV_IDS, FIRST_
     GOAL_ENV_IDS, LATEST, MAX_ACTUATORS, NOT_SCENE, PERTURBATION_FIELDS, PLANE_ENV_IDS, \
     REGISTRY, REWARD_FIELDS, RUNTIME_FIELDS, base_id, overrides
 from ..physics.materials import ParameterError
-from .config import EnvConfig
+from .line.config import EnvConfig
 
 __all__ = ["ALL_ENV_IDS", "DEFAULT_ENV_ID", "ENTRY_POINTS", "FIRST_ENV_ID", "ENV_IDS",
            "GOAL_ENV_IDS", "LATEST", "MAX_ACTUATORS", "PLANE_ENV_IDS", "base_env_id",

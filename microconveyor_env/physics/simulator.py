@@ -18,7 +18,7 @@ from .contact_table import ContactTable, TableRangeError
 from .kinematics import SHAPES, zone_strain
 from .materials import G0, ContactParams, ParameterError, check_range
 from .schedule import Schedule
-# validators shared with the env's configuration (envs/config.py), importable from here as before
+# validators shared with the env's configuration (envs/line/config.py), importable from here as before
 from .validation import KINEMATICS, MAX_STEPS, MAX_STEPS_LIMIT, MIN_DT, MIN_WAVELENGTH, \
     RENAMED_KINEMATICS, _check_budget, check_max_steps, check_step_budget, kinematics_level, \
     stroke_steps  # noqa: F401

@@ -71,8 +71,8 @@ def bench_plane(preset: str = "feasibility", repeats: int = 500) -> dict[str, An
     the axis is :data:`PLANE_OFF_AXIS`. Ratios [-] are plane time over 1-D time, per firing and
     per step."""
     from ..physics import dynamics_kernel as k1
-    from ..physics import plane_kernel as k2
-    from ..physics.plane import PlaneSimulator
+    from ..physics.plane import kernel as k2
+    from ..physics.plane.simulator import PlaneSimulator
     from ..presets import load_preset
 
     line = simulator(preset)

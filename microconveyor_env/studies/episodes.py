@@ -29,9 +29,9 @@ from typing import Any
 
 import numpy as np
 
-from ..envs.config import EnvConfig
+from ..envs.line.config import EnvConfig
 from ..physics import dynamics_kernel as kernel
-from ..envs.vector import MicroConveyorVectorEnv
+from ..envs.line.vector import MicroConveyorVectorEnv
 
 CATEGORIES = ("random", "downstream", "near_detachment", "high_speed")
 SCREEN_DT = 1e-6            # s, event mode: candidate screening

@@ -56,7 +56,7 @@ def test_off_policy_trains_resumes_and_evaluates(tmp_path, algo, env_id):
 
 def test_goal_observations_of_the_box_env_match_the_goal_env():
     from microconveyor_env.envs import MicroConveyorEnv
-    from microconveyor_env.envs.goal import MicroConveyorGoalEnv, goal_observations
+    from microconveyor_env.envs.line.goal import MicroConveyorGoalEnv, goal_observations
 
     box, goal = MicroConveyorEnv(), MicroConveyorGoalEnv()
     cfg = {"seed": 5, "options": {"target": 7.3e-3}}

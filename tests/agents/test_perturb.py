@@ -5,7 +5,7 @@ import pytest
 from agents.rl.evaluate import evaluate, rollout
 from agents.experiments.perturb import Level, ladder, perturbation_table, plan_rollout, policy_rollout
 from microconveyor_env.envs import EnvConfig, MicroConveyorEnv
-from microconveyor_env.envs.actions import encode_actions
+from microconveyor_env.envs.core.actions import encode_actions
 
 CFG = EnvConfig(n_actuators=2, num_threads=1)
 PLAN = np.stack([encode_actions(950.0, 180e-6, 0.0, CFG)] * 2)  # (2 firings, 3)

@@ -8,7 +8,7 @@ from stable_baselines3.common.vec_env import VecMonitor
 
 from agents.rl import hyperparams, wrappers
 from agents.rl.shaping import LogErrorShaping
-from microconveyor_env.envs.sb3 import MicroConveyorSB3VecEnv
+from microconveyor_env.envs.core.sb3 import MicroConveyorSB3VecEnv
 
 N = 16
 

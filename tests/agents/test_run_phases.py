@@ -2,7 +2,7 @@
 frozen observation statistics; when each fires in a run and across a resume."""
 import pytest
 
-from microconveyor_env.envs.sb3 import MicroConveyorSB3VecEnv
+from microconveyor_env.envs.core.sb3 import MicroConveyorSB3VecEnv
 
 
 def _check_resume_cases(arm, hp, flag, cases, changed_log_std):

@@ -21,7 +21,7 @@ from agents.rl.evaluate_plane import (PLANE_TOLERANCES, plane_rollout, plane_sum
 from agents.rl.policy_files import PolicyError, load_policy  # noqa: E402
 from agents.rl.shipped import shipped_path  # noqa: E402
 from microconveyor_env.envs import env_config  # noqa: E402
-from microconveyor_env.envs.plane_config import PlaneEnvConfig  # noqa: E402
+from microconveyor_env.envs.plane.config import PlaneEnvConfig  # noqa: E402
 
 EPISODE_TOL_M = 1e-6
 ENV_ID = "MicroConveyor2D-v0"

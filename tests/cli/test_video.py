@@ -68,7 +68,7 @@ def test_schedule_mp4_json_and_errors(tmp_path):
 
 def test_missing_writer_names_the_extra(monkeypatch):
     from microconveyor_env.cli.base import missing_extra
-    from microconveyor_env.envs.video import check_writer
+    from microconveyor_env.envs.core.video import check_writer
 
     monkeypatch.setitem(sys.modules, "imageio_ffmpeg", None)  # import imageio_ffmpeg fails
     with pytest.raises(ModuleNotFoundError, match=r"microconveyor-env\[render\]") as err:
@@ -94,7 +94,7 @@ def test_fps_out_of_range_is_refused_before_any_work(tmp_path, fps):
 def test_a_failed_write_leaves_the_existing_file_and_no_partial_one(tmp_path, monkeypatch):
     import numpy as np
 
-    from microconveyor_env.envs import video
+    from microconveyor_env.envs.core import video
 
     frames = [np.full((8, 8, 3), 60 * k, np.uint8) for k in range(3)]  # distinct: GIF merges
     gif = tmp_path / "existing.gif"
@@ -121,7 +121,7 @@ def test_default_fps_is_held_to_the_range(tmp_path, monkeypatch):
     100 fps: 26 frames per stroke would be 104 fps, which a GIF cannot store."""
     from microconveyor_env.cli import video
     from microconveyor_env.envs import env_config
-    from microconveyor_env.envs import video as env_video
+    from microconveyor_env.envs.core import video as env_video
 
     def fake_write(frames, path, fps):  # no encoding: only the rate asked for matters
         path.write_bytes(b"GIF8")

@@ -10,7 +10,8 @@ import pytest
 import microconveyor_env
 from support.lockstep import assert_lockstep_with_sync
 from microconveyor_env.envs import EnvConfig, MicroConveyorEnv, MicroConveyorVectorEnv
-from microconveyor_env.envs import actions, task
+from microconveyor_env.envs.core import actions
+from microconveyor_env.envs.line import task
 
 # Warnings the checkers may legitimately raise for this env (none are expected today).
 WARNING_WHITELIST: tuple = ()
@@ -230,7 +231,7 @@ def test_sb3_adapter_semantics():
     pytest.importorskip("stable_baselines3")
     from stable_baselines3.common.vec_env import VecEnv
 
-    from microconveyor_env.envs.sb3 import MicroConveyorSB3VecEnv
+    from microconveyor_env.envs.core.sb3 import MicroConveyorSB3VecEnv
 
     env = MicroConveyorSB3VecEnv(4, n_actuators=2)
     assert isinstance(env, VecEnv)
@@ -262,7 +263,7 @@ def test_reset_target_option_validated():
 
 def test_sb3_adapter_truncation_seeding_and_reset_infos():
     pytest.importorskip("stable_baselines3")
-    from microconveyor_env.envs.sb3 import MicroConveyorSB3VecEnv
+    from microconveyor_env.envs.core.sb3 import MicroConveyorSB3VecEnv
 
     def first_obs(seed):
         env = MicroConveyorSB3VecEnv(3, start_jitter=40e-6)

@@ -9,8 +9,9 @@ import pytest
 
 from support.lockstep import assert_lockstep_with_sync
 from microconveyor_env.envs import EnvConfig, MicroConveyorEnv, MicroConveyorVectorEnv
-from microconveyor_env.envs import actions, task
-from microconveyor_env.envs.state import HISTORY_ROW
+from microconveyor_env.envs.core import actions
+from microconveyor_env.envs.line import task
+from microconveyor_env.envs.line.state import HISTORY_ROW
 from microconveyor_env.physics.materials import ParameterError
 
 RAND = dict(action_noise=0.003, friction_factor_range=(0.95, 1.05),
@@ -173,7 +174,7 @@ def test_checkers_pass_with_history_on(checker, monkeypatch):
 
 def test_sb3_vec_env_with_history():
     pytest.importorskip("stable_baselines3")
-    from microconveyor_env.envs.sb3 import MicroConveyorSB3VecEnv
+    from microconveyor_env.envs.core.sb3 import MicroConveyorSB3VecEnv
 
     env = MicroConveyorSB3VecEnv(4, env_id="MicroConveyor-v1", observe_history=4, **RAND)
     dim = task.OBS_DIM + 4 * HISTORY_ROW

@@ -31,7 +31,8 @@ def test_randomisation_off_replays_the_stored_batched_rollouts_bit_for_bit(name)
 import gymnasium as gym  # noqa: E402
 
 from microconveyor_env.envs import EnvConfig, MicroConveyorEnv, MicroConveyorVectorEnv  # noqa: E402
-from microconveyor_env.envs import actions, randomisation  # noqa: E402
+from microconveyor_env.envs.core import actions  # noqa: E402
+from microconveyor_env.envs.line import randomisation  # noqa: E402
 from microconveyor_env.physics import dynamics_kernel as kernel, forces  # noqa: E402
 from microconveyor_env.physics.materials import G0  # noqa: E402
 from support.lockstep import assert_lockstep_with_sync  # noqa: E402
@@ -252,7 +253,7 @@ def test_streams_are_derived_without_drawing_from_the_generator():
 
 def test_sb3_adapter_passes_the_options_and_reports_the_factors():
     pytest.importorskip("stable_baselines3")
-    from microconveyor_env.envs.sb3 import MicroConveyorSB3VecEnv
+    from microconveyor_env.envs.core.sb3 import MicroConveyorSB3VecEnv
 
     def first(seed, **kw):
         env = MicroConveyorSB3VecEnv(3, n_actuators=2, **kw)

@@ -1,4 +1,4 @@
-"""The conveyor state the single and the batched env share (envs/state.py, envs/step.py)."""
+"""The conveyor state the single and the batched env share (envs/line/state.py, envs/line/step.py)."""
 import ast
 import pickle
 from pathlib import Path
@@ -6,8 +6,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from microconveyor_env.envs import MicroConveyorEnv, MicroConveyorVectorEnv, step
-from microconveyor_env.envs.state import Conveyor
+from microconveyor_env.envs import MicroConveyorEnv, MicroConveyorVectorEnv
+from microconveyor_env.envs.line import step
+from microconveyor_env.envs.line.state import Conveyor
 from microconveyor_env.physics import forces
 from microconveyor_env.physics.contact_table import TableRangeError
 

@@ -6,8 +6,8 @@ import pytest
 
 import microconveyor_env  # noqa: F401
 from microconveyor_env.envs import MicroConveyorEnv, env_config
-from microconveyor_env.envs.goal import MicroConveyorGoalEnv
-from microconveyor_env.envs.task import LENGTH_SCALE
+from microconveyor_env.envs.line.goal import MicroConveyorGoalEnv
+from microconveyor_env.envs.line.task import LENGTH_SCALE
 
 
 def _pair():

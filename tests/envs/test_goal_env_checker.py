@@ -9,7 +9,7 @@ sb3_checker = pytest.importorskip("stable_baselines3.common.env_checker")
 
 
 def _documented_snippet() -> str:
-    from microconveyor_env.envs.goal import MicroConveyorGoalEnv
+    from microconveyor_env.envs.line.goal import MicroConveyorGoalEnv
 
     doc = MicroConveyorGoalEnv.__doc__ or ""
     block = re.search(r"::\n\n((?:        .*\n|\n)+)", doc)

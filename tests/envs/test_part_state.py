@@ -160,7 +160,7 @@ def test_state_bounds_follow_the_scene():
     """The bounds (module docstring of part_state): twice the stroke's peak surface speed
     (15/4) h f plus a slide down the highest bump sqrt(2 g h); the distance at that speed for
     the whole episode from the start; standard normals within 13."""
-    from microconveyor_env.envs.part_state import NOISE_BOUND, state_bounds
+    from microconveyor_env.envs.line.part_state import NOISE_BOUND, state_bounds
 
     cfg = env_config("MicroConveyor-v1", stroke_range=(100e-6, 150e-6), freq_range=(200.0, 4e3))
     b = state_bounds(cfg)

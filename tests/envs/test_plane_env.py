@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 import microconveyor_env  # noqa: F401  (registers the ids)
-from microconveyor_env.envs.plane_config import PlaneEnvConfig
-from microconveyor_env.envs.plane_env import MicroConveyor2DEnv
-from microconveyor_env.envs.plane_task import constants, pick
-from microconveyor_env.envs.plane_vector import MicroConveyor2DVectorEnv
+from microconveyor_env.envs.plane.config import PlaneEnvConfig
+from microconveyor_env.envs.plane.env import MicroConveyor2DEnv
+from microconveyor_env.envs.plane.task import constants, pick
+from microconveyor_env.envs.plane.vector import MicroConveyor2DVectorEnv
 from microconveyor_env.physics.materials import ParameterError
 
 ENV_ID = "MicroConveyor2D-v0"

@@ -1,4 +1,4 @@
-"""MicroConveyor2D-v0's reward ranks outcomes as a user does (envs/plane_task.py), for every
+"""MicroConveyor2D-v0's reward ranks outcomes as a user does (envs/plane/task.py), for every
 configuration validation accepts: any rest beats any detachment; a closer rest beats a farther one
 and a success beats both. Episodes are composed from the compiled per-step reward over drawn
 paths in the plane (any positions and times, ending at rest or detached), as
@@ -8,8 +8,8 @@ import math
 import numpy as np
 from hypothesis import assume, given, settings, strategies as st
 
-from microconveyor_env.envs import plane_task
-from microconveyor_env.envs.plane_config import PlaneEnvConfig
+from microconveyor_env.envs.plane import task as plane_task
+from microconveyor_env.envs.plane.config import PlaneEnvConfig
 from microconveyor_env.physics import dynamics_kernel as K
 from microconveyor_env.physics.materials import ParameterError
 
@@ -103,7 +103,7 @@ def test_closer_rest_returns_more_and_success_most(kw, u, v, tu, tv, d1, d2, a1,
 
 def test_detaching_firings_return_less_than_gentle_ones():
     """In the env itself: episodes that detach (fast strokes) return less than any that rest."""
-    from microconveyor_env.envs.plane_vector import MicroConveyor2DVectorEnv
+    from microconveyor_env.envs.plane.vector import MicroConveyor2DVectorEnv
 
     n = 32
     totals = {}

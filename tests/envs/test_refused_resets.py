@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from microconveyor_env.envs import MicroConveyorEnv, MicroConveyorVectorEnv, PartState, env_config
-from microconveyor_env.envs.plane_env import MicroConveyor2DEnv
-from microconveyor_env.envs.plane_vector import MicroConveyor2DVectorEnv
+from microconveyor_env.envs.plane.env import MicroConveyor2DEnv
+from microconveyor_env.envs.plane.vector import MicroConveyor2DVectorEnv
 
 CFG = env_config("MicroConveyor-v1", action_noise=3e-3, friction_factor_range=(0.95, 1.05),
                  mass_factor_range=(0.95, 1.05), num_threads=1)

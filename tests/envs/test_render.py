@@ -7,8 +7,9 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from microconveyor_env.envs import MicroConveyorEnv, actions
-from microconveyor_env.envs.frames import FrameState
+from microconveyor_env.envs import MicroConveyorEnv
+from microconveyor_env.envs.core import actions
+from microconveyor_env.envs.line.frames import FrameState
 from microconveyor_env.physics import dynamics_kernel as kernel
 from microconveyor_env.physics.trajectory import firing_trajectory
 
@@ -136,7 +137,7 @@ def test_frames_per_stroke_refused(n, mode):
 
 def test_record_stroke_video_keeps_every_frame(tmp_path):
     pytest.importorskip("moviepy")
-    from microconveyor_env.envs.video import RecordStrokeVideo
+    from microconveyor_env.envs.core.video import RecordStrokeVideo
 
     env = gym.make("MicroConveyor-v0", render_mode="rgb_array_list", render_frames_per_stroke=3,
                    n_actuators=2)

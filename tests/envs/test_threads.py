@@ -2,7 +2,7 @@
 import pytest
 
 from microconveyor_env.envs import MicroConveyorVectorEnv
-from microconveyor_env.envs.threads import PROBE_EVERY, ThreadChooser
+from microconveyor_env.envs.core.threads import PROBE_EVERY, ThreadChooser
 
 from support.lockstep import assert_lockstep_with_sync
 

@@ -8,7 +8,7 @@ import yaml
 import microconveyor_env
 from microconveyor_env.envs import ENV_IDS, EnvConfig, MicroConveyorVectorEnv, env_config, \
     scene_differences
-from microconveyor_env.envs.config import MAX_ACTUATORS
+from microconveyor_env.envs.line.config import MAX_ACTUATORS
 from microconveyor_env.envs.versions import registered_kwargs
 from microconveyor_env.physics.materials import ParameterError
 from microconveyor_env.presets import load_preset

@@ -24,7 +24,7 @@ def test_stale_stamp_flushes_and_is_rewritten(tmp_path, monkeypatch):
 
 
 def test_digest_covers_every_compiled_module():
-    import microconveyor_env.envs.task as task
+    import microconveyor_env.envs.line.task as task
     import microconveyor_env.physics.forces as forces
     import microconveyor_env.physics.kinematics as kin
 
@@ -43,7 +43,7 @@ def test_every_compiled_module_is_in_the_digest():
                  if "@njit" in p.read_text() and p.name != "jit_cache.py"}
     assert compiling and compiling <= set(compiled_sources())
     assert "physics/dynamics_kernel.py" in compiled_sources()
-    assert "envs/step.py" in compiled_sources()
+    assert "envs/line/step.py" in compiled_sources()
 
 
 def test_numba_private_caching_api_is_what_jit_cache_expects():

@@ -14,11 +14,11 @@ import pytest
 from numba import njit
 
 from microconveyor_env.physics import dynamics_kernel as k1
-from microconveyor_env.physics import plane_kernel as k2
+from microconveyor_env.physics.plane import kernel as k2
 from microconveyor_env.physics.kinematics import SHAPES, surface_eval
 from microconveyor_env.physics.materials import ParameterError
-from microconveyor_env.physics.plane import ActuatorGrid, PlaneSchedule
-from microconveyor_env.physics.plane_kinematics import plane_surface_eval, plane_surface_height
+from microconveyor_env.physics.plane.simulator import ActuatorGrid, PlaneSchedule
+from microconveyor_env.physics.plane.kinematics import plane_surface_eval, plane_surface_height
 from microconveyor_env.physics.schedule import ActuatorArray, Firing, Schedule
 
 from support import DATA as DATA_DIR

@@ -77,7 +77,7 @@ def test_episodes_at_the_v0_step_agree_with_a_fine_step(preset):
     outcome every time, rest or detachment points within 1 um (tolerance / 50). Measured: no
     outcome differs; largest error 0.1 um (feasibility) and 7e-10 m (conveyor), 95th
     percentiles below 1e-9 m."""
-    from microconveyor_env.physics.plane import ActuatorGrid, PlaneSchedule
+    from microconveyor_env.physics.plane.simulator import ActuatorGrid, PlaneSchedule
     from microconveyor_env.physics.schedule import Firing
     from support.plane import plane_sim
 

@@ -1,4 +1,4 @@
-"""The reward ranks outcomes as a user does (envs/task.py): resting at the target > resting near
+"""The reward ranks outcomes as a user does (envs/line/task.py): resting at the target > resting near
 it > resting far > detaching, for every configuration validation accepts.
 
 Episodes are composed from the compiled per-step reward (``task.reward``) over drawn
@@ -9,7 +9,8 @@ import math
 import numpy as np
 from hypothesis import assume, given, settings, strategies as st
 
-from microconveyor_env.envs import EnvConfig, task
+from microconveyor_env.envs import EnvConfig
+from microconveyor_env.envs.line import task
 from microconveyor_env.physics import dynamics_kernel as K
 from microconveyor_env.physics.materials import ParameterError
 

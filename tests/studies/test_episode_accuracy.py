@@ -5,7 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from microconveyor_env.envs import EnvConfig, actions
+from microconveyor_env.envs import EnvConfig
+from microconveyor_env.envs.core import actions
 from microconveyor_env.physics.schedule import Schedule
 from microconveyor_env.studies.episodes import compare, episode_study, run_episodes
 

@@ -8,7 +8,7 @@ import warnings
 
 import numpy as np
 
-from microconveyor_env.physics.plane import ActuatorGrid, PlaneSchedule, PlaneSimulator
+from microconveyor_env.physics.plane.simulator import ActuatorGrid, PlaneSchedule, PlaneSimulator
 from microconveyor_env.physics.schedule import Firing
 from microconveyor_env.physics.simulator import StepSizeWarning
 from microconveyor_env.presets import load_preset

@@ -17,7 +17,7 @@ import numpy as np
 
 from ...physics.contact_table import TableRangeError
 from ...physics.simulator import Simulator
-from ..threads import ThreadChooser, threads
+from .threads import ThreadChooser, threads
 
 
 class BoundCall:
@@ -62,7 +62,7 @@ def raise_if_beyond_table(outcome: str, sim: Simulator) -> None:
 
 class PartsBase:
     """``n`` parts of one scene: the base of :class:`~..state.Conveyor` (the line) and
-    :class:`~..plane_state.PlaneConveyor` (the plane).
+    :class:`~..plane.state.PlaneConveyor` (the plane).
 
     A subclass builds its arrays (``parts``, ``consts``, ``action``, ``task``, ``out``) and
     then calls :meth:`_start` with the number of action components; :meth:`compiled` names its

@@ -26,7 +26,7 @@ MAX_ENVS = 1_000_000  # parts in one batch (each costs ~1 kB of state)
 
 class BatchedEnv(VectorEnv):
     """``num_envs`` independent copies of a scene's single env (see the subclasses:
-    :class:`~..vector.MicroConveyorVectorEnv`, :class:`~..plane_vector.MicroConveyor2DVectorEnv`).
+    :class:`~..line.vector.MicroConveyorVectorEnv`, :class:`~..plane.vector.MicroConveyor2DVectorEnv`).
 
     A subclass sets :attr:`config_class`, :attr:`step_info` (the per-firing info keys: name,
     the output array's field, the value a sub-env reset in the same step reports) and

@@ -20,9 +20,9 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ..physics.dynamics_kernel import OUTCOMES
-from ..physics.kinematics import stroke_eval
-from ..physics.trajectory import FiringTrajectory
+from ...physics.dynamics_kernel import OUTCOMES
+from ...physics.kinematics import stroke_eval
+from ...physics.trajectory import FiringTrajectory
 
 MAX_FRAMES_PER_STROKE = 1000
 
@@ -117,7 +117,7 @@ class EnvRenderer:
         self.drawer: Any = None
         self.window: Any = None
         if mode == "human":
-            from .window import Window
+            from ..core.window import Window
 
             self.window = Window(f"MicroConveyor ({env.config.preset})")
 
@@ -137,7 +137,7 @@ class EnvRenderer:
         if self.n == 1:
             self.pending.append(self._now(""))
             return
-        from ..physics.trajectory import firing_trajectory
+        from ...physics.trajectory import firing_trajectory
 
         e = self.env
         c, cfg = e.conveyor, e.config
@@ -181,6 +181,6 @@ class EnvRenderer:
     def __setstate__(self, state: dict[str, Any]) -> None:
         self.__dict__.update(state)
         if self.window is not None:
-            from .window import Window
+            from ..core.window import Window
 
             self.window = Window(state["window"])

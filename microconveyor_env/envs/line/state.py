@@ -24,16 +24,25 @@ from typing import Any, NamedTuple, TypeVar
 
 import numpy as np
 
-from ..physics import dynamics_kernel as kernel
-from ..physics.simulator import Simulator
-from . import actions, randomisation, task
+from ...physics import dynamics_kernel as kernel
+from ...physics.simulator import Simulator
+from ..core import actions
+from . import randomisation, task
 from .common import check_target, make_simulator
-from .core.parts import PartsBase
+from ..core.parts import PartsBase
 from .config import EnvConfig
 from .part_state import PartState, check_state, reset_state
-from .step import (NO_NOISE, NO_RECORD, Constants, Outputs, Parts, observe_all, step_parallel,
-                   step_serial)
-from .versions import scene_of
+from .step import (
+    NO_NOISE,
+    NO_RECORD,
+    Constants,
+    Outputs,
+    Parts,
+    observe_all,
+    step_parallel,
+    step_serial,
+)
+from ..versions import scene_of
 
 Streams = tuple[np.random.Generator, np.random.Generator]
 # One remembered firing of the observation history (EnvConfig.observe_history): the observation

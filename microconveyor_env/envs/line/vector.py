@@ -8,8 +8,8 @@ import numpy as np
 
 from .common import check_target, spec_id
 from .config import EnvConfig
-from .core.checks import check_actions
-from .core.vector import MAX_ENVS, BatchedEnv
+from ..core.checks import check_actions
+from ..core.vector import MAX_ENVS, BatchedEnv
 from .part_state import PartState
 from .state import Conveyor, OwnsConveyor, Resets, conveyor_field
 

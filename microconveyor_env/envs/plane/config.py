@@ -14,11 +14,17 @@ from typing import Any
 
 import numpy as np
 
-from ..env_ids import PLANE_MAX_FIRINGS
-from ..physics.kinematics import SHAPES
-from ..physics.materials import ParameterError, check_range
-from ..physics.validation import MAX_STEPS, MIN_DT, MIN_WAVELENGTH, check_max_steps, \
-    check_step_budget, kinematics_level
+from ...env_ids import PLANE_MAX_FIRINGS
+from ...physics.kinematics import SHAPES
+from ...physics.materials import ParameterError, check_range
+from ...physics.validation import (
+    MAX_STEPS,
+    MIN_DT,
+    MIN_WAVELENGTH,
+    check_max_steps,
+    check_step_budget,
+    kinematics_level,
+)
 
 CONFIG_FILE = "MicroConveyor2D-v0.yaml"
 MAX_FIRINGS = PLANE_MAX_FIRINGS  # an episode has at most this many steps (spec.max_episode_steps)
@@ -150,7 +156,7 @@ class PlaneEnvConfig:
     def from_yaml(cls, path: str | None = None, **overrides: object) -> PlaneEnvConfig:
         """Defaults from ``configs/envs/MicroConveyor2D-v0.yaml`` (or ``path``), then
         ``overrides``."""
-        from ..presets import parse_yaml
+        from ...presets import parse_yaml
 
         if path is None:
             text = (resources.files("microconveyor_env.configs") / "envs"

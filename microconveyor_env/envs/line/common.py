@@ -7,10 +7,10 @@ from typing import Any
 
 import numpy as np
 
-from ..physics.contact_table import TableRangeError
-from ..physics.materials import ParameterError
-from ..physics.simulator import Simulator
-from ..presets import simulator
+from ...physics.contact_table import TableRangeError
+from ...physics.materials import ParameterError
+from ...physics.simulator import Simulator
+from ...presets import simulator
 from . import task
 from .config import EnvConfig
 

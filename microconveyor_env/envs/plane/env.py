@@ -8,12 +8,12 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.core import RenderFrame
 
-from ..physics import dynamics_kernel as kernel
-from . import plane_task
-from .core.checks import check_render_mode, config_of
-from .plane_config import PlaneEnvConfig
-from .plane_state import PlaneConveyor, check_plane_actions
-from .plane_step import ACTION_DIM
+from ...physics import dynamics_kernel as kernel
+from . import task as plane_task
+from ..core.checks import check_render_mode, config_of
+from .config import PlaneEnvConfig
+from .state import PlaneConveyor, check_plane_actions
+from .step import ACTION_DIM
 
 
 class MicroConveyor2DEnv(gym.Env):
@@ -178,7 +178,7 @@ class MicroConveyor2DEnv(gym.Env):
         """``rgb_array``: the frame of the state now (uint8 (400, 480, 3))."""
         if self.render_mode != "rgb_array":
             return None
-        from .plane_render import render_plane_frame
+        from .render import render_plane_frame
 
         if not self._path:
             raise RuntimeError("render() before the first reset(): there is no part to draw")

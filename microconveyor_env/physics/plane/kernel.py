@@ -25,13 +25,23 @@ import math
 
 from numba import njit
 
-from ..jit_cache import refresh as refresh_jit_cache
-from .dynamics_kernel import BEYOND_TABLE, COAST_POINTS, DETACHED, MAX_EVENTS_PER_STEP, MAX_TIME, \
-    MOVING, REST, TAU_UNLOAD, TOO_MANY_EVENTS, _next_node, steps_for
-from .forces import I_MASS, I_NMAX, I_NMIN
-from .plane_events import _hidden_pull_off, _illinois_slip, _illinois_stick, _slip_event, \
-    _vscale
-from .plane_forces import plane_friction, plane_normal_load, plane_rk4, plane_stick_state
+from ...jit_cache import refresh as refresh_jit_cache
+from ..dynamics_kernel import (
+    BEYOND_TABLE,
+    COAST_POINTS,
+    DETACHED,
+    MAX_EVENTS_PER_STEP,
+    MAX_TIME,
+    MOVING,
+    REST,
+    TAU_UNLOAD,
+    TOO_MANY_EVENTS,
+    _next_node,
+    steps_for,
+)
+from ..forces import I_MASS, I_NMAX, I_NMIN
+from .events import _hidden_pull_off, _illinois_slip, _illinois_stick, _slip_event, _vscale
+from .forces import plane_friction, plane_normal_load, plane_rk4, plane_stick_state
 
 # ---- out array slots ----
 O_X, O_Y, O_VX, O_VY, O_T, O_OUTCOME, O_EVENT_T, O_EVENT_X, O_EVENT_Y, O_STEPS, O_EVENTS, \

@@ -26,9 +26,9 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
-from ..jit_cache import refresh as refresh_jit_cache
-from ..physics import dynamics_kernel as kernel
-from ..physics import plane_kernel
+from ...jit_cache import refresh as refresh_jit_cache
+from ...physics import dynamics_kernel as kernel
+from ...physics.plane import kernel as plane_kernel
 
 OBS_DIM = 10
 OBS_BOUND = 10.0          # observations are clipped to [-OBS_BOUND, OBS_BOUND]

@@ -6,9 +6,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from .core.vector import MAX_ENVS, BatchedEnv
-from .plane_config import PlaneEnvConfig
-from .plane_state import PlaneConveyor, PlaneResets, check_plane_actions
+from ..core.vector import MAX_ENVS, BatchedEnv
+from .config import PlaneEnvConfig
+from .state import PlaneConveyor, PlaneResets, check_plane_actions
 
 __all__ = ["MAX_ENVS", "MicroConveyor2DVectorEnv"]
 
@@ -63,7 +63,7 @@ class MicroConveyor2DVectorEnv(BatchedEnv):
         """``rgb_array``: one frame per sub-env (the part and target now, no path)."""
         if self.render_mode != "rgb_array":
             return None
-        from .plane_render import render_plane_frame
+        from .render import render_plane_frame
 
         p = self.conveyor.parts
         return tuple(render_plane_frame(self.config, [(p.x[i], p.y[i])], (p.tx[i], p.ty[i]),

@@ -10,7 +10,7 @@ if TYPE_CHECKING:
 
 import numpy as np
 
-from ..physics.kinematics import surface_profile
+from ...physics.kinematics import surface_profile
 
 
 def render_frame(cfg: EnvConfig, x: float, target: float, fired: int,

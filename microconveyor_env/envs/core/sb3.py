@@ -14,7 +14,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
-from .vector import MicroConveyorVectorEnv
+from ..line.vector import MicroConveyorVectorEnv
 
 _SCALAR_INFO = ("is_success", "position_error_m", "outcome", "sim_time_s", "frequency_hz",
                 "stroke_m", "delay_s", "friction_factor", "mass_factor")
@@ -32,7 +32,7 @@ class MicroConveyorSB3VecEnv(VecEnv):
         if env_id is not None:
             if "config" in kwargs:
                 raise ValueError("give either env_id (with keyword overrides) or config=")
-            from .versions import env_config
+            from ..versions import env_config
 
             kwargs = {"config": env_config(env_id, **kwargs)}
         self.venv = MicroConveyorVectorEnv(num_envs, autoreset_mode=AutoresetMode.SAME_STEP,

@@ -8,10 +8,11 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.core import RenderFrame
 
-from ..physics import dynamics_kernel as kernel
-from . import actions, task
+from ...physics import dynamics_kernel as kernel
+from ..core import actions
+from . import task
 from .common import spec_id
-from .core.checks import check_actions, check_render_mode, config_of
+from ..core.checks import check_actions, check_render_mode, config_of
 from .part_state import PartState
 from .config import EnvConfig
 from .frames import EnvRenderer, check_frames_per_stroke

@@ -19,13 +19,13 @@ from typing import Any
 
 import numpy as np
 
-from . import plane_kernel as kernel
-from .contact_table import TableRangeError
-from .materials import ContactParams, ParameterError, check_range
-from .dynamics_kernel import COAST_POINTS, OUTCOMES
-from .schedule import Firing, checked_firings
-from .simulator import DEFAULT_DT, MIN_STEPS_PER_STROKE, Simulator
-from .validation import MAX_STEPS, stroke_steps
+from . import kernel
+from ..contact_table import TableRangeError
+from ..materials import ContactParams, ParameterError, check_range
+from ..dynamics_kernel import COAST_POINTS, OUTCOMES
+from ..schedule import Firing, checked_firings
+from ..simulator import DEFAULT_DT, MIN_STEPS_PER_STROKE, Simulator
+from ..validation import MAX_STEPS, stroke_steps
 
 
 @dataclass(frozen=True)

@@ -31,9 +31,16 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit
 
-from ..jit_cache import refresh as refresh_jit_cache
-from .kinematics import CLAMPED_BEAM, GAUSSIAN, SHAPES, SINUSOIDAL, shape_eval, stroke_eval, \
-    surface_profile
+from ...jit_cache import refresh as refresh_jit_cache
+from ..kinematics import (
+    CLAMPED_BEAM,
+    GAUSSIAN,
+    SHAPES,
+    SINUSOIDAL,
+    shape_eval,
+    stroke_eval,
+    surface_profile,
+)
 
 
 @njit(cache=True)

@@ -23,11 +23,11 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from ..jit_cache import refresh as refresh_jit_cache
-from ..physics import dynamics_kernel as kernel
-from ..physics import plane_kernel
-from .actions import decode
-from .plane_task import is_success, observe_part, pick, reward, stop_if_delivered
+from ...jit_cache import refresh as refresh_jit_cache
+from ...physics import dynamics_kernel as kernel
+from ...physics.plane import kernel as plane_kernel
+from ..core.actions import decode
+from .task import is_success, observe_part, pick, reward, stop_if_delivered
 
 ACTION_DIM = 5  # (aim x, aim y, frequency, stroke, delay)
 NO_RECORD = np.zeros((0, plane_kernel.N_REC))  # the env never records trajectories

@@ -1,6 +1,6 @@
 """MicroConveyorGoal-v1: the conveyor with a goal-conditioned (Dict) interface.
 
-The same env as :class:`~.conveyor.MicroConveyorEnv` (same physics, actions and episode end, bit
+The same env as :class:`~.env.MicroConveyorEnv` (same physics, actions and episode end, bit
 for bit), with the observation split as goal-conditioned suites (Gymnasium-Robotics, panda-gym)
 split it, so that SB3's ``HerReplayBuffer`` can relabel goals:
 
@@ -30,9 +30,9 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from ..physics import dynamics_kernel as kernel
+from ...physics import dynamics_kernel as kernel
 from . import task
-from .conveyor import MicroConveyorEnv
+from .env import MicroConveyorEnv
 
 OBS_DIM = 5
 INFO_KEYS = ("outcome", "x_before_m", "t_before_s", "sim_time_s")  # what compute_reward reads

@@ -16,10 +16,10 @@ import math
 
 from numba import njit
 
-from ..jit_cache import refresh as refresh_jit_cache
-from .events import GOLDEN_ITERATIONS, _illinois, _secant, screened_clear
-from .forces import I_NMIN
-from .plane_forces import plane_accel, plane_normal_load, plane_rk4, plane_stick_state
+from ...jit_cache import refresh as refresh_jit_cache
+from ..events import GOLDEN_ITERATIONS, _illinois, _secant, screened_clear
+from ..forces import I_NMIN
+from .forces import plane_accel, plane_normal_load, plane_rk4, plane_stick_state
 
 
 @njit(cache=True)

@@ -32,8 +32,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from ..physics import dynamics_kernel as kernel
-from ..jit_cache import refresh as refresh_jit_cache
+from ...physics import dynamics_kernel as kernel
+from ...jit_cache import refresh as refresh_jit_cache
 
 OBS_DIM = 6
 OBS_BOUND = 10.0          # observations are clipped to [-OBS_BOUND, OBS_BOUND]

@@ -8,17 +8,26 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ..physics import plane_kernel
-from ..physics.contact_table import TableRangeError
-from ..physics.materials import ParameterError
-from ..physics.plane import PlaneSimulator
-from ..presets import load_preset
-from . import actions, plane_task
-from .plane_config import PlaneEnvConfig
-from .plane_step import ACTION_DIM, NO_RECORD, PlaneConstants, PlaneOutputs, PlaneParts, \
-    observe_all, step_parallel, step_serial
-from .core.checks import check_actions
-from .core.parts import PartsBase
+from ...physics.plane import kernel as plane_kernel
+from ...physics.contact_table import TableRangeError
+from ...physics.materials import ParameterError
+from ...physics.plane.simulator import PlaneSimulator
+from ...presets import load_preset
+from ..core import actions
+from . import task as plane_task
+from .config import PlaneEnvConfig
+from .step import (
+    ACTION_DIM,
+    NO_RECORD,
+    PlaneConstants,
+    PlaneOutputs,
+    PlaneParts,
+    observe_all,
+    step_parallel,
+    step_serial,
+)
+from ..core.checks import check_actions
+from ..core.parts import PartsBase
 
 
 def make_plane_simulator(cfg: PlaneEnvConfig) -> PlaneSimulator:

@@ -8,10 +8,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..physics.plane_kinematics import plane_surface_height
+from ...physics.plane.kinematics import plane_surface_height
 
 if TYPE_CHECKING:
-    from .plane_config import PlaneEnvConfig
+    from .config import PlaneEnvConfig
 
 FRAME_SIZE = (6.0, 5.0)  # inches
 FRAME_DPI = 80           # -> 480 x 400 pixels

@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..physics import forces
+from ...physics import forces
 
 if TYPE_CHECKING:
     from .config import EnvConfig

@@ -20,9 +20,9 @@ import math
 
 from numba import njit
 
-from ..jit_cache import refresh as refresh_jit_cache
-from .forces import I_EXACT, I_FSCALE, I_G0, I_MASS, I_NMIN, I_SHAPE, I_WL, friction_of_load
-from .plane_kinematics import plane_surface_eval
+from ...jit_cache import refresh as refresh_jit_cache
+from ..forces import I_EXACT, I_FSCALE, I_G0, I_MASS, I_NMIN, I_SHAPE, I_WL, friction_of_load
+from .kinematics import plane_surface_eval
 
 STIFF_DIRECTION = 1.0  # [-] largest h Q / (m |v|) at which friction follows the stage velocity
                        # (RK4 is stable on the transverse mode up to ~2.8)

@@ -47,9 +47,9 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ..physics.materials import G0
+from ...physics.materials import G0
 from .config import MAX_TARGET, EnvConfig
-from .versions import scene_of
+from ..versions import scene_of
 
 # standard normals beyond it are never drawn (numpy's ziggurat on 53-bit uniforms cannot return
 # |z| >= 12.23; P(|z| > 13) = 1.2e-38)

@@ -12,7 +12,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, NamedTuple
 
 if TYPE_CHECKING:
-    from .config import EnvConfig
+    from ..line.config import EnvConfig
 
 import math
 
@@ -20,7 +20,7 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit
 
-from ..jit_cache import refresh as refresh_jit_cache
+from ...jit_cache import refresh as refresh_jit_cache
 
 ACTION_DIM = 3
 

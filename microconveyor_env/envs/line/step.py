@@ -38,9 +38,9 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from ..physics import dynamics_kernel as kernel
-from ..jit_cache import refresh as refresh_jit_cache
-from .actions import decode
+from ...physics import dynamics_kernel as kernel
+from ...jit_cache import refresh as refresh_jit_cache
+from ..core.actions import decode
 from .task import is_success, observe_part, reward, stop_if_delivered
 
 NO_RECORD = np.zeros((0, kernel.N_REC))  # the env never records trajectories

@@ -7,11 +7,17 @@ import numbers
 from dataclasses import dataclass
 from importlib import resources
 
-from ..env_ids import MAX_ACTUATORS
-from ..physics.kinematics import SHAPES
-from ..physics.materials import ParameterError, check_range
-from ..physics.validation import MAX_STEPS, MIN_DT, MIN_WAVELENGTH, \
-    check_max_steps, check_step_budget, kinematics_level
+from ...env_ids import MAX_ACTUATORS
+from ...physics.kinematics import SHAPES
+from ...physics.materials import ParameterError, check_range
+from ...physics.validation import (
+    MAX_STEPS,
+    MIN_DT,
+    MIN_WAVELENGTH,
+    check_max_steps,
+    check_step_budget,
+    kinematics_level,
+)
 from .task import LENGTH_SCALE, OBS_BOUND
 
 # Position error and target are observed / LENGTH_SCALE, clipped to +-OBS_BOUND: targets beyond
@@ -64,7 +70,7 @@ class EnvConfig:
     kinematics: str = "reduced"
     dt: float = 1e-4
     min_steps: int = 48  # floor on RK4 steps per stroke
-    num_threads: int | None = None  # batched env only; None: the measured rule (envs/vector.py)
+    num_threads: int | None = None  # batched env only; None: the measured rule (envs/line/vector.py)
     max_steps: int = MAX_STEPS
     # per-episode randomisation, off by default (docs/randomisation.md)
     action_noise: float = 0.0  # [action units] sigma of Gaussian noise on each fired action
@@ -169,7 +175,7 @@ class EnvConfig:
     @classmethod
     def from_yaml(cls, path: str | None = None, **overrides) -> EnvConfig:
         """Defaults from ``configs/envs/MicroConveyor-v0.yaml`` (or ``path``), then ``overrides``."""
-        from ..presets import parse_yaml
+        from ...presets import parse_yaml
 
         if path is None:
             text = (resources.files("microconveyor_env.configs") / "envs" / "MicroConveyor-v0.yaml").read_text()

@@ -1,0 +1,3 @@
+"""The plane: a grid of actuators moves a part in two dimensions (MicroConveyor2D-v0). Its config
+(:mod:`.config`), compiled step and task (:mod:`.step`, :mod:`.task`), part container
+(:mod:`.state`), single and batched envs (:mod:`.env`, :mod:`.vector`) and rendering."""
