@@ -20,9 +20,9 @@ import time
 import torch
 from stable_baselines3 import PPO
 
-from agents.rl import hyperparams
-from agents.rl import train as T
-from agents.rl.algos import algo_class
+from agents.rl.training import hyperparams
+from agents.rl.training import train as T
+from agents.rl.training.algos import algo_class
 
 BudgetPPO = algo_class("ppo")
 

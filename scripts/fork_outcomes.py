@@ -21,7 +21,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from agents.plots.common import pyplot  # noqa: E402
-from agents.rl.checkpoint import read_meta  # noqa: E402
+from agents.rl.artefacts.checkpoint import read_meta  # noqa: E402
 
 BAR_SUCCESS = 0.90       # - : >= 90 % within +-50 um
 BAR_MEDIAN_M = 20e-6     # m : median |error| <= 20 um

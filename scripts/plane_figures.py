@@ -22,8 +22,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from agents.rl.evaluate_plane import PLANE_TARGET_SEED, plane_targets  # noqa: E402
-from agents.rl.shipped import shipped_path  # noqa: E402
+from agents.rl.evaluation.evaluate_plane import PLANE_TARGET_SEED, plane_targets  # noqa: E402
+from agents.rl.artefacts.shipped import shipped_path  # noqa: E402
 from microconveyor_env.envs.plane.config import PlaneEnvConfig  # noqa: E402
 
 OUT = ROOT / "docs" / "figures" / "plane_v0_errors"

@@ -15,10 +15,10 @@ import json
 import sys
 
 
-from agents.rl.checkpoint import MODEL, NORMALIZATION, sha256
-from agents.rl.policy_files import PLANE_ENV_IDS, policy_scene
-from agents.rl.evaluate import fixed_targets, load_policy, rollout, summarize
-from agents.rl.shipped import provenance, shipped_path
+from agents.rl.artefacts.checkpoint import MODEL, NORMALIZATION, sha256
+from agents.rl.artefacts.policy_files import PLANE_ENV_IDS, policy_scene
+from agents.rl.evaluation.evaluate import fixed_targets, load_policy, rollout, summarize
+from agents.rl.artefacts.shipped import provenance, shipped_path
 
 # policy name -> {evaluation key: which env config ("nominal": the trained scene without
 # randomisation, "trained": with the run's randomisation)}
@@ -58,7 +58,7 @@ def record(env_id: str, name: str) -> None:
 
 
 if __name__ == "__main__":
-    from agents.rl.shipped import shipped_policies
+    from agents.rl.artefacts.shipped import shipped_policies
 
     wanted = sys.argv[1:] or [f"{e}/{n}" for e, names in shipped_policies().items()
                               for n in names]

@@ -6,8 +6,8 @@
 
 ``--run``: copies ``DIR/ppo.zip`` to ``model.zip``, converts ``DIR/vecnormalize.pkl`` (a pickle:
 only from a run you made) to ``normalization.json`` and writes ``metadata.json`` from
-``DIR/train.json``. Both: evaluates the folder as a user loads it (agents.rl.policy_files, no
-pickle) on the 100 fixed targets and on 1,000 others (agents/rl/evaluate_plane.py), stores the summary in the metadata
+``DIR/train.json``. Both: evaluates the folder as a user loads it (agents.rl.artefacts.policy_files, no
+pickle) on the 100 fixed targets and on 1,000 others (agents/rl/evaluation/evaluate_plane.py), stores the summary in the metadata
 and every episode in ``episodes.json``, with the files' sha256 and how it was produced.
 """
 from __future__ import annotations
@@ -21,11 +21,15 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from agents.rl.checkpoint import MODEL, NORMALIZATION, sha256  # noqa: E402
-from agents.rl.evaluate_plane import (PLANE_TARGET_SEED, plane_rollout, plane_summary,  # noqa: E402
-                                      plane_targets)
-from agents.rl.policy_files import load_policy  # noqa: E402
-from agents.rl.shipped import provenance, shipped_path  # noqa: E402
+from agents.rl.artefacts.checkpoint import MODEL, NORMALIZATION, sha256  # noqa: E402
+from agents.rl.evaluation.evaluate_plane import (
+    PLANE_TARGET_SEED,
+    plane_rollout,
+    plane_summary,
+    plane_targets,
+)
+from agents.rl.artefacts.policy_files import load_policy  # noqa: E402
+from agents.rl.artefacts.shipped import provenance, shipped_path  # noqa: E402
 
 ENV_ID = "MicroConveyor2D-v0"
 EPISODES = "episodes.json"
@@ -47,7 +51,7 @@ NOTE = ("PPO seed 1 of scripts/plane_agents.py (configs/ppo.yml's MicroConveyor-
 
 
 def ship(run: Path, folder: Path) -> None:
-    from agents.rl.normalization import convert_pickle
+    from agents.rl.artefacts.normalization import convert_pickle
 
     train = json.loads((run / "train.json").read_text())
     folder.mkdir(parents=True, exist_ok=True)

@@ -87,7 +87,7 @@ def test_the_checker_reports_climbing_imports(tmp_path):
     phys = tmp_path / "microconveyor_env" / "physics"
     phys.mkdir(parents=True)
     (phys / "__init__.py").write_text("")
-    (phys / "bad.py").write_text("from ..envs import step\nimport agents.rl.train\n"
+    (phys / "bad.py").write_text("from ..envs import step\nimport agents.rl.training.train\n"
                                  "from . import forces\nimport numpy\n")
     bad = violations(tmp_path)
     assert len(bad) == 2 and "mce.envs" in bad[0] and "agents" in bad[1]

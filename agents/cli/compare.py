@@ -169,7 +169,7 @@ def _robust(budgets: tuple[int, int] | None, seed: int) -> Any:
 
 
 def _prior(given: str | None, env_id: str) -> str | None:
-    from ..rl.shipped import require_shipped
+    from ..rl.artefacts.shipped import require_shipped
 
     if given is None:
         return None

@@ -29,7 +29,7 @@ def cmd_demo(args: argparse.Namespace) -> None:
 
     import importlib.util
 
-    from ..rl.shipped import shipped_path
+    from ..rl.artefacts.shipped import shipped_path
 
     args.env_kwargs_dict = env_kwargs_of(args)
     cfg = env_config_of(args)

@@ -11,7 +11,7 @@ from .args import add_env_args, env_kwargs_of, minutes
 
 
 def _train_args(p: argparse.ArgumentParser) -> None:
-    from ..rl.algos import ALGO_NAMES
+    from ..rl.training.algos import ALGO_NAMES
 
     p.add_argument("--algo", choices=ALGO_NAMES, default="ppo",
                    help="algorithm: ppo (stable-baselines3, on the compiled batch), sac "
@@ -62,7 +62,7 @@ def _check_refinable(args: argparse.Namespace) -> None:
 
     from microconveyor_env.envs import env_config
 
-    from ..rl.checkpoint import check_new_folder
+    from ..rl.artefacts.checkpoint import check_new_folder
 
     if args.algo != "ppo" or args.env not in ("MicroConveyor-v0", "MicroConveyor-v1"):
         raise ValueError("--refine refines a PPO policy of MicroConveyor-v0 or -v1; got "
@@ -79,8 +79,8 @@ def _refine_folder(policy: str, out: Any, settings: Any, eval_targets: int) -> d
     result: the folder, the refinement report and the evaluations after and before."""
     import torch
 
-    from ..rl.evaluate import evaluate, load_policy
-    from ..rl.refine import refine, write_refined
+    from ..rl.evaluation.evaluate import evaluate, load_policy
+    from ..rl.refinement.refine import refine, write_refined
 
     pol = load_policy(policy)
     threads = torch.get_num_threads()
@@ -109,7 +109,7 @@ def _kwargs_text(kwargs: dict[str, Any] | None) -> str:
 @command("train", "train PPO, SAC or TQC on the conveyor (checkpoints, evaluations, resume)",
          _train_args)
 def cmd_train(args: argparse.Namespace) -> None:
-    from ..rl.train import train
+    from ..rl.training.train import train
 
     def log(line: str) -> None:
         print(line, file=sys.stderr, flush=True)
@@ -139,7 +139,7 @@ def cmd_train(args: argparse.Namespace) -> None:
     if args.refine:
         from pathlib import Path
 
-        from ..rl.refine import RefineSettings
+        from ..rl.refinement.refine import RefineSettings
 
         res = _refine_folder(args.out, Path(args.out) / "refined", RefineSettings(),
                              args.eval_targets)
@@ -175,8 +175,8 @@ def _refine_args(p: argparse.ArgumentParser) -> None:
 def cmd_refine(args: argparse.Namespace) -> None:
     from pathlib import Path
 
-    from ..rl.checkpoint import check_new_folder
-    from ..rl.refine import RefineSettings
+    from ..rl.artefacts.checkpoint import check_new_folder
+    from ..rl.refinement.refine import RefineSettings
 
     out = Path(args.out)
     check_new_folder(out)   # before the refinement's minutes, not after them
@@ -202,7 +202,7 @@ def _convert_args(p: argparse.ArgumentParser) -> None:
 def cmd_convert_stats(args: argparse.Namespace) -> None:
     from pathlib import Path
 
-    from ..rl.normalization import NORMALIZATION, convert_pickle
+    from ..rl.artefacts.normalization import NORMALIZATION, convert_pickle
 
     src = Path(args.pickle)
     if not src.is_file():
@@ -219,7 +219,7 @@ def _evaluate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the fixed target set")
     p.add_argument("--tolerance", type=float, default=None,
                    help="success tolerance [m] (default: the env's, 50 um)")
-    from ..rl.policy_files import PLANE_ENV_IDS
+    from ..rl.artefacts.policy_files import PLANE_ENV_IDS
 
     add_env_args(p, default=None, default_text="the policy's own, from its metadata",
                  what=": refused if it differs from the scene the policy was trained in "
@@ -230,8 +230,8 @@ def _evaluate_args(p: argparse.ArgumentParser) -> None:
 @command("evaluate", "evaluate a policy (PPO, SAC, TQC, TD3) on a fixed seeded set of targets, "
                      "in the scene it was trained in", _evaluate_args)
 def cmd_evaluate(args: argparse.Namespace) -> None:
-    from ..rl.evaluate import evaluate, load_policy
-    from ..rl.shipped import require_shipped
+    from ..rl.evaluation.evaluate import evaluate, load_policy
+    from ..rl.artefacts.shipped import require_shipped
 
     if args.tolerance is not None and not 0 < args.tolerance < 1:
         raise ValueError(f"--tolerance {args.tolerance!r} must be in (0, 1) m")
@@ -242,7 +242,7 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
     if args.env or args.env_kwargs:
         from microconveyor_env.envs import env_config
 
-        from ..rl.policy_files import FIRST_ENV_ID, policy_env_kwargs, read_policy_meta
+        from ..rl.artefacts.policy_files import FIRST_ENV_ID, policy_env_kwargs, read_policy_meta
 
         # the scene asked for: the policy's own kwargs updated by --env-kwargs, on --env (or
         # the policy's env id); load_policy refuses it if it is another scene
@@ -251,7 +251,7 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
                            **{**policy_env_kwargs(meta), **env_kwargs_of(args)})
     pol = load_policy(path, asked)
     res = evaluate(pol, args.targets, args.seed, args.tolerance, config=asked)
-    from ..rl.policy_files import policy_env_kwargs
+    from ..rl.artefacts.policy_files import policy_env_kwargs
 
     res.update(policy=str(pol.path), env_id=pol.env_id,
                env_kwargs=policy_env_kwargs(pol.metadata))
@@ -264,8 +264,18 @@ def _plane_evaluation(args: argparse.Namespace, path: Any) -> bool:
     tolerance (Euclidean). False: not a plane policy."""
     from microconveyor_env.envs.plane.config import PlaneEnvConfig
 
-    from ..rl.evaluate_plane import plane_evaluation, plane_rollout, plane_summary, plane_targets
-    from ..rl.policy_files import PLANE_ENV_IDS, load_policy, policy_env_kwargs, read_policy_meta
+    from ..rl.evaluation.evaluate_plane import (
+        plane_evaluation,
+        plane_rollout,
+        plane_summary,
+        plane_targets,
+    )
+    from ..rl.artefacts.policy_files import (
+        PLANE_ENV_IDS,
+        load_policy,
+        policy_env_kwargs,
+        read_policy_meta,
+    )
 
     meta = read_policy_meta(path)
     env_id = args.env or meta.get("env_id")
@@ -304,7 +314,7 @@ def _seeds_args(p: argparse.ArgumentParser) -> None:
                   "evaluations, learning curves", _seeds_args)
 def cmd_seeds(args: argparse.Namespace) -> None:
     from ..plots.seeds import plot_curves
-    from ..rl.seeds import aggregate, curves
+    from ..rl.evaluation.seeds import aggregate, curves
 
     res = aggregate(args.runs)
     res["curves"] = curves(args.runs)
@@ -314,7 +324,7 @@ def cmd_seeds(args: argparse.Namespace) -> None:
 
 
 def iqm_lines(agg: dict[str, Any], per_seed: bool) -> list[str]:
-    """One line per aggregated figure of :func:`agents.rl.seeds.aggregate` (IQM, 95 % CI and,
+    """One line per aggregated figure of :func:`agents.rl.evaluation.seeds.aggregate` (IQM, 95 % CI and,
     with ``per_seed``, each run's value), in the units people read (%, µm)."""
     from microconveyor_env.cli.human import format_value
 

@@ -25,8 +25,8 @@ def _budget_args(p: argparse.ArgumentParser, steps_help: str) -> None:
 
 
 def _tune_args(p: argparse.ArgumentParser) -> None:
-    from ..rl.tune import DEFAULT_STUDY
-    from ..rl.tune_space import SPACE
+    from ..rl.tuning.tune import DEFAULT_STUDY
+    from ..rl.tuning.space import SPACE
 
     p.add_argument("--trials", type=count(1), default=20,
                    help="trials this command runs, split over its workers (other machines add "
@@ -63,7 +63,7 @@ def _tune_args(p: argparse.ArgumentParser) -> None:
                  "share one study in a database; writes the best as an rl-zoo3 config entry",
          _tune_args)
 def cmd_tune(args: argparse.Namespace) -> None:
-    from ..rl.tune import tune
+    from ..rl.tuning.tune import tune
 
     fixed = dict(args.fix or [])
     res = tune(args.out, n_trials=args.trials, workers=args.workers, storage=args.storage,
@@ -86,7 +86,7 @@ def cmd_tune(args: argparse.Namespace) -> None:
 
 
 def tune_text(res: dict) -> str:
-    """The human summary of :func:`agents.rl.tune.tune`'s result."""
+    """The human summary of :func:`agents.rl.tuning.tune.tune`'s result."""
     states = ", ".join(f"{n} {s}" for s, n in sorted(res["states"].items()))
     mine: dict[str, int] = {}
     for r in res["this_run"]:
@@ -116,7 +116,7 @@ def tune_text(res: dict) -> str:
 
 
 def _seeds_args(p: argparse.ArgumentParser) -> None:
-    from ..rl.algos import ALGO_NAMES
+    from ..rl.training.algos import ALGO_NAMES
 
     p.add_argument("--seeds", type=int, nargs="+", required=True, help="training seeds")
     p.add_argument("--out", default="runs/seeds",
@@ -137,7 +137,7 @@ def _seeds_args(p: argparse.ArgumentParser) -> None:
 @command("train-seeds", "train one run per seed in parallel worker processes, then aggregate "
                         "them (IQM and bootstrap CI, as `seeds`)", _seeds_args)
 def cmd_train_seeds(args: argparse.Namespace) -> None:
-    from ..rl.parallel import train_seeds
+    from ..rl.training.parallel import train_seeds
 
     res = train_seeds(args.out, args.seeds, workers=args.workers, verbose=not args.quiet,
                       algo=args.algo, steps=args.steps, conf_file=args.conf_file,
@@ -152,7 +152,7 @@ def cmd_train_seeds(args: argparse.Namespace) -> None:
     if agg is not None:
         if args.plot:
             from ..plots.seeds import plot_curves
-            from ..rl.seeds import curves
+            from ..rl.evaluation.seeds import curves
 
             res["plot"] = plot_curves(curves(agg["runs"]), args.plot)
         lines += iqm_lines(agg, per_seed=False)

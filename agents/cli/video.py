@@ -45,9 +45,9 @@ def cmd_video(args: argparse.Namespace) -> None:
 
 
 def _policy_video(args: argparse.Namespace) -> dict[str, Any]:
-    from ..rl.evaluate import load_policy
-    from ..rl.policy_files import read_policy_meta
-    from ..rl.shipped import DEFAULT_ENV_ID, require_shipped
+    from ..rl.evaluation.evaluate import load_policy
+    from ..rl.artefacts.policy_files import read_policy_meta
+    from ..rl.artefacts.shipped import DEFAULT_ENV_ID, require_shipped
 
     path = args.policy
     if path == "shipped":

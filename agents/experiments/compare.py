@@ -32,7 +32,7 @@ from microconveyor_env.envs import EnvConfig, env_config
 from microconveyor_env.envs.core.actions import encode_actions
 
 from ..mpc.controller import MPCSettings, mpc_rollout
-from ..rl.evaluate import fixed_targets, load_policy, rollout
+from ..rl.evaluation.evaluate import fixed_targets, load_policy, rollout
 from ..openloop.target import Rollouts, solve_target
 from .perturb import Level, perturbation_table, plan_rollout, policy_rollout
 
@@ -231,7 +231,7 @@ def compare(n_targets: int = 100, seed: int = 0, budgets: Sequence[int] = (1000,
     r [-], the ``diagonal`` (σ, r) pairs, every combination with ``full_grid``), each level
     replayed ``perturb_repeats`` times per target. Returns a JSON-able dict (``rows``,
     ``tolerance``, ``perturbation``, ``seeds``, ...)."""
-    from ..rl.shipped import require_shipped, shipped_path
+    from ..rl.artefacts.shipped import require_shipped, shipped_path
 
     cfg = config or env_config(env_id)
     targets = fixed_targets(cfg, n_targets, seed)

@@ -9,7 +9,7 @@ import numpy as np
 from microconveyor_env.envs import EnvConfig
 
 from ..plots.trajectories import plot_policy_paths
-from ..rl.evaluate import Policy, load_policy, rollout
+from ..rl.evaluation.evaluate import Policy, load_policy, rollout
 
 
 def load_demo_policy(policy_path: str | Path | None = None, config: EnvConfig | None = None,
@@ -19,7 +19,7 @@ def load_demo_policy(policy_path: str | Path | None = None, config: EnvConfig | 
     (or one of another scene) fails at once."""
     from microconveyor_env.envs import env_config
 
-    from ..rl.shipped import require_shipped
+    from ..rl.artefacts.shipped import require_shipped
 
     return load_policy(policy_path or require_shipped(env_id), config or env_config(env_id))
 

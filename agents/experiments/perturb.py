@@ -4,7 +4,7 @@ ladder of perturbation levels of the env's per-episode randomisation (docs/rando
 A level is an execution-noise sigma [action units] plus a symmetric spread r [-] of the friction
 and mass factors (both drawn uniformly in [1 - r, 1 + r] per episode)::
 
-    from agents.rl.evaluate import fixed_targets
+    from agents.rl.evaluation.evaluate import fixed_targets
     from agents.experiments.perturb import Level, perturbation_table, plan_rollout, policy_rollout
 
     cfg = EnvConfig.from_yaml()
@@ -27,7 +27,7 @@ import numpy as np
 
 from microconveyor_env.envs import EnvConfig
 
-from ..rl.evaluate import rollout
+from ..rl.evaluation.evaluate import rollout
 
 # (config, targets [m], seed) -> {"error_m", "outcome", and with randomisation on
 # "friction_factor", "mass_factor"}: one episode per target, sub-env i seeded seed + i
@@ -68,7 +68,7 @@ class _Act:
 
 def policy_rollout(policy: Any) -> RolloutFn:
     """Closed loop: ``policy`` is ``act(obs) -> actions`` ((N, 6) -> (N, 3)) or has such an
-    ``act`` method (e.g. :class:`agents.rl.evaluate.Policy`)."""
+    ``act`` method (e.g. :class:`agents.rl.evaluation.evaluate.Policy`)."""
     act = getattr(policy, "act", policy)
     if not callable(act):
         raise TypeError(f"policy must be callable or have an act method, got {type(policy)}")

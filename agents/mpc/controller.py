@@ -297,7 +297,7 @@ def _episodes(config: EnvConfig, model: EnvConfig | None, settings: MPCSettings 
     """Episodes ``index`` (global numbers, for the search seeds) of :func:`mpc_rollout`."""
     policy = None
     if prior is not None:
-        from ..rl.policy_files import load_policy
+        from ..rl.artefacts.policy_files import load_policy
 
         policy = load_policy(prior)
     ctl = MPC(model or nominal(config), settings, policy)
@@ -350,7 +350,7 @@ class MPCRollout:
                 import multiprocessing as mp
                 from concurrent.futures import ProcessPoolExecutor
 
-                from ..rl.parallel import exit_with_parent
+                from ..rl.training.parallel import exit_with_parent
 
                 # a worker ends with its parent (killed or not), instead of waiting for tasks
                 self._pool = ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"),
@@ -391,7 +391,7 @@ class MPCRollout:
                 pass
         redo = [i for i, batch in enumerate(done) if batch is None]
         if redo:
-            from ..rl.parallel import Died, run_local
+            from ..rl.training.parallel import Died, run_local
 
             self._pool.shutdown(wait=False, cancel_futures=True)
             self._pool = None   # started again at the next call

@@ -39,7 +39,7 @@ def plot_plan_trajectories(runs: Mapping[str, Mapping[str, np.ndarray]], path: s
 
 def plot_policy_paths(res: dict, cfg: EnvConfig, path: Path) -> str:
     """A policy's episodes: the part's position after each firing, one line per target
-    (``res`` from :func:`agents.rl.evaluate.rollout` with ``record=True``)."""
+    (``res`` from :func:`agents.rl.evaluation.evaluate.rollout` with ``record=True``)."""
     plt = pyplot()
 
     path.parent.mkdir(parents=True, exist_ok=True)

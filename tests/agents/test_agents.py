@@ -9,10 +9,10 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from agents.rl import hyperparams  # noqa: E402
-from agents.rl.evaluate import PolicyError, evaluate, load_policy  # noqa: E402
+from agents.rl.training import hyperparams  # noqa: E402
+from agents.rl.evaluation.evaluate import PolicyError, evaluate, load_policy  # noqa: E402
 from agents.experiments.reach import reach_study, widest_robust_range  # noqa: E402
-from agents.rl.train import train  # noqa: E402
+from agents.rl.training.train import train  # noqa: E402
 
 SMALL = {"n_envs": 16, "n_steps": 32, "batch_size": 256, "n_epochs": 1}
 
@@ -33,7 +33,7 @@ def test_ppo_config_is_rl_zoo_format():
 
 
 def test_ppo_trains_saves_loads_and_resumes(tmp_path):
-    from agents.rl.checkpoint import generations
+    from agents.rl.artefacts.checkpoint import generations
 
     lines = []
     meta = train(tmp_path, steps=1024, seed=1, overrides=SMALL, checkpoint_freq=512,
@@ -67,7 +67,7 @@ def test_schedules_run_out_with_the_wall_time_budget(tmp_path):
     """With --max-minutes the lin_ learning rate decays over whichever budget ends first."""
     from stable_baselines3.common.vec_env import DummyVecEnv
 
-    from agents.rl.algos import algo_class
+    from agents.rl.training.algos import algo_class
     BudgetPPO = algo_class("ppo")
     from microconveyor_env.envs import MicroConveyorEnv
 
@@ -82,7 +82,7 @@ def test_schedules_run_out_with_the_wall_time_budget(tmp_path):
     model._update_current_progress_remaining(10, 100)
     assert model._current_progress_remaining == 0.0
     model.save(tmp_path / "m.zip")                                    # the clock is not saved
-    from agents.rl.sb3_files import read_data
+    from agents.rl.artefacts.sb3_files import read_data
 
     assert "budget_clock" not in read_data(tmp_path / "m.zip")
     assert BudgetPPO.load(tmp_path / "m.zip", device="cpu").budget_clock is None
@@ -147,7 +147,7 @@ def fake_runs(tmp_path, curves=False):
 
 
 def test_seed_aggregation(tmp_path):
-    from agents.rl.seeds import aggregate, iqm
+    from agents.rl.evaluation.seeds import aggregate, iqm
 
     assert iqm([0.0, 1.0, 2.0, 3.0]) == 1.5 and iqm([1.0, 2.0, 4.0]) == pytest.approx(7 / 3)
     out = aggregate(fake_runs(tmp_path), reps=200)
@@ -175,7 +175,7 @@ def test_seeds_command_reports_curves_and_plots(tmp_path):
 
 
 def test_seeds_refuses_runs_of_different_configs(tmp_path):
-    from agents.rl.seeds import aggregate
+    from agents.rl.evaluation.seeds import aggregate
 
     runs = fake_runs(tmp_path)
     base = {"env_id": "MicroConveyor-v1", "env_kwargs": {"num_threads": 1}, "algo": "ppo",

@@ -7,14 +7,14 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from agents.rl import hyperparams  # noqa: E402
+from agents.rl.training import hyperparams  # noqa: E402
 
 TINY = {"n_envs": 2, "learning_starts": 50, "batch_size": 32, "buffer_size": 5000,
         "policy_kwargs": {"net_arch": [16, 16]}}
 
 
 def _train(out, algo, env_id, steps, **kw):
-    from agents.rl.train import train
+    from agents.rl.training.train import train
 
     return train(out, steps=steps, seed=0, algo=algo, env_id=env_id, overrides=TINY,
                  checkpoint_freq=100, eval_freq=0, eval_targets=5, progress_bar=False,
@@ -27,7 +27,7 @@ def _train(out, algo, env_id, steps, **kw):
 def test_off_policy_trains_resumes_and_evaluates(tmp_path, algo, env_id):
     if algo == "tqc":
         pytest.importorskip("sb3_contrib")
-    from agents.rl.evaluate import evaluate, load_policy
+    from agents.rl.evaluation.evaluate import evaluate, load_policy
 
     logs = []
     meta = _train(tmp_path, algo, env_id, 200)
@@ -110,7 +110,7 @@ def test_goal_env_with_normalised_observations_is_refused_before_training(tmp_pa
     statistics file); now it is refused before a step is taken."""
     import time
 
-    from agents.rl.train import train
+    from agents.rl.training.train import train
 
     t0 = time.perf_counter()
     with pytest.raises(ValueError, match="normalize: MicroConveyorGoal-v1 has Dict observations"):

@@ -17,8 +17,8 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from agents.rl import checkpoint as ck  # noqa: E402
-from agents.rl.checkpoint import CheckpointError  # noqa: E402
+from agents.rl.artefacts import checkpoint as ck  # noqa: E402
+from agents.rl.artefacts.checkpoint import CheckpointError  # noqa: E402
 
 SMALL = {"n_envs": 16, "n_steps": 32, "batch_size": 256, "n_epochs": 1}
 SMALL_YAML = ("MicroConveyor-v0:\n  env_kwargs: {num_threads: 1}\n  n_envs: 16\n  n_steps: 32\n"
@@ -65,7 +65,7 @@ def test_a_failed_write_keeps_the_previous_generation(tmp_path):
 def test_one_training_per_folder_and_the_lock_dies_with_its_owner(tmp_path):
     holder = subprocess.Popen(
         [sys.executable, "-c", "import sys, time; from pathlib import Path; "
-         "from agents.rl.checkpoint import folder_lock\n"
+         "from agents.rl.artefacts.checkpoint import folder_lock\n"
          f"with folder_lock(Path({str(tmp_path)!r})):\n print('locked', flush=True); time.sleep(120)"],
         stdout=subprocess.PIPE, text=True)
     try:
@@ -82,7 +82,7 @@ def test_one_training_per_folder_and_the_lock_dies_with_its_owner(tmp_path):
 
 # ------------------------------------------------------------------------ resume refusals
 def test_resume_refuses_what_it_cannot_honour(tmp_path):
-    from agents.rl.train import train
+    from agents.rl.training.train import train
 
     kw = dict(steps=512, seed=0, overrides=SMALL, checkpoint_freq=512, eval_freq=0,
               eval_targets=0, progress_bar=False, tensorboard=False)
@@ -109,8 +109,8 @@ def test_resume_continues_the_whole_runs_budgets_and_schedule(tmp_path, monkeypa
     """Steps, wall time and the learning-rate schedule count from the run's start: a resumed run
     picks the schedule up where it stopped (no sawtooth), and one with nothing left is refused
     with a message, not stopped after one rollout."""
-    from agents.rl.algos import algo_class
-    from agents.rl.train import train
+    from agents.rl.training.algos import algo_class
+    from agents.rl.training.train import train
     BudgetPPO = algo_class("ppo")
 
     kw = dict(seed=0, overrides=SMALL, checkpoint_freq=512, eval_freq=0, eval_targets=0,
@@ -143,7 +143,7 @@ def test_resume_continues_the_runs_own_seed_and_records_it(tmp_path):
     being recorded while the run goes on under its own."""
     import zipfile
 
-    from agents.rl.train import train
+    from agents.rl.training.train import train
 
     kw = dict(overrides=SMALL, checkpoint_freq=512, eval_freq=0, eval_targets=0,
               progress_bar=False, tensorboard=False)
@@ -172,7 +172,7 @@ def test_a_fork_continues_a_checkpoint_under_another_seed(tmp_path):
     resume continues the fork's seed."""
     import zipfile
 
-    from agents.rl.train import train
+    from agents.rl.training.train import train
 
     kw = dict(overrides=SMALL, checkpoint_freq=512, eval_freq=0, eval_targets=0,
               progress_bar=False, tensorboard=False)
@@ -205,7 +205,7 @@ def test_a_fork_continues_a_checkpoint_under_another_seed(tmp_path):
                                  {"max_minutes": 0}, {"steps": 0}, {"steps": 1.5},
                                  {"checkpoint_freq": 0}, {"eval_freq": -1}])
 def test_invalid_budgets_are_refused(tmp_path, bad):
-    from agents.rl.train import train
+    from agents.rl.training.train import train
 
     with pytest.raises(ValueError, match=next(iter(bad))):
         train(tmp_path, **{"steps": 512, "progress_bar": False, **bad})
@@ -284,7 +284,7 @@ def kill_and_resume(tmp_path, kills: int, seed: int = 0) -> list[dict]:
             assert resumed and int(resumed[0].split()[3]) == report[i - 1]["resumable_from"]
     final = _cli(*_train_cmd(out, conf, "--resume", "--steps", str(ck.latest(out).steps + 512))[3:])
     assert final.returncode == 0, final.stderr
-    from agents.rl.evaluate import evaluate, load_policy
+    from agents.rl.evaluation.evaluate import evaluate, load_policy
 
     assert evaluate(load_policy(out), 4, seed=1)["n_targets"] == 4
     return report

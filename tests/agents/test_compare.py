@@ -68,7 +68,7 @@ def test_compare_tiny_budget_writes_its_charts(tmp_path):
 def test_compare_full_grid_and_seed_iqm(tmp_path):
     """v1 (the default env), --quick shrunk further, the full grid and two 'seeds' (the shipped
     policy twice: their IQM is its own success, with a zero-width interval)."""
-    from agents.rl.shipped import require_shipped
+    from agents.rl.artefacts.shipped import require_shipped
 
     shipped = str(require_shipped("MicroConveyor-v1"))
     out = tmp_path / "cmp"

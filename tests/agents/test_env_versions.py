@@ -10,8 +10,8 @@ import pytest
 pytest.importorskip("stable_baselines3")
 
 from agents.cli.args import env_kwarg  # noqa: E402
-from agents.rl.policy_files import PolicyError, load_policy  # noqa: E402
-from agents.rl.shipped import shipped_path  # noqa: E402
+from agents.rl.artefacts.policy_files import PolicyError, load_policy  # noqa: E402
+from agents.rl.artefacts.shipped import shipped_path  # noqa: E402
 from microconveyor_env.envs import env_config  # noqa: E402
 
 TINY = """MicroConveyor-v1:

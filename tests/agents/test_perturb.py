@@ -1,8 +1,8 @@
-"""agents.experiments.perturb (success against perturbation) and agents.rl.evaluate with randomisation on."""
+"""agents.experiments.perturb (success against perturbation) and agents.rl.evaluation.evaluate with randomisation on."""
 import numpy as np
 import pytest
 
-from agents.rl.evaluate import evaluate, rollout
+from agents.rl.evaluation.evaluate import evaluate, rollout
 from agents.experiments.perturb import Level, ladder, perturbation_table, plan_rollout, policy_rollout
 from microconveyor_env.envs import EnvConfig, MicroConveyorEnv
 from microconveyor_env.envs.core.actions import encode_actions

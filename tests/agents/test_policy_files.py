@@ -14,8 +14,8 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from agents.rl.evaluate import PolicyError, load_policy  # noqa: E402
-from agents.rl.shipped import shipped_path  # noqa: E402
+from agents.rl.evaluation.evaluate import PolicyError, load_policy  # noqa: E402
+from agents.rl.artefacts.shipped import shipped_path  # noqa: E402
 
 
 class _Payload:
@@ -114,7 +114,7 @@ def test_known_pickled_entries_are_replaced_not_unpickled(tmp_path):
 
 
 def test_conf_file_is_parsed_as_data(tmp_path):
-    from agents.rl import hyperparams
+    from agents.rl.training import hyperparams
 
     marker = tmp_path / "pwned-by-yaml"
     conf = tmp_path / "ppo.yml"
@@ -210,7 +210,7 @@ def test_changed_file_is_caught_by_the_recorded_hash(tmp_path):
 def test_convert_stats_turns_a_trusted_pickle_into_json(tmp_path):
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-    from agents.rl.normalization import read
+    from agents.rl.artefacts.normalization import read
     from microconveyor_env.envs import MicroConveyorEnv
 
     vn = VecNormalize(DummyVecEnv([MicroConveyorEnv]), gamma=0.95)
@@ -232,8 +232,8 @@ def test_policy_with_observation_history_loads_and_evaluates(tmp_path):
     import numpy as np
 
     from agents.experiments.perturb import Level, perturbation_table, policy_rollout
-    from agents.rl.evaluate import evaluate
-    from agents.rl.train import train
+    from agents.rl.evaluation.evaluate import evaluate
+    from agents.rl.training.train import train
     from microconveyor_env.envs import env_config
 
     folder = tmp_path / "hist"

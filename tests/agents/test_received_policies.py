@@ -14,8 +14,8 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from agents.rl.policy_files import PolicyError, load_policy  # noqa: E402
-from agents.rl.shipped import shipped_path  # noqa: E402
+from agents.rl.artefacts.policy_files import PolicyError, load_policy  # noqa: E402
+from agents.rl.artefacts.shipped import shipped_path  # noqa: E402
 
 
 def _sac_folder(tmp_path, name="sac", dict_obs=False):
@@ -108,8 +108,8 @@ def test_rebuilt_actor_acts_exactly_as_sb3_predict(tmp_path, algo):
     import gymnasium as gym
 
     import microconveyor_env  # noqa: F401
-    from agents.rl.actor_net import load_actor
-    from agents.rl.sb3_files import algo_class
+    from agents.rl.artefacts.actor_net import load_actor
+    from agents.rl.artefacts.sb3_files import algo_class
 
     cls = algo_class(algo)
     for env_id, policy in (("MicroConveyor-v1", "MlpPolicy"),
@@ -203,7 +203,7 @@ def test_names_that_leave_the_folder_are_refused(tmp_path):
 
 
 def test_refine_reads_no_file_through_a_link(tmp_path):
-    from agents.rl.refine import write_refined
+    from agents.rl.refinement.refine import write_refined
 
     folder = tmp_path / "p"
     shutil.copytree(shipped_path("ppo", "MicroConveyor-v1"), folder)
@@ -260,7 +260,7 @@ def test_refine_out_is_checked_before_the_refinement(tmp_path):
 
 def test_a_killed_refine_leaves_no_staging_folder_for_long(tmp_path):
     """A staging folder of a writer that died is removed by the next write into that place."""
-    from agents.rl.refine import write_refined
+    from agents.rl.refinement.refine import write_refined
 
     dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
                           capture_output=True, text=True).stdout.strip()

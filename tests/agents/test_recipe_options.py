@@ -1,13 +1,13 @@
 """Recipe options beyond SB3's keyword arguments: the training-only log-error shaping
-(agents/rl/shaping.py), the training-time target mixture (agents/rl/targets.py), bad recipe keys
+(agents/rl/training/shaping.py), the training-time target mixture (agents/rl/training/targets.py), bad recipe keys
 refused by name, raw observations (norm_obs false); the run-phase keys' timing is in
 test_run_phases.py."""
 import numpy as np
 import pytest
 from stable_baselines3.common.vec_env import VecMonitor
 
-from agents.rl import hyperparams, wrappers
-from agents.rl.shaping import LogErrorShaping
+from agents.rl.training import hyperparams, wrappers
+from agents.rl.training.shaping import LogErrorShaping
 from microconveyor_env.envs.core.sb3 import MicroConveyorSB3VecEnv
 
 N = 16
@@ -69,10 +69,10 @@ def test_potential_is_log_of_relative_error_and_saturates():
 
 @pytest.mark.parametrize("spec, message", [
     ("os.system", "is not one this package builds"),
-    ({"agents.rl.shaping.LogErrorShaping": {"weight": -1}}, "weight must be a positive"),
-    ({"agents.rl.shaping.LogErrorShaping": {"scale_m": float("inf")}}, "scale_m must be a pos"),
-    ({"agents.rl.shaping.LogErrorShaping": {"weight": True}}, "weight must be a positive"),
-    ({"agents.rl.shaping.LogErrorShaping": {"wieght": 1}}, "unexpected keyword"),
+    ({"agents.rl.training.shaping.LogErrorShaping": {"weight": -1}}, "weight must be a positive"),
+    ({"agents.rl.training.shaping.LogErrorShaping": {"scale_m": float("inf")}}, "scale_m must be a pos"),
+    ({"agents.rl.training.shaping.LogErrorShaping": {"weight": True}}, "weight must be a positive"),
+    ({"agents.rl.training.shaping.LogErrorShaping": {"wieght": 1}}, "unexpected keyword"),
     ([1], "expected a name"),
 ])
 def test_a_recipe_names_only_known_wrappers(spec, message):
@@ -83,7 +83,7 @@ def test_a_recipe_names_only_known_wrappers(spec, message):
 
 def test_the_wrapper_key_is_the_trainers_not_ppos():
     hp = hyperparams.load(env_id="MicroConveyor-v1")
-    hp["vec_env_wrapper"] = [{"agents.rl.shaping.LogErrorShaping": {"weight": 1.0}}]
+    hp["vec_env_wrapper"] = [{"agents.rl.training.shaping.LogErrorShaping": {"weight": 1.0}}]
     assert "vec_env_wrapper" not in hyperparams.algo_kwargs(hp)
     venv = VecMonitor(MicroConveyorSB3VecEnv(2, env_id="MicroConveyor-v1", num_threads=1))
     wrapped = wrappers.wrap(venv, hp["vec_env_wrapper"])
@@ -102,7 +102,7 @@ def _targets_seen(env, resets=1, steps=60):
 
 
 def test_target_mixture_draws_the_share_it_is_given_and_leaves_the_rest_to_the_env():
-    from agents.rl.targets import TargetMixture
+    from agents.rl.training.targets import TargetMixture
 
     def mixed(p, seed=5):
         env = TargetMixture(VecMonitor(MicroConveyorSB3VecEnv(64, env_id="MicroConveyor-v1",
@@ -135,14 +135,14 @@ def test_target_mixture_draws_the_share_it_is_given_and_leaves_the_rest_to_the_e
 def test_target_mixture_refuses_what_it_cannot_draw(kwargs, message):
     venv = VecMonitor(MicroConveyorSB3VecEnv(2, env_id="MicroConveyor-v1", num_threads=1))
     with pytest.raises(ValueError, match=message):
-        wrappers.wrap(venv, {"agents.rl.targets.TargetMixture": kwargs})
+        wrappers.wrap(venv, {"agents.rl.training.targets.TargetMixture": kwargs})
 
 
 def test_target_mixture_must_be_the_innermost_wrapper():
     """A wrapper inside it (the shaping) would see each episode's start before the redraw."""
     venv = VecMonitor(MicroConveyorSB3VecEnv(2, env_id="MicroConveyor-v1", num_threads=1))
-    mix = {"agents.rl.targets.TargetMixture": {"p": 0.5}}
-    shaped = "agents.rl.shaping.LogErrorShaping"
+    mix = {"agents.rl.training.targets.TargetMixture": {"p": 0.5}}
+    shaped = "agents.rl.training.shaping.LogErrorShaping"
     with pytest.raises(ValueError, match="innermost"):
         wrappers.wrap(venv, [shaped, mix])
     both = wrappers.wrap(venv, [mix, shaped])
@@ -150,7 +150,7 @@ def test_target_mixture_must_be_the_innermost_wrapper():
 
 
 def _tiny_ppo(out, steps, **overrides):
-    from agents.rl.train import train
+    from agents.rl.training.train import train
 
     tiny = {"n_envs": 8, "n_steps": 16, "batch_size": 64, "n_epochs": 2,
             "policy_kwargs": {"net_arch": {"pi": [16], "vf": [16]}, "log_std_init": -3.0},
@@ -198,7 +198,7 @@ def test_raw_observations_train_save_resume_and_load(tmp_path):
     statistics, the file records the identity, and the loaded policy reads raw observations."""
     import json
 
-    from agents.rl.policy_files import load_policy
+    from agents.rl.artefacts.policy_files import load_policy
 
     raw = {"normalize": {"norm_obs": False, "norm_reward": True}}
     _tiny_ppo(tmp_path, 256, **raw)
@@ -206,7 +206,7 @@ def test_raw_observations_train_save_resume_and_load(tmp_path):
     assert stats["norm_obs"] is False and stats["obs_rms"]["var"] == [1.0] * 6
     pol = load_policy(tmp_path)
     assert pol.normalizer is None
-    from agents.rl.train import train
+    from agents.rl.training.train import train
 
     meta = train(tmp_path, steps=512, seed=0, env_id="MicroConveyor-v1", resume=True,
                  overrides={"n_envs": 8, "n_steps": 16, "batch_size": 64, "n_epochs": 2,
@@ -221,8 +221,8 @@ def test_shaped_training_records_the_envs_own_returns(tmp_path):
     """The wrapper sits outside the monitor: a shaped run trains and its recorded metadata
     names the shaping (part of the config hash) while evaluations use v1's reward."""
     meta = _tiny_ppo(tmp_path, 256, vec_env_wrapper=[
-        {"agents.rl.shaping.LogErrorShaping": {"weight": 5.0, "scale_m": 20e-6}}])
-    assert meta["hyperparams"]["vec_env_wrapper"][0]["agents.rl.shaping.LogErrorShaping"] == {
+        {"agents.rl.training.shaping.LogErrorShaping": {"weight": 5.0, "scale_m": 20e-6}}])
+    assert meta["hyperparams"]["vec_env_wrapper"][0]["agents.rl.training.shaping.LogErrorShaping"] == {
         "weight": 5.0, "scale_m": 20e-6}
 
 
@@ -232,7 +232,7 @@ def test_train_quick_uses_the_quick_recipe_and_its_scene(tmp_path, capsys):
     full range unless asked."""
     import json
 
-    from agents.rl.evaluate import load_policy
+    from agents.rl.evaluation.evaluate import load_policy
     from microconveyor_env.cli import main
     from microconveyor_env.envs import env_config
 

@@ -9,11 +9,20 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from agents.rl.evaluate import load_policy  # noqa: E402
-from agents.rl.refine import (NOOP, Actor, RefineSettings, correct_first_firing,  # noqa: E402
-                              correct_last_firing, fit, labelled_episodes, play, refine,
-                              write_refined)
-from agents.rl.shipped import shipped_path  # noqa: E402
+from agents.rl.evaluation.evaluate import load_policy  # noqa: E402
+from agents.rl.refinement.refine import (
+    NOOP,
+    Actor,
+    RefineSettings,
+    correct_first_firing,
+    correct_last_firing,
+    fit,
+    labelled_episodes,
+    play,
+    refine,
+    write_refined,
+)
+from agents.rl.artefacts.shipped import shipped_path  # noqa: E402
 
 
 def _shipped():
@@ -40,7 +49,7 @@ def test_newton_lands_the_last_firing_and_touches_nothing_else():
 def test_a_correction_that_changes_the_episode_length_is_not_kept(monkeypatch):
     """The states after a corrected firing are only valid labels if the episode still ends
     there: the final replay of episode 0 is given another length, and its correction is dropped."""
-    import agents.rl.refine as mod
+    import agents.rl.refinement.refine as mod
 
     pol = _shipped()
     targets = np.linspace(6.0e-3, 9.0e-3, 4)
@@ -85,7 +94,7 @@ def test_the_first_firing_alone_lands_near_targets_the_policy_overshoots():
 
 
 def test_a_first_firing_correction_replaces_a_last_firing_one(monkeypatch):
-    import agents.rl.refine as mod
+    import agents.rl.refinement.refine as mod
 
     pol = _shipped()
     targets = np.array([0.6e-3, 7.5e-3])
@@ -150,7 +159,7 @@ def test_refine_keeps_its_best_round_and_writes_a_policy_folder(tmp_path):
                >= (s["success_rate"], -s["median_abs_error_m"]) for s in scores)
     assert rep["rounds"][1]["corrected"] > 0 and len(lines) == 4
     # the weights left in the policy are the kept round's: scoring them again gives its score
-    from agents.rl.refine import _score
+    from agents.rl.refinement.refine import _score
     targets = np.random.default_rng([0, 0x5EF1]).uniform(*pol.config.target_range, 64)
     assert _score(pol.config, targets, Actor(pol)) == kept
     after = pol.actor.sb3_state()
@@ -171,7 +180,7 @@ def test_refine_keeps_its_best_round_and_writes_a_policy_folder(tmp_path):
             assert src.read(name) == new.read(name)
     # the written policy.pth holds the fitted actor and, unchanged, everything else (value net,
     # log std)
-    from agents.rl.sb3_files import read_weights
+    from agents.rl.artefacts.sb3_files import read_weights
     old_w, new_w = (read_weights(p / "model.zip") for p in (src_folder, out))
     assert list(old_w) == list(new_w)
     for k in old_w:
@@ -188,7 +197,7 @@ def test_refine_keeps_its_best_round_and_writes_a_policy_folder(tmp_path):
 
 def test_a_later_worse_round_is_dropped(monkeypatch):
     """Round 1 scores best, round 2 worse: the weights left are round 1's fit."""
-    import agents.rl.refine as mod
+    import agents.rl.refinement.refine as mod
 
     pol = _shipped()
     scores = iter([(0.5, 30e-6), (0.9, 10e-6), (0.7, 5e-6)])
@@ -274,7 +283,7 @@ def test_train_refine_writes_the_refined_policy_into_the_run(tmp_path, monkeypat
     the command uses refine's defaults)."""
     import functools
 
-    import agents.rl.refine as mod
+    import agents.rl.refinement.refine as mod
     from microconveyor_env.cli import main
 
     monkeypatch.setattr(mod, "RefineSettings", functools.partial(

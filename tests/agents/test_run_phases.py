@@ -1,4 +1,4 @@
-"""PPO's run-phase recipe keys (agents/rl/phases.py): the exploration restart and shift, and
+"""PPO's run-phase recipe keys (agents/rl/training/phases.py): the exploration restart and shift, and
 frozen observation statistics; when each fires in a run and across a resume."""
 import pytest
 
@@ -10,7 +10,7 @@ def _check_resume_cases(arm, hp, flag, cases, changed_log_std):
     never saved), saved progress, progress now, expected flag, whether the change is made now)."""
     import torch
 
-    from agents.rl.algos import algo_class
+    from agents.rl.training.algos import algo_class
 
     for saved, progress, done_now, pending, made in cases:
         model = algo_class("ppo")("MlpPolicy", "Pendulum-v1", device="cpu",
@@ -34,9 +34,9 @@ def test_exploration_restart_fires_once_and_restarts_the_schedule():
     import torch
     from stable_baselines3.common.callbacks import BaseCallback
 
-    from agents.rl.algos import algo_class
-    from agents.rl.hyperparams import linear_schedule
-    from agents.rl.phases import exploration_restart
+    from agents.rl.training.algos import algo_class
+    from agents.rl.training.hyperparams import linear_schedule
+    from agents.rl.training.phases import exploration_restart
 
     seen = []
 
@@ -72,8 +72,8 @@ def test_exploration_restart_on_resume_fires_once_by_what_the_checkpoint_saved()
     wall budget ran ahead of the steps), and a larger budget that puts the run back before the
     point arms it again."""
 
-    from agents.rl.algos import algo_class
-    from agents.rl.phases import exploration_restart
+    from agents.rl.training.algos import algo_class
+    from agents.rl.training.phases import exploration_restart
 
     hp = {"exploration_restart": {"at": 0.5, "log_std": -2.0}}
     cases = [  # saved pending (None: never saved), saved progress, done now -> pending, filled
@@ -97,9 +97,9 @@ def test_exploration_shift_moves_the_log_std_once_and_leaves_the_schedule():
     import torch
     from stable_baselines3.common.callbacks import BaseCallback
 
-    from agents.rl.algos import algo_class
-    from agents.rl.hyperparams import linear_schedule
-    from agents.rl.phases import exploration_restart, exploration_shift
+    from agents.rl.training.algos import algo_class
+    from agents.rl.training.hyperparams import linear_schedule
+    from agents.rl.training.phases import exploration_restart, exploration_shift
 
     class Record(BaseCallback):
         def __init__(self):
@@ -160,8 +160,8 @@ def test_exploration_shift_on_resume_is_made_once():
     """The shift arms on resume as the restart does: made at once when the checkpoint crossed
     the point without making it, never twice, again after a larger budget."""
 
-    from agents.rl.algos import algo_class
-    from agents.rl.phases import exploration_shift
+    from agents.rl.training.algos import algo_class
+    from agents.rl.training.phases import exploration_shift
 
     hp = {"exploration_shift": {"at": 0.5, "by": -1.0}}
     _check_resume_cases(exploration_shift, hp, "shift_pending", [
@@ -173,8 +173,8 @@ def test_exploration_shift_on_resume_is_made_once():
 
 
 def test_whether_the_restart_fired_survives_a_checkpoint(tmp_path):
-    from agents.rl.algos import algo_class
-    from agents.rl.sb3_files import safe_load
+    from agents.rl.training.algos import algo_class
+    from agents.rl.artefacts.sb3_files import safe_load
 
     for fired in (False, True):
         model = algo_class("ppo")("MlpPolicy", "Pendulum-v1", device="cpu")
@@ -191,7 +191,7 @@ def test_obs_stats_freeze_at_the_fraction_and_stay_frozen_across_a_resume(tmp_pa
     them at once); the reward statistics keep moving. Without the key they keep moving."""
     import json
 
-    from agents.rl.train import train
+    from agents.rl.training.train import train
 
     tiny = {"n_envs": 8, "n_steps": 16, "batch_size": 64, "n_epochs": 2,
             "policy_kwargs": {"net_arch": {"pi": [16], "vf": [16]}, "log_std_init": -1.0}}
@@ -236,7 +236,7 @@ def test_obs_stats_freeze_at_the_fraction_and_stay_frozen_across_a_resume(tmp_pa
 @pytest.mark.parametrize("key", [{"exploration_restart": {"at": 0.5, "log_std": -2.0}},
                                  {"exploration_shift": {"at": 0.5, "by": -1.0}}])
 def test_exploration_restart_and_shift_are_ppo_settings(tmp_path, key):
-    from agents.rl.train import train
+    from agents.rl.training.train import train
 
     with pytest.raises(ValueError, match="PPO setting"):
         train(tmp_path, steps=64, algo="sac", env_id="MicroConveyor-v1",

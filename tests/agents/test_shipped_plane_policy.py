@@ -16,10 +16,14 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from agents.rl.evaluate_plane import (PLANE_TOLERANCES, plane_rollout, plane_summary,  # noqa: E402
-                                      plane_targets)
-from agents.rl.policy_files import PolicyError, load_policy  # noqa: E402
-from agents.rl.shipped import shipped_path  # noqa: E402
+from agents.rl.evaluation.evaluate_plane import (
+    PLANE_TOLERANCES,
+    plane_rollout,
+    plane_summary,
+    plane_targets,
+)
+from agents.rl.artefacts.policy_files import PolicyError, load_policy  # noqa: E402
+from agents.rl.artefacts.shipped import shipped_path  # noqa: E402
 from microconveyor_env.envs import env_config  # noqa: E402
 from microconveyor_env.envs.plane.config import PlaneEnvConfig  # noqa: E402
 

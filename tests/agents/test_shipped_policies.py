@@ -19,9 +19,15 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from agents.rl.evaluate import TOLERANCES, fixed_targets, load_policy, rollout, summarize  # noqa: E402
-from agents.rl.shipped import shipped_path  # noqa: E402
-from agents.rl.policy_files import policy_scene  # noqa: E402
+from agents.rl.evaluation.evaluate import (
+    TOLERANCES,
+    fixed_targets,
+    load_policy,
+    rollout,
+    summarize,
+)  # noqa: E402
+from agents.rl.artefacts.shipped import shipped_path  # noqa: E402
+from agents.rl.artefacts.policy_files import policy_scene  # noqa: E402
 from microconveyor_env.envs import EnvConfig  # noqa: E402
 from microconveyor_env.envs.versions import nominal  # noqa: E402
 
@@ -160,7 +166,7 @@ def test_shipped_v1_randomised_policy_at_the_goal_level():
     targets × 3 perturbed replays (docs/agents.md: 17.7 %, far from the goal's 90 %). Two
     episodes of 300 may flip on another CPU (float32 policy outputs: module docstring)."""
     from agents.experiments.perturb import Level, perturbation_table, policy_rollout
-    from agents.rl.evaluate import fixed_targets
+    from agents.rl.evaluation.evaluate import fixed_targets
 
     pol = load_policy(shipped_path("ppo_randomised", "MicroConveyor-v1"))
     cfg = pol.config

@@ -9,9 +9,11 @@ import pytest
 pytest.importorskip("stable_baselines3")
 pytest.importorskip("optuna")
 
-from agents.rl import checkpoint, hyperparams, tune_space  # noqa: E402
-from agents.rl.parallel import train_seeds  # noqa: E402
-from agents.rl.tune import shares, summary, tune  # noqa: E402
+from agents.rl.artefacts import checkpoint  # noqa: E402
+from agents.rl.training import hyperparams  # noqa: E402
+from agents.rl.tuning import space as tune_space  # noqa: E402
+from agents.rl.training.parallel import train_seeds  # noqa: E402
+from agents.rl.tuning.tune import shares, summary, tune  # noqa: E402
 
 ENV = "MicroConveyor-v0"   # v0 for speed: the machinery is the same on v1
 TINY = {"n_envs": 8, "n_steps": 32, "batch_size": 64, "n_epochs": 2}
@@ -51,7 +53,7 @@ def test_two_workers_share_one_sqlite_study_and_the_best_is_a_config_entry(tmp_p
 
 
 def test_an_evaluation_hook_stops_the_run_and_frees_the_folder(tmp_path):
-    from agents.rl.train import train
+    from agents.rl.training.train import train
 
     class Prune(Exception):
         pass
@@ -75,7 +77,7 @@ def test_an_evaluation_hook_stops_the_run_and_frees_the_folder(tmp_path):
 def test_a_trial_below_the_median_is_pruned_at_its_periodic_evaluation(tmp_path):
     import optuna
 
-    from agents.rl.tune import _objective
+    from agents.rl.tuning.tune import _objective
 
     class Trial:  # what the objective uses of optuna.Trial; the pruner says "prune"
         number, attrs, reports = 7, {}, []
@@ -167,8 +169,8 @@ def test_a_written_config_keeps_package_keys_out_of_the_rl_zoo3_entry(tmp_path):
     phases go to the package's section), and loading it gives back every hyperparameter."""
     import yaml
 
-    from agents.rl import hyperparams
-    from agents.rl.tune_space import config_yaml
+    from agents.rl.training import hyperparams
+    from agents.rl.tuning.space import config_yaml
 
     hp = hyperparams.load(None, "MicroConveyor-v1")
     assert set(hyperparams.PACKAGE_KEYS) & set(hp)          # the v1 recipe has run phases

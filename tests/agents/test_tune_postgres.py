@@ -37,7 +37,7 @@ optuna = pytest.importorskip("optuna")
 psycopg = pytest.importorskip("psycopg", reason="the PostgreSQL driver (psycopg, v3) is not "
                                                  "installed: pip install 'psycopg[binary]'")
 
-from agents.rl.tune import open_storage  # noqa: E402
+from agents.rl.tuning.tune import open_storage  # noqa: E402
 
 
 def _pg_bin() -> Path | None:
@@ -219,7 +219,7 @@ def test_many_machines_share_one_postgresql_study(pg, tmp_path):
         assert res["storage"] == url and res["heartbeat_s"] == 1
     mine = [r["number"] for r in res_a["this_run"] + res_b["this_run"]]
     assert len(set(mine)) == 4                                 # no trial counted twice
-    from agents.rl import hyperparams
+    from agents.rl.training import hyperparams
 
     # each command's best is a complete trial of the shared study, and the one that summed up
     # last (after every trial had ended; which one it is, is a race) names the study's best

@@ -24,9 +24,9 @@ from support.storages import open_at_once
 pytest.importorskip("stable_baselines3")
 pytest.importorskip("optuna")
 
-from agents.rl import tune as tune_mod  # noqa: E402
-from agents.rl.parallel import Died, WorkerDied, run_local  # noqa: E402
-from agents.rl.tune import fail_stale, open_storage, tune  # noqa: E402
+from agents.rl.tuning import tune as tune_mod  # noqa: E402
+from agents.rl.training.parallel import Died, WorkerDied, run_local  # noqa: E402
+from agents.rl.tuning.tune import fail_stale, open_storage, tune  # noqa: E402
 
 pytestmark = pytest.mark.skipif(not Path("/proc/self/stat").exists(),
                                 reason="finds worker processes through /proc (Linux)")
@@ -125,7 +125,7 @@ def test_a_dead_worker_costs_only_its_task_and_may_be_replaced(tmp_path):
 
 
 def test_workers_end_when_their_parent_is_killed(tmp_path):
-    code = ("import time\nfrom agents.rl.parallel import run_local\n"
+    code = ("import time\nfrom agents.rl.training.parallel import run_local\n"
             "run_local(time.sleep, [600, 600], workers=2)")
     _workers_end_with_parent(code, "two workers")
 

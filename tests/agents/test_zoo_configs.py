@@ -14,7 +14,7 @@ import yaml
 
 pytest.importorskip("rl_zoo3")
 
-from agents.rl import hyperparams  # noqa: E402
+from agents.rl.training import hyperparams  # noqa: E402
 from microconveyor_env.envs.versions import ALL_ENV_IDS  # noqa: E402
 
 CONFIGS = resources.files("microconveyor_env.configs")
@@ -66,7 +66,7 @@ def test_microconveyor_train_gets_the_same_hyperparameters_as_before():
     raw = yaml.safe_load((CONFIGS / "ppo.yml").read_text())
     assert not set(raw["MicroConveyor-v1"]) & set(hyperparams.PACKAGE_KEYS)
 
-    from agents.rl.shipped import shipped_path
+    from agents.rl.artefacts.shipped import shipped_path
 
     for env_id in ("MicroConveyor-v0", "MicroConveyor-v1"):
         meta = json.loads((shipped_path("ppo", env_id) / "metadata.json").read_text())

@@ -71,7 +71,7 @@ class MicroConveyorVectorEnv(OwnsConveyor, BatchedEnv):
         option) in place of the ones their reset drew; each must be at the start of its
         episode (no actuator fired). Returns every sub-env's observation (a copy). The rest of
         the episode is the one the reset drew; a training-time target distribution uses it
-        (agents/rl/targets.py)."""
+        (agents/rl/training/targets.py)."""
         idx = np.atleast_1d(np.asarray(indices, dtype=np.int64))
         tv = np.broadcast_to(np.asarray(targets, dtype=float), idx.shape)
         checked = []  # every target checked before any is set

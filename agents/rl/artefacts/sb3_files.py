@@ -28,8 +28,15 @@ import numpy as np
 
 from microconveyor_env.safe_files import UnsafeFileError, read_bytes
 
-from .model_zip import (MODEL_FILE_LIMIT, SERIALIZED, ModelFileError, check_data, open_model,
-                        read_data, read_weights)
+from .model_zip import (
+    MODEL_FILE_LIMIT,
+    SERIALIZED,
+    ModelFileError,
+    check_data,
+    open_model,
+    read_data,
+    read_weights,
+)
 
 __all__ = ["SERIALIZED", "ModelFileError", "check_data", "open_model", "read_data",
            "read_weights", "safe_load", "check_spaces", "algo_of", "pickled_globals",

@@ -30,7 +30,7 @@ SAME = ("env_id", "env_kwargs", "algo", "hyperparams")
 def check_same_config(metas: Sequence[dict], runs: Sequence[str | Path]) -> None:
     """ValueError naming the runs and keys whose env or training config differ from the first
     run's: averaging seeds of different configs would mean nothing."""
-    from .hyperparams import changed_keys
+    from ..training.hyperparams import changed_keys
 
     first = metas[0]
     for run, meta in zip(runs[1:], metas[1:], strict=True):

@@ -46,9 +46,9 @@ import numpy as np
 from microconveyor_env.envs import EnvConfig, MicroConveyorVectorEnv
 from microconveyor_env.envs.versions import GOAL_ENV_IDS
 
-from .policy_files import Policy, policy_scene
+from ..artefacts.policy_files import Policy, policy_scene
 
-CURVE = "evaluations.jsonl"   # a train run's learning curve (agents.rl.train)
+CURVE = "evaluations.jsonl"   # a train run's learning curve (agents.rl.training.train)
 CURVE_LIMIT = 64 << 20        # bytes of it read from a source folder
 TARGET_SEED_SALT = 0x5EF1  # training targets: default_rng([seed, salt]), never an evaluation set
 
@@ -361,10 +361,18 @@ def write_refined(policy: Policy, report: dict[str, Any], out: str | Path,
 
     from microconveyor_env.safe_files import read_bytes, read_text
 
-    from .checkpoint import (META, MODEL, NORMALIZATION, check_new_folder, read_meta, sha256,
-                             stale_temporaries, verify_files)
-    from .normalization import NORMALIZATION_LIMIT
-    from .sb3_files import open_model, read_weights
+    from ..artefacts.checkpoint import (
+        META,
+        MODEL,
+        NORMALIZATION,
+        check_new_folder,
+        read_meta,
+        sha256,
+        stale_temporaries,
+        verify_files,
+    )
+    from ..artefacts.normalization import NORMALIZATION_LIMIT
+    from ..artefacts.sb3_files import open_model, read_weights
 
     out = Path(out)
     check_new_folder(out)

@@ -92,7 +92,7 @@ def budgeted(base: type) -> type:
         def freeze_obs_now(self) -> bool:
             """Freeze the observation statistics of the VecNormalize the model trains in (once;
             True if they were frozen now)."""
-            from .normalization import freeze_obs_stats
+            from ..artefacts.normalization import freeze_obs_stats
             from .phases import tell
 
             vn = getattr(self, "_vec_normalize_env", None)
@@ -114,7 +114,7 @@ def algo_class(algo: str) -> type:
     if algo not in ALGO_NAMES:
         raise ValueError(f"unknown algorithm {algo!r}; choose from {', '.join(ALGO_NAMES)}")
     if algo not in _CLASSES:
-        from .sb3_files import algo_class as sb3_class
+        from ..artefacts.sb3_files import algo_class as sb3_class
 
         try:
             _CLASSES[algo] = budgeted(sb3_class(algo))

@@ -31,12 +31,13 @@ from microconveyor_env.envs import EnvConfig, env_config
 from microconveyor_env.envs.versions import GOAL_ENV_IDS, check_env_id
 from microconveyor_env.envs.core.sb3 import MicroConveyorSB3VecEnv
 
-from . import checkpoint, hyperparams, normalization, phases, wrappers
+from ..artefacts import checkpoint, normalization
+from . import hyperparams, phases, wrappers
 from .algos import ALGO_NAMES, algo_class
-from .checkpoint import META, MODEL, NORMALIZATION, CheckpointError
-from .evaluate import Policy, evaluate
-from .actor_net import actor_of_model
-from .sb3_files import ModelFileError, algo_of, read_data, safe_load
+from ..artefacts.checkpoint import META, MODEL, NORMALIZATION, CheckpointError
+from ..evaluation.evaluate import Policy, evaluate
+from ..artefacts.actor_net import actor_of_model
+from ..artefacts.sb3_files import ModelFileError, algo_of, read_data, safe_load
 
 FORMAT = 2          # run-folder layout: checkpoints/gen-*, normalization.json (1: pickles)
 LEGACY_CHECKPOINT = "checkpoint"

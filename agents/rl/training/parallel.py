@@ -226,7 +226,7 @@ def _finished(out: Path, seed: int) -> dict | None:
     """The row of a seed whose folder already holds a finished run (reused as it is)."""
     import json
 
-    from .checkpoint import META
+    from ..artefacts.checkpoint import META
 
     if not (out / META).is_file():
         return None
@@ -239,7 +239,7 @@ def _train_seed(task: dict) -> dict:
     """One seed's training (runs in a worker): its metadata's summary, or the error."""
     import traceback
 
-    from . import checkpoint
+    from ..artefacts import checkpoint
     from .train import train
 
     out, seed = Path(task["out"]), int(task["seed"])
@@ -276,7 +276,7 @@ def train_seeds(out: str | Path, seeds: Sequence[int], workers: int = 1, verbose
     ``resume=True`` continues a seed's checkpoints, if it has some). Returns ``runs`` (one row
     per seed: status, steps, wall time, final evaluation or error) and ``aggregate`` (None if no
     run finished)."""
-    from .seeds import aggregate
+    from ..evaluation.seeds import aggregate
 
     seeds = [int(s) for s in seeds]
     if not seeds or len(set(seeds)) != len(seeds):

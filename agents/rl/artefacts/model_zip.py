@@ -132,7 +132,7 @@ DATA_KEYS: dict[str, Callable[[Any], bool]] = {
     # buffers and state SB3 stores as pickles (replaced, never unpickled) or as null
     "_last_obs": _null, "_last_episode_starts": _null, "_last_original_obs": _null,
     "ep_info_buffer": _null, "ep_success_buffer": _null, "action_noise": _null,
-    # this package's training phases (agents.rl.phases): armed once, saved with the model
+    # this package's training phases (agents.rl.training.phases): armed once, saved with the model
     "restart_pending": _flag, "shift_pending": _flag,
 }
 # entries that may hold a pickle (replaced by custom_objects, never unpickled)

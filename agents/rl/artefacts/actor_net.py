@@ -8,7 +8,7 @@ shapes give the widths), so nothing that a model file *says* about its network (
 the bytes of its own tensors, and no env, critic, optimizer or replay buffer is made.
 
 The forward pass is SB3's, operation for operation (``torch.nn.Linear`` and the activation, in
-float32, one row at a time as :class:`~agents.rl.policy_files.Policy` calls it), so a rebuilt
+float32, one row at a time as :class:`~agents.rl.artefacts.policy_files.Policy` calls it), so a rebuilt
 actor gives the bit-identical action of SB3's ``predict(obs, deterministic=True)``:
 
 * PPO (``ActorCriticPolicy``): ``action_net(policy_net(obs))``, Tanh by default, then clipped to
@@ -211,9 +211,9 @@ def _activation(path: Path, data: dict[str, Any]) -> tuple[str | None, dict[str,
     """The activation a model's ``policy_kwargs`` names (None: the algorithm's default) and its
     plain policy kwargs. A pickled ``policy_kwargs`` (SB3 pickles it when it holds a class) is
     read with :mod:`pickletools` only: the classes it names must be ``torch.nn`` activations of
-    :data:`~agents.rl.hyperparams.ACTIVATIONS` (at most one) or ``torch.optim`` optimizers
+    :data:`~agents.rl.training.hyperparams.ACTIVATIONS` (at most one) or ``torch.optim`` optimizers
     (irrelevant to acting)."""
-    from .hyperparams import ACTIVATIONS
+    from ..training.hyperparams import ACTIVATIONS
 
     entry = data.get("policy_kwargs") or {}
     if not (isinstance(entry, dict) and SERIALIZED in entry):

@@ -37,7 +37,7 @@ def sample(trial: Any, fixed: dict | None = None) -> dict:
 
 
 # one point of the space (its smallest sizes, so that building it is quick): the trial that
-# checks a command's settings before its study starts (agents.rl.tune.check_settings)
+# checks a command's settings before its study starts (agents.rl.tuning.tune.check_settings)
 PROBE = {"n_envs_pow": 6, "n_steps_pow": 3, "batch_size_pow": 8, "n_epochs": 5,
          "learning_rate": 3e-4, "net_width": 64, "log_std_init": -1.0, "one_minus_gamma": 0.01}
 
@@ -124,7 +124,7 @@ def config_yaml(env_id: str, hp: dict, comment: str = "") -> str:
     back."""
     import yaml
 
-    from .hyperparams import PACKAGE_SECTION, split_package_keys
+    from ..training.hyperparams import PACKAGE_SECTION, split_package_keys
 
     zoo, package = split_package_keys(hp)
     entry = {k: dict_text(v) if k in DICT_KEYS and isinstance(v, dict) else v

@@ -80,7 +80,7 @@ def plane_summary(res: dict, tolerance: float) -> dict:
 
 
 # plane_summary's names (those of the stored records) -> the names of every evaluation (the
-# line's agents.rl.evaluate.evaluate): the Euclidean error is an absolute error
+# line's agents.rl.evaluation.evaluate.evaluate): the Euclidean error is an absolute error
 EVALUATION_NAMES = {"median_error_m": "median_abs_error_m", "p90_error_m": "p90_abs_error_m"}
 
 

@@ -34,8 +34,9 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-from . import hyperparams, tune_space
-from .parallel import Died, WorkerDied, exit_status, exit_with_parent, run_local
+from ..training import hyperparams
+from . import space as tune_space
+from ..training.parallel import Died, WorkerDied, exit_status, exit_with_parent, run_local
 
 DEFAULT_STUDY = "microconveyor-ppo"
 HEARTBEAT_S = 60            # a running trial's heartbeat (a new study's default) [s]
@@ -285,7 +286,7 @@ def fail_stale(storage: Any, study_name: str) -> list[int]:
 def _objective(job: dict, worker: str, now: dict | None = None) -> Callable[[Any], float]:
     import optuna
 
-    from .train import train
+    from ..training.train import train
 
     base = hyperparams.load(job["conf_file"], job["env_id"])
     steps = int(job["trial_steps"])
@@ -467,7 +468,7 @@ def check_settings(job: dict) -> None:
 
     from microconveyor_env.envs import env_config
 
-    from .train import _new_model, check_budgets, make_env
+    from ..training.train import _new_model, check_budgets, make_env
 
     check_budgets(job["trial_steps"], job["trial_minutes"], 1, job["eval_freq"],
                   job["eval_targets"])

@@ -8,7 +8,7 @@ import numpy as np
 
 from microconveyor_env.envs import EnvConfig
 
-from .policy_files import Policy, PolicyError, load_policy
+from ..artefacts.policy_files import Policy, PolicyError, load_policy
 
 
 class Actor(Protocol):

@@ -15,8 +15,8 @@ from .targets import TargetMixture
 
 # what a recipe's vec_env_wrapper may name: rl-zoo3's dotted path -> the class
 WRAPPERS: dict[str, type[VecEnvWrapper]] = {
-    "agents.rl.shaping.LogErrorShaping": LogErrorShaping,
-    "agents.rl.targets.TargetMixture": TargetMixture,
+    "agents.rl.training.shaping.LogErrorShaping": LogErrorShaping,
+    "agents.rl.training.targets.TargetMixture": TargetMixture,
 }
 
 

@@ -1,0 +1,2 @@
+"""Evaluating policies on fixed, seeded targets, and aggregates over training seeds (IQM with
+bootstrap intervals)."""

@@ -1,0 +1,1 @@
+"""Refining a trained policy's aim on the simulator (``microconveyor refine``)."""

@@ -1,0 +1,2 @@
+"""Hyperparameter search with Optuna on a shared storage (``microconveyor tune``) and its search
+space."""
