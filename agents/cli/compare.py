@@ -114,7 +114,7 @@ def run(args: Any) -> None:
 
     from ..experiments.compare import MPC_SETTINGS, compare
     from ..experiments.compare_text import summary_table
-    from ..mpc.controller import MPCSettings
+    from ..mpc import MPCSettings
     from ..plots.compare import plot_all
 
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]

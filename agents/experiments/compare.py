@@ -31,7 +31,7 @@ import numpy as np
 from microconveyor_env.envs import EnvConfig, env_config
 from microconveyor_env.envs.core.actions import encode_actions
 
-from ..mpc.controller import MPCSettings, mpc_rollout
+from ..mpc import MPCSettings, mpc_rollout
 from ..rl.evaluation.evaluate import fixed_targets, load_policy, rollout
 from ..openloop.target import Rollouts, solve_target
 from .perturb import Level, perturbation_table, plan_rollout, policy_rollout

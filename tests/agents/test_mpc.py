@@ -5,7 +5,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from agents.mpc.controller import MPC, MPCSettings, mpc_rollout, observed
+from agents.mpc import MPC, MPCSettings, mpc_rollout, observed
 from agents.openloop.target import solve_target
 from microconveyor_env.envs import MicroConveyorEnv, env_config
 from microconveyor_env.envs.versions import nominal
@@ -116,7 +116,7 @@ def test_a_dead_mpc_worker_costs_only_a_rerun_of_the_unfinished_batches():
     import os
     import signal
 
-    from agents.mpc import controller
+    from agents.mpc import harness
 
     cfg = env_config("MicroConveyor-v1")
     targets = np.array([2e-3, 4e-3, 6e-3, 8e-3])
@@ -132,5 +132,6 @@ def test_a_dead_mpc_worker_costs_only_a_rerun_of_the_unfinished_batches():
         np.testing.assert_array_equal(again["error_m"], first["error_m"])
         third = run(cfg, targets, 7)                 # a fresh pool
         np.testing.assert_array_equal(third["error_m"], first["error_m"])
-    lost = controller._lost_episodes((cfg, None, TINY, targets[:2], None, None, None), "died")
-    assert [e.outcome for e in lost] == ["worker_died"] * 2 and np.isnan(lost[0].error_m)
+    batch = harness.Batch(cfg, None, TINY, targets[:2], np.arange(2), np.arange(2))
+    lost = harness._lost_episodes(batch, "died")
+    assert [e.outcome for e in lost] == [harness.LOST] * 2 and np.isnan(lost[0].error_m)

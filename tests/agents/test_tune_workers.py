@@ -133,7 +133,7 @@ def test_workers_end_when_their_parent_is_killed(tmp_path):
 def test_mpc_pool_workers_end_when_their_parent_is_killed(tmp_path):
     """The MPC's pool (compare --workers) with episodes under way: kill -9 of its process."""
     code = ("import numpy as np\n"
-            "from agents.mpc.controller import MPCRollout, MPCSettings\n"
+            "from agents.mpc import MPCRollout, MPCSettings\n"
             "from microconveyor_env.envs import env_config\n"
             "with MPCRollout(MPCSettings(first_budget=1000, replan_budget=300), workers=2) as r:\n"
             "    r(env_config('MicroConveyor-v0'), np.full(400, 3e-3), 0)\n")
