@@ -23,8 +23,8 @@ LOST = "worker_died"   # the outcome of an episode whose batch's process died tw
 
 
 class Batch(NamedTuple):
-    """One worker's share of a call: episodes ``index`` (global numbers, for the search seeds)
-    towards ``targets`` [m], env seeds ``seeds``, on ``config``, planned on ``model`` (None:
+    """One worker's share of a call: the episodes numbered ``numbers`` (in the whole call, for
+    the search seeds) towards ``targets`` [m], env seeds ``seeds``, on ``config``, planned on ``model`` (None:
     ``config`` made nominal) with ``settings``, seeded by the policy folder ``prior``."""
 
     config: EnvConfig
@@ -32,13 +32,13 @@ class Batch(NamedTuple):
     settings: MPCSettings | None
     targets: np.ndarray
     seeds: np.ndarray
-    index: np.ndarray
+    numbers: np.ndarray
     prior: str | None = None
 
 
 def _episodes(batch: Batch) -> list[MPCEpisode]:
     """The MPC episodes of ``batch`` (a worker's function): episode ``i`` seeded ``seeds[i]``,
-    its searches ``settings.seed + 1000 index[i]``."""
+    its searches ``settings.seed + 1000 numbers[i]``."""
     policy = None
     if batch.prior is not None:
         from ..rl.artefacts.policy_files import load_policy
@@ -47,7 +47,7 @@ def _episodes(batch: Batch) -> list[MPCEpisode]:
     ctl = MPC(batch.model or nominal(batch.config), batch.settings, policy)
     env = MicroConveyorEnv(config=batch.config)
     return [ctl.run(env, float(tg), int(sd), search_seed=ctl.settings.seed + 1000 * int(i))
-            for tg, sd, i in zip(batch.targets, batch.seeds, batch.index, strict=True)]
+            for tg, sd, i in zip(batch.targets, batch.seeds, batch.numbers, strict=True)]
 
 
 def _lost_episodes(batch: Batch, why: object) -> list[MPCEpisode]:
