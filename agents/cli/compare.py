@@ -1,4 +1,6 @@
-"""The ``microconveyor compare`` command."""
+"""The ``microconveyor compare`` command: its options, turned into one
+:class:`~agents.experiments.compare_settings.CompareSettings` (:func:`settings_of`), the run, its
+charts and its summary."""
 from __future__ import annotations
 
 import argparse
@@ -6,11 +8,15 @@ import dataclasses
 import json
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from microconveyor_env.cli.base import command, companion, count, emit, plot_path
+from microconveyor_env.env_ids import DEFAULT_ENV_ID
 
 from .args import add_env_args, budgets, env_config_of, env_kwargs_of, levels
+
+if TYPE_CHECKING:
+    from ..experiments.compare_settings import CompareSettings
 
 # --quick: a short look (README, tests): fewer targets, one small budget, a cheap MPC
 QUICK: dict[str, Any] = {"targets": 20, "budgets": [300], "mpc_budgets": (100, 50)}
@@ -48,16 +54,18 @@ def mpc_budgets(text: str) -> tuple[int, int]:
 
 
 def add_args(p: argparse.ArgumentParser) -> None:
-    from ..experiments.compare import (DIAGONAL, MPC_SETTINGS, NOISE_LADDER,
-                                       ROBUST_MPC_SETTINGS, SPREAD_LADDER)
+    from ..experiments.compare_settings import (MPC_SETTINGS, ROBUST_MPC_SETTINGS,
+                                                CompareSettings as Defaults)
+    from ..experiments.perturb import DIAGONAL, NOISE_LADDER, SPREAD_LADDER
 
     p.add_argument("--targets", type=count(1, 10_000), default=None,
                    help="number of fixed targets (drawn with --seed from the default range; "
-                        "default 100, --quick 20)")
+                        f"default {Defaults.n_targets}, --quick {QUICK['targets']})")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--budgets", type=budgets, default=None,
-                   help="episodes per target for DE and CMA-ES (comma list; default 1000, "
-                        "--quick 300)")
+                   help="episodes per target for DE and CMA-ES (comma list; default "
+                        f"{','.join(map(str, Defaults.budgets))}, --quick "
+                        f"{','.join(map(str, QUICK['budgets']))})")
     p.add_argument("--methods", default="de,cmaes", help="open-loop methods: de, cmaes or both")
     p.add_argument("--mpc-budgets", type=mpc_budgets, default=None, metavar="FIRST,REPLAN",
                    help="MPC: episodes of the model before the first firing and per re-plan "
@@ -76,7 +84,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    help="a policy folder ('shipped': the env's shipped PPO) whose plan on the "
                         "model seeds the MPC's searches: adds the method mpc_ppo and seeds the "
                         "robust MPC")
-    p.add_argument("--workers", type=count(1, 64), default=2,
+    p.add_argument("--workers", type=count(1, 64), default=Defaults.mpc_workers,
                    help="processes for the MPC's episodes (results do not depend on it)")
     p.add_argument("--policy", default=None, help="PPO policy folder (default: the shipped one)")
     p.add_argument("--randomised-policy", default=None,
@@ -96,34 +104,29 @@ def add_args(p: argparse.ArgumentParser) -> None:
                         "levels: long)")
     p.add_argument("--quick", action="store_true",
                    help="a short look: 20 targets, budget 300, MPC 100,50 (explicit options win)")
-    p.add_argument("--repeats", type=count(1, 1000), default=1,
+    p.add_argument("--repeats", type=count(1, 1000), default=Defaults.perturb_repeats,
                    help="perturbed replays per target and level")
-    p.add_argument("--amortise-over", type=count(1), default=100,
+    p.add_argument("--amortise-over", type=count(1), default=Defaults.amortise_over,
                    help="targets over which PPO's training is amortised in the chart")
     p.add_argument("--plot", type=plot_path, default=None,
                    help="chart file (success against tolerance); the compute, perturbation, "
                         "episodes-to-tolerance (and with --full grid) charts go beside it as "
                         "STEM_compute, STEM_perturbation, STEM_ecdf (STEM_grid), the result as "
                         "STEM.json")
-    add_env_args(p, default="MicroConveyor-v1",
-                 what=" (the policies must have been trained on its scene)")
+    add_env_args(p, default=DEFAULT_ENV_ID, goal=True,
+                 what=" (a version of the conveyor line; the policies must have been trained on "
+                      "its scene)")
 
 
-def run(args: Any) -> None:
-    from microconveyor_env.cli.base import json_default
-
-    from ..experiments.compare import MPC_SETTINGS, compare
-    from ..experiments.compare_text import summary_table
+def settings_of(args: Any) -> CompareSettings:
+    """The :class:`~agents.experiments.compare_settings.CompareSettings` of the command line
+    (``--quick`` fills what is not given; explicit options win); ValueError for an env id the
+    comparison does not run on, before anything else is read."""
+    from ..experiments.compare_settings import MPC_SETTINGS, CompareSettings, check_env_id
     from ..mpc import MPCSettings
-    from ..plots.compare import plot_all
 
-    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
-    bad = sorted(set(methods) - {"de", "cmaes"})
-    if bad or not methods:
-        raise ValueError(f"--methods {args.methods!r}: choose from de, cmaes")
+    check_env_id(args.env)
     quick: dict[str, Any] = QUICK if args.quick else {}
-    n_targets = args.targets or quick.get("targets", 100)
-    budget_list = args.budgets or quick.get("budgets", [1000])
     mb = args.mpc_budgets or quick.get("mpc_budgets") or (MPC_SETTINGS.first_budget,
                                                           MPC_SETTINGS.replan_budget)
     if mb == (0, 0) and args.mpc_method is not None:
@@ -131,15 +134,27 @@ def run(args: Any) -> None:
     mpc = None if mb == (0, 0) else MPCSettings(method=args.mpc_method or "de",
                                                  first_budget=mb[0], replan_budget=mb[1],
                                                  seed=args.seed)
-    res = compare(n_targets=n_targets, seed=args.seed, budgets=budget_list, methods=methods,
-                  policy=args.policy, randomised_policy=args.randomised_policy,
-                  amortise_over=args.amortise_over, noise_ladder=args.noise,
-                  spread_ladder=args.spread, diagonal=args.diagonal, full_grid=args.full,
-                  perturb_repeats=args.repeats, mpc=mpc,
-                  robust_mpc=_robust(args.robust_mpc, args.seed),
-                  mpc_prior=_prior(args.mpc_prior, args.env), mpc_workers=args.workers,
-                  policy_seeds=args.policy_seeds, config=env_config_of(args, args.env),
-                  env_id=args.env)
+    given = {"n_targets": args.targets or quick.get("targets"),
+             "budgets": args.budgets or quick.get("budgets")}   # else the settings' defaults
+    return CompareSettings(
+        env_id=args.env, config=env_config_of(args, args.env), seed=args.seed,
+        methods=[m.strip() for m in args.methods.split(",") if m.strip()],
+        **{k: v for k, v in given.items() if v is not None}, policy=args.policy, randomised_policy=args.randomised_policy,
+        policy_seeds=args.policy_seeds, amortise_over=args.amortise_over,
+        mpc=mpc, robust_mpc=_robust(args.robust_mpc, args.seed),
+        mpc_prior=_prior(args.mpc_prior, args.env), mpc_workers=args.workers,
+        noise_ladder=args.noise, spread_ladder=args.spread, diagonal=args.diagonal,
+        full_grid=args.full, perturb_repeats=args.repeats)
+
+
+def run(args: Any) -> None:
+    from microconveyor_env.cli.base import json_default
+
+    from ..experiments.compare import compare
+    from ..experiments.compare_text import summary_table
+    from ..plots.compare import plot_all
+
+    res = compare(settings_of(args))
     res.update(env_id=args.env, env_kwargs=env_kwargs_of(args))
     if args.plot:
         res["charts"] = plot_all(res, args.plot, companion(args.plot, "compute"),
@@ -160,7 +175,7 @@ def run(args: Any) -> None:
 
 
 def _robust(budgets: tuple[int, int] | None, seed: int) -> Any:
-    from ..experiments.compare import ROBUST_MPC_SETTINGS
+    from ..experiments.compare_settings import ROBUST_MPC_SETTINGS
 
     if budgets is None or budgets == (0, 0):
         return None

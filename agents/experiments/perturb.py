@@ -12,6 +12,9 @@ and mass factors (both drawn uniformly in [1 - r, 1 + r] per episode)::
     rows = perturbation_table(policy_rollout(policy), cfg, targets)      # PPO (policy.act)
     rows = perturbation_table(plan_rollout(plans), cfg, targets)         # DE plans (100, 5, 3)
 
+The comparison's axes (:func:`perturbation_levels`: noise alone, model error alone, both on a
+diagonal, optionally the full grid) are tabulated by :func:`axes_table`.
+
 Every level replays the same targets with the same seeds; the env derives its draws from the seed
 so that a level's factors and noise are the same random numbers scaled (common random numbers):
 differences between levels are the perturbation's, not sampling noise.
@@ -165,3 +168,51 @@ def perturbation_table(run: RolloutFn, config: EnvConfig, targets: Sequence[floa
                      "rest_rate": float(np.mean(rest)),
                      "detach_rate": float(np.mean(out == "detached"))})
     return rows
+
+
+# the comparison's perturbation axes (agents.experiments.compare): execution noise alone
+# [action units], model error alone (friction and mass factors uniform in [1 - r, 1 + r]), and
+# both together on a diagonal ((sigma, r) pairs; (3e-3, 5 %) is the goal level)
+NOISE_LADDER = (0.0, 1e-3, 3e-3, 1e-2)
+SPREAD_LADDER = (0.0, 0.01, 0.02, 0.05, 0.1)
+DIAGONAL = ((1e-3, 0.01), (3e-3, 0.05), (1e-2, 0.1))
+
+
+def perturbation_levels(noise: Sequence[float] = NOISE_LADDER,
+                        spread: Sequence[float] = SPREAD_LADDER,
+                        diagonal: Sequence[tuple[float, float]] = DIAGONAL,
+                        full: bool = False) -> dict[str, list[Level]]:
+    """The perturbation axes, each starting at the unperturbed level: ``action_noise`` (σ
+    [action units], r = 0), ``spread`` (r [-], σ = 0), ``combined`` (the ``diagonal`` (σ, r)
+    pairs) and, with ``full``, ``grid``: every (σ, r) of the two ladders."""
+    zero = Level()
+    axes = {"action_noise": [zero] + [Level(action_noise=float(x)) for x in noise if x > 0],
+            "spread": [zero] + [Level(spread=float(r)) for r in spread if r > 0],
+            "combined": [zero] + [Level(float(x), float(r)) for x, r in diagonal]}
+    if full:
+        axes["grid"] = [Level(float(x), float(r)) for x in sorted({0.0, *noise})
+                        for r in sorted({0.0, *spread})]
+    return axes
+
+
+def unique_levels(axes: dict[str, list[Level]]) -> list[Level]:
+    """The distinct levels of ``axes``, in order."""
+    return list(dict.fromkeys(lv for levels in axes.values() for lv in levels))
+
+
+def axes_table(run: RolloutFn, config: EnvConfig, targets: np.ndarray,
+               axes: dict[str, list[Level]], seed: int = 0, repeats: int = 1,
+               progress: Callable[[], None] | None = None) -> dict[str, list[dict]]:
+    """:func:`perturbation_table` of ``run`` along ``axes`` (:func:`perturbation_levels`) at
+    ``config``'s tolerance: every distinct level run once (``progress`` called after each), its
+    row placed on each axis that has it (``level``: its number among the distinct levels)."""
+    unique = unique_levels(axes)
+    rows: list[dict] = []
+    for lv in unique:
+        row = perturbation_table(run, config, targets, [lv], seed=seed, repeats=repeats,
+                                 tolerance=config.tolerance)[0]
+        rows.append({**row, "level": len(rows)})
+        if progress:
+            progress()
+    by_level = dict(zip(unique, rows, strict=True))
+    return {axis: [by_level[lv] for lv in levels] for axis, levels in axes.items()}

@@ -1,5 +1,6 @@
-"""Charts of :mod:`.compare`: accuracy against compute, success against tolerance, success
-against perturbation."""
+"""Charts of the comparison's result (:func:`agents.experiments.compare.compare`): accuracy
+against compute, success against tolerance, the ECDF of the episodes a search needs to reach the
+tolerance, success against perturbation along each axis, and the full (σ, r) grid."""
 from __future__ import annotations
 
 from pathlib import Path

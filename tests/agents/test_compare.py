@@ -95,12 +95,17 @@ def test_compare_full_grid_and_seed_iqm(tmp_path):
     assert "full grid" in r.stderr
 
 
-def test_iqm_and_episodes_to_tolerance():
-    from agents.experiments.compare import episodes_to, iqm
+def test_seed_summary_and_episodes_to_tolerance():
+    from agents.experiments.compare import episodes_to, seed_summary
+    from agents.rl.evaluation.seeds import iqm
 
-    res = iqm([0.1, 0.5, 0.6, 0.7, 1.0])
+    values = [0.1, 0.5, 0.6, 0.7, 1.0]
+    res = seed_summary(values)
     assert res["iqm"] == pytest.approx((0.5 + 0.6 + 0.7) / 3)  # trims 1 of 5 at each end
-    assert res["ci95"][0] <= res["iqm"] <= res["ci95"][1]
+    assert res["iqm"] == iqm(values) and res["per_seed"] == values
+    assert res["ci95"][0] < res["iqm"] < res["ci95"][1]
+    assert seed_summary(values, seed=0) == res               # seeded
+    assert seed_summary([0.4, 0.4])["ci95"] == [0.4, 0.4]    # no spread: a zero-width interval
     assert episodes_to([10, 20, 30], [None, 60e-6, 40e-6], 50e-6) == 30
     assert episodes_to([10, 20], [None, 1e-3], 50e-6) is None
 

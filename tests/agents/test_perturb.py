@@ -83,3 +83,27 @@ def test_evaluate_and_rollout_accept_a_randomised_config():
     out = evaluate(_Const(), n_targets=4, seed=1, config=cfg)
     assert out["n_targets"] == 4 and 0 <= out["success_rate"] <= 1
     assert out == evaluate(_Const(), n_targets=4, seed=1, config=cfg)  # reproducible
+
+
+def test_the_comparisons_axes_share_their_levels(landing):
+    from agents.experiments.perturb import axes_table, perturbation_levels, unique_levels
+
+    axes = perturbation_levels([0.0, 0.05], [0.1], [(0.05, 0.1)], full=True)
+    assert axes["action_noise"] == [Level(), Level(0.05, 0.0)]
+    assert axes["spread"] == [Level(), Level(0.0, 0.1)]
+    assert axes["combined"] == [Level(), Level(0.05, 0.1)]
+    assert axes["grid"] == [Level(), Level(0.0, 0.1), Level(0.05, 0.0), Level(0.05, 0.1)]
+    assert unique_levels(axes) == [Level(), Level(0.05, 0.0), Level(0.0, 0.1), Level(0.05, 0.1)]
+    calls = []
+
+    def run(cfg, targets, seed):
+        calls.append((cfg.action_noise, cfg.friction_factor_range))
+        return plan_rollout(PLAN)(cfg, targets, seed)
+
+    table = axes_table(run, CFG, np.array([landing, landing + 30e-6]), axes)
+    assert len(calls) == 4                                   # each distinct level once
+    assert table["spread"][0] == table["action_noise"][0] == table["grid"][0]
+    assert table["combined"][1] == table["grid"][3] and table["grid"][3]["level"] == 3
+    alone = perturbation_table(plan_rollout(PLAN), CFG, [landing, landing + 30e-6],
+                               [Level(0.05, 0.1)], tolerance=CFG.tolerance)[0]
+    assert {**alone, "level": 3} == table["combined"][1]
