@@ -122,12 +122,25 @@ def seed_summary(values: Sequence[float], seed: int = 0) -> dict:
     v = np.asarray(values, float)
     out = {"iqm": iqm(v), "per_seed": v.tolist(), "ci95": [math.nan] * 2}
     if v.size > 1 and np.ptp(v) > 0:
-        ci = bootstrap((v,), lambda x, axis=-1: np.apply_along_axis(iqm, axis, x),
-                       n_resamples=2000, method="percentile", rng=np.random.default_rng(seed))
+        ci = bootstrap((v,), _per_row(iqm), n_resamples=2000, method="percentile",
+                       rng=np.random.default_rng(seed))
         out["ci95"] = [float(ci.confidence_interval.low), float(ci.confidence_interval.high)]
     elif v.size:
         out["ci95"] = [float(v[0]), float(v[0])]
     return out
+
+
+def _per_row(stat: Callable[[np.ndarray], float]) -> Callable[..., np.ndarray]:
+    """``stat`` of every row along ``axis`` (a vectorised statistic for ``scipy.stats.bootstrap``),
+    called once per distinct row: a bootstrap over a few seeds draws the same resamples again and
+    again."""
+    def apply(x: np.ndarray, axis: int = -1) -> np.ndarray:
+        x = np.moveaxis(np.asarray(x, float), axis, -1)
+        rows, inverse = np.unique(x.reshape(-1, x.shape[-1]), axis=0, return_inverse=True)
+        values = np.array([stat(r) for r in rows])
+        return values[inverse.ravel()].reshape(x.shape[:-1])
+
+    return apply
 
 
 def _reusing(run: Callable, cfg: EnvConfig, targets: np.ndarray, seed: int,
