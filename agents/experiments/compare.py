@@ -235,7 +235,7 @@ def compare(n_targets: int = 100, seed: int = 0, budgets: Sequence[int] = (1000,
 
     cfg = config or env_config(env_id)
     targets = fixed_targets(cfg, n_targets, seed)
-    ppo = load_policy(policy or require_shipped(env_id), cfg)
+    ppo = load_policy(policy or require_shipped(env_id, "ppo"), cfg)
     rand_path: Path | None = None
     if randomised_policy is None:
         cand = shipped_path("ppo_randomised", env_id)

@@ -30,7 +30,7 @@ class _Payload:
 
 def _copy_shipped(tmp_path, name="ppo"):
     dst = tmp_path / name
-    shutil.copytree(shipped_path(name), dst)
+    shutil.copytree(shipped_path(name, "MicroConveyor-v0"), dst)
     return dst
 
 
@@ -59,7 +59,7 @@ def _drop_hashes(folder):
 
 def test_shipped_folders_hold_no_pickle_and_load():
     for name in ("ppo", "ppo_randomised"):
-        folder = shipped_path(name)
+        folder = shipped_path(name, "MicroConveyor-v0")
         assert not list(folder.glob("*.pkl"))
         pol = load_policy(folder)
         assert pol.normalizer is not None and pol.metadata["algo"] == "ppo"
