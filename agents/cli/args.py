@@ -47,6 +47,14 @@ def budgets(text: str) -> list[int]:
     return sorted(set(vals))
 
 
+def level(text: str) -> float:
+    """One perturbation level: a finite number >= 0 (:func:`levels`, one value)."""
+    vals = levels(text)
+    if len(vals) != 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: give one number")
+    return vals[0]
+
+
 def minutes(text: str) -> float:
     """A wall-time budget [min]: a positive finite number."""
     try:

@@ -6,13 +6,12 @@ import argparse
 import sys
 
 from microconveyor_env.cli.base import command, emit
+from microconveyor_env.env_ids import PLANE_ENV_IDS
 
 from .args import add_env_args, env_config_of, env_kwargs_of, floats, line_env
 
 
 def _demo_args(p: argparse.ArgumentParser) -> None:
-    from microconveyor_env.env_ids import PLANE_ENV_IDS
-
     p.add_argument("--out", default="out", help="output folder for charts, the GIF and the "
                                                 "summary JSON")
     p.add_argument("--policy", default=None,
@@ -41,8 +40,6 @@ def cmd_demo(args: argparse.Namespace) -> None:
     from microconveyor_env.cli.base import json_default
     from microconveyor_env.cli.demo import demo_summary, demo_text
 
-    from ..rl.artefacts.shipped import shipped_path
-
     line_env(args.env, "demo")
     targets = args.targets
     if targets is not None and not all(0 < t <= 0.1 for t in targets):
@@ -56,7 +53,7 @@ def cmd_demo(args: argparse.Namespace) -> None:
     if importlib.util.find_spec("stable_baselines3") is None:
         no_policy = ("shipped policy skipped: it needs the train extra (pip install "
                      "'microconveyor-env[train]')")
-    elif not args.policy and not (shipped_path(env_id=args.env) / "model.zip").is_file():
+    elif not args.policy and not _shipped(args.env):
         no_policy = f"policy skipped: none is shipped for {args.env} yet (--policy to give one)"
     if no_policy:  # the env-only demo
         if args.policy:
@@ -82,3 +79,14 @@ def cmd_demo(args: argparse.Namespace) -> None:
     if args.json:
         print(text, file=sys.stderr)
     emit(args, summary, demo_text(summary) + "\n" + text)
+
+
+def _shipped(env_id: str) -> bool:
+    """Whether a default policy is shipped for ``env_id`` (or its scene version)."""
+    from ..rl.artefacts.shipped import require_shipped
+
+    try:
+        require_shipped(env_id)
+    except ValueError:
+        return False
+    return True

@@ -7,8 +7,9 @@ from pathlib import Path
 from typing import Any
 
 from microconveyor_env.cli.base import command, companion, count, emit, plot_path
+from microconveyor_env.env_ids import DEFAULT_ENV_ID, PLANE_ENV_IDS
 
-from .args import add_env_args, env_config_of, env_kwargs_of
+from .args import add_env_args, env_config_of, env_kwargs_of, line_env
 
 PROBLEMS = ("target", "dissertation")
 
@@ -35,7 +36,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    help="dissertation: also replay Table 4.3's schedule under one-at-a-time model "
                         "changes and re-run the DE under each, for 10 seeds from --seed (~30 s "
                         "at the default budget)")
-    add_env_args(p, default=None, default_text="MicroConveyor-v0",
+    add_env_args(p, default=None, default_text=DEFAULT_ENV_ID, goal=True, extra_ids=PLANE_ENV_IDS,
                  what=" of --problem target (the dissertation problem is its own model)")
 
 
@@ -68,7 +69,7 @@ def _target(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
 
     target = 2e-3 if args.target is None else args.target
     kw = {} if args.popsize is None else {"popsize": args.popsize}
-    env_id, env_kw = args.env or "MicroConveyor-v0", env_kwargs_of(args)
+    env_id, env_kw = line_env(args.env or DEFAULT_ENV_ID, "optimize"), env_kwargs_of(args)
     cfg = env_config_of(args)
     res = solve_target(target, args.method, args.budget or 2000, args.seed, config=cfg, **kw)
     out: dict[str, Any] = {"problem": "target", "env_id": env_id, "env_kwargs": env_kw,

@@ -41,8 +41,13 @@ def shipped_policies() -> dict[str, list[str]]:
 
 
 def require_shipped(env_id: str = DEFAULT_ENV_ID, name: str | None = None) -> Path:
-    """:func:`shipped_path` (``name`` None: the env's default policy), or a ValueError naming
-    what is shipped when there is none."""
+    """:func:`shipped_path` (``name`` None: the env's default policy; for an interface variant
+    with no policy of its own, e.g. the goal env, its scene version's default), or a ValueError
+    naming what is shipped when there is none."""
+    from microconveyor_env.env_ids import base_id
+
+    if name is None and not shipped_path(None, env_id).is_dir():
+        env_id = base_id(env_id)
     name = default_policy_name(env_id) if name is None else name
     path = shipped_path(name, env_id)
     if not (path / "model.zip").is_file():
