@@ -25,9 +25,10 @@ from microconveyor_env.envs import EnvConfig, MicroConveyorEnv
 from microconveyor_env.envs.versions import nominal
 
 from ..mpc.controller import MPC, MPCSettings
+from ..openloop.search import TARGET_BUDGET
 
 METHODS = ("policy", "mpc", "de")
-DE_BUDGET = 2000   # DE episodes of the model (optimize's default for one target)
+DE_BUDGET = TARGET_BUDGET   # DE episodes of the model (optimize's default for one target)
 
 
 def _firings(freq: list[float], stroke: list[float], delay: list[float]) -> list[dict[str, Any]]:
