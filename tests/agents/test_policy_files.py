@@ -74,7 +74,8 @@ def test_malicious_vecnormalize_pickle_is_never_loaded(tmp_path):
     with pytest.raises(PolicyError, match="is a pickle.*convert-stats"):
         load_policy(folder)
     for cmd in (("evaluate", "--policy", str(folder), "--targets", "2", "--json"),
-                ("demo", "--policy", str(folder), "--out", str(tmp_path / "demo"), "--json")):
+                ("demo", "--policy", str(folder), "--env", "MicroConveyor-v0", "--out",
+                 str(tmp_path / "demo"), "--json")):
         r = _cli(*cmd)
         assert r.returncode == 2 and "is a pickle" in json.loads(r.stdout)["error"], r.stdout
         assert len(r.stderr.strip().splitlines()) == 1
