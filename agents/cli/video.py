@@ -105,10 +105,11 @@ def _plane_video(args: argparse.Namespace, path: str, env_id: str) -> dict[str, 
     target = (float(args.target), (y0 + y1) / 2 if args.target_y is None else float(args.target_y))
     env = MicroConveyor2DEnv(render_mode="rgb_array", config=cfg)
     obs, _ = env.reset(seed=args.seed, options={"target": target})
-    frames, total, firings = [env.render()], 0.0, 0
+    frames: list[np.ndarray] = [np.asarray(env.render())]
+    total, firings = 0.0, 0
     while True:
         obs, reward, terminated, truncated, info = env.step(np.asarray(policy.act(obs[None]))[0])
-        frames.append(env.render())
+        frames.append(np.asarray(env.render()))
         total += float(reward)
         firings += 1
         if terminated or truncated:
