@@ -26,7 +26,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--budget", type=count(10, 10_000_000), default=None,
                    help=f"episodes (used <= budget; default {TARGET_BUDGET} for target, 2550 = "
                         "50 x (50 + 1) for dissertation). DE on MicroConveyor-v1: 2000 reaches "
-                        "targets to 6 mm, 10000 to 8 mm and 9-10 mm for most seeds (~10 s)")
+                        "targets to 6 mm, 10000 to 8 mm, and 9-10 mm for 2 seeds of 3 (~10 s)")
     p.add_argument("--popsize", type=count(2, 100_000), default=None,
                    help="population per generation (default: 15 for DE on target, 50 for DE on "
                         "dissertation, pycma's for CMA-ES)")
