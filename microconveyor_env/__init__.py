@@ -15,10 +15,10 @@ from __future__ import annotations
 __version__ = "0.2.0"
 
 # the light module only: the envs themselves load when one is made
-from .env_ids import DEFAULT_ENV_ID, register_all  # noqa: E402
+from .env_ids import DEFAULT_ENV_ID, FIRST_ENV_ID, register_all  # noqa: E402, F401
+from .env_ids import LATEST as LATEST_ENV_ID  # noqa: E402, F401  (the newest version of the line)
 
-ENV_ID = "MicroConveyor-v0"        # the first version (kept: v0 is unchanged)
-LATEST_ENV_ID = DEFAULT_ENV_ID     # the newest version of the line, every command's default
+ENV_ID = DEFAULT_ENV_ID   # what every command and function uses unless told
 
 register_all()
 

@@ -6,6 +6,8 @@ import ast
 import math
 from typing import Any
 
+from microconveyor_env.env_ids import DEFAULT_ENV_ID
+
 
 def floats(text: str) -> list[float]:
     """A list of numbers: ``lo:hi:step`` (inclusive of ``hi``) or a comma list."""
@@ -43,6 +45,14 @@ def budgets(text: str) -> list[int]:
     if not vals or min(vals) < 10:
         raise argparse.ArgumentTypeError(f"{text!r}: budgets must be integers >= 10 episodes")
     return sorted(set(vals))
+
+
+def level(text: str) -> float:
+    """One perturbation level: a finite number >= 0 (:func:`levels`, one value)."""
+    vals = levels(text)
+    if len(vals) != 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: give one number")
+    return vals[0]
 
 
 def minutes(text: str) -> float:
@@ -88,7 +98,7 @@ class _EnvPreset(argparse.Action):
         setattr(namespace, self.dest, items)
 
 
-def add_env_args(p: argparse.ArgumentParser, default: str | None = "MicroConveyor-v0",
+def add_env_args(p: argparse.ArgumentParser, default: str | None = DEFAULT_ENV_ID,
                  what: str = "", default_text: str | None = None, goal: bool = False,
                  extra_ids: tuple[str, ...] = ()) -> None:
     """``--env ID`` (a registered version; with ``goal`` also the goal-conditioned variants;
@@ -112,6 +122,19 @@ def add_env_args(p: argparse.ArgumentParser, default: str | None = "MicroConveyo
                                         f"the env's own): {PRESET_HELP}")
 
 
+def line_env(env_id: str, command: str) -> str:
+    """``env_id`` if it is an env of the line (one axis: MicroConveyor-v0, -v1 and the goal
+    variant), else a ValueError saying that ``command`` works on the line only."""
+    from microconveyor_env.env_ids import REGISTRY
+
+    reg = REGISTRY[env_id]
+    if reg.geometry != "line":
+        lines = ", ".join(i for i, r in REGISTRY.items() if r.geometry == "line")
+        raise ValueError(f"{command} works on the line's envs ({lines}); {env_id} is the "
+                         f"{reg.geometry}, a scene it does not handle")
+    return env_id
+
+
 def env_kwargs_of(args: argparse.Namespace) -> dict[str, Any]:
     """``--env-kwargs`` (with ``--preset``) as a dict (a key given twice is an error)."""
     out: dict[str, Any] = {}
@@ -122,7 +145,7 @@ def env_kwargs_of(args: argparse.Namespace) -> dict[str, Any]:
     return out
 
 
-def env_config_of(args: argparse.Namespace, default: str = "MicroConveyor-v0",
+def env_config_of(args: argparse.Namespace, default: str = DEFAULT_ENV_ID,
                   **fixed: Any) -> Any:
     """The EnvConfig of ``--env`` (``default`` if not given) with ``--env-kwargs``, then
     ``fixed`` (a command's own overrides, e.g. reach's target range)."""

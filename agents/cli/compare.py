@@ -188,7 +188,7 @@ def _prior(given: str | None, env_id: str) -> str | None:
 
     if given is None:
         return None
-    path = require_shipped(env_id) if given == "shipped" else Path(given)
+    path = require_shipped(env_id, "ppo") if given == "shipped" else Path(given)
     if not (Path(path) / "model.zip").is_file():
         raise ValueError(f"--mpc-prior {given!r}: no policy folder (model.zip) there")
     return str(path)

@@ -6,8 +6,9 @@ import sys
 from typing import Any
 
 from microconveyor_env.cli.base import command, count, emit, plot_path
+from microconveyor_env.env_ids import PLANE_ENV_IDS
 
-from .args import add_env_args, env_config_of, env_kwargs_of, floats
+from .args import add_env_args, env_config_of, env_kwargs_of, floats, line_env
 
 
 def _reach_args(p: argparse.ArgumentParser) -> None:
@@ -21,7 +22,8 @@ def _reach_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--noisy", type=count(1), default=200, help="noisy rollouts per answer")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--plot", type=plot_path, default=None, help="write the reach chart here")
-    add_env_args(p, what=" whose scene is studied (its target_range is ignored: --targets)")
+    add_env_args(p, goal=True, extra_ids=PLANE_ENV_IDS,
+                 what=" whose scene is studied (its target_range is ignored: --targets)")
 
 
 @command("reach", "open-loop reach study: best DE error per target and its success under "
@@ -37,6 +39,7 @@ def cmd_reach(args: argparse.Namespace) -> None:
               file=sys.stderr,
               flush=True)
 
+    line_env(args.env, "reach")
     kwargs = env_kwargs_of(args)
     if max(args.targets) > 0.1 or min(args.targets) <= 0:
         raise ValueError("--targets must lie in (0, 0.1] m")

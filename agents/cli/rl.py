@@ -230,12 +230,14 @@ def _evaluate_args(p: argparse.ArgumentParser) -> None:
 @command("evaluate", "evaluate a policy (PPO, SAC, TQC, TD3) on a fixed seeded set of targets, "
                      "in the scene it was trained in", _evaluate_args)
 def cmd_evaluate(args: argparse.Namespace) -> None:
+    from microconveyor_env.env_ids import DEFAULT_ENV_ID
+
     from ..rl.evaluation.evaluate import evaluate, load_policy
     from ..rl.artefacts.shipped import require_shipped
 
     if args.tolerance is not None and not 0 < args.tolerance < 1:
         raise ValueError(f"--tolerance {args.tolerance!r} must be in (0, 1) m")
-    path = args.policy or require_shipped(args.env or "MicroConveyor-v0")
+    path = args.policy or require_shipped(args.env or DEFAULT_ENV_ID)
     if _plane_evaluation(args, path):
         return
     asked = None

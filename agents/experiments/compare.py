@@ -175,7 +175,7 @@ def compare(settings: CompareSettings | None = None) -> dict:
     s = settings or CompareSettings()
     cfg = s.config or env_config(s.env_id)
     targets = fixed_targets(cfg, s.n_targets, s.seed)
-    ppo = load_policy(s.policy or require_shipped(s.env_id), cfg)
+    ppo = load_policy(s.policy or require_shipped(s.env_id, "ppo"), cfg)
     rand_path: Path | None = None
     if s.randomised_policy is None:
         cand = shipped_path("ppo_randomised", s.env_id)

@@ -37,7 +37,8 @@ def plot_plan_trajectories(runs: Mapping[str, Mapping[str, np.ndarray]], path: s
     return path
 
 
-def plot_policy_paths(res: dict, cfg: EnvConfig, path: Path) -> str:
+def plot_policy_paths(res: dict, cfg: EnvConfig, path: Path,
+                      title: str = "Shipped PPO policy: position after each firing") -> str:
     """A policy's episodes: the part's position after each firing, one line per target
     (``res`` from :func:`agents.rl.evaluation.evaluate.rollout` with ``record=True``)."""
     plt = pyplot()
@@ -53,7 +54,34 @@ def plot_policy_paths(res: dict, cfg: EnvConfig, path: Path) -> str:
     ax.set_xlabel("firings (the conveyor stops once the part is delivered)")
     ax.xaxis.get_major_locator().set_params(integer=True)
     ax.set_ylabel("part position [mm] (dotted: targets, grey: actuators)")
-    ax.set_title("Shipped PPO policy: position after each firing (at its end: at rest)")
+    ax.set_title(f"{title} (at its end: at rest)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return str(path)
+
+
+def plot_policy_errors(rows: list[dict], tolerance: float, path: Path,
+                       title: str = "Final error per target") -> str:
+    """A policy's final error [µm] per target [mm] (``rows``: ``target_m``, ``error_m``,
+    ``outcome``), the tolerance band shaded; an episode not at rest is drawn as a cross."""
+    plt = pyplot()
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig, ax = plt.subplots(figsize=(7, 3.5))
+    tol = tolerance * 1e6
+    ax.axhspan(-tol, tol, color="0.9", zorder=0, label=f"±{tol:.0f} µm")
+    ax.axhline(0.0, color="0.6", lw=0.6)
+    for rest, marker in ((True, "o"), (False, "x")):
+        pts = [(r["target_m"] * 1e3, r["error_m"] * 1e6) for r in rows
+               if (r["outcome"] == "rest") == rest]
+        if pts:
+            x, y = zip(*pts, strict=True)
+            ax.plot(x, y, marker, ls="", label="at rest" if rest else "not at rest")
+    ax.set_xlabel("target [mm]")
+    ax.set_ylabel("final error [µm]")
+    ax.set_title(title)
+    ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

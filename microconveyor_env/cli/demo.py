@@ -3,7 +3,8 @@ from __future__ import annotations
 
 import json
 
-from .base import ARGS, DEFAULT_PRESET, command, emit, json_default, preset_arg
+from ..env_ids import DEFAULT_ENV_ID
+from .base import ARGS, command, emit, json_default, preset_arg
 
 
 def _demo_args(p):
@@ -14,8 +15,8 @@ def _demo_args(p):
 @command("demo", "the main job: contact report, a firing, a frequency sweep and an env episode, "
                  "charts written to --out")
 def cmd_demo(args):
-    # the episode on MicroConveyor-v0 with the same surface as the charts
-    args.env_kwargs_dict = {} if args.preset == DEFAULT_PRESET else {"preset": args.preset}
+    # the episode on the default env with the same surface as the charts
+    args.env_kwargs_dict = {"preset": args.preset}
     summary = demo_summary(args)
     emit(args, summary, demo_text(summary))
 
@@ -65,7 +66,7 @@ def demo_summary(args) -> dict:
     freq = sweep(scene, "freq", parse_values("200:1500:25", "freq"), progress=True)
     charts.append(plot_sweep(freq, out_dir / "sweep.png",
                              f"preset {preset.name}: travel of one firing versus frequency"))
-    episode = _demo_episode(out_dir / "episode.png", getattr(args, "env", None) or ENV_ID,
+    episode = _demo_episode(out_dir / "episode.png", getattr(args, "env", None) or DEFAULT_ENV_ID,
                             getattr(args, "env_kwargs_dict", None) or {})
     charts.append(episode.pop("chart"))
     summary = {"preset": preset.name, "contact": table.report(), "calibration": preset.calibration,
@@ -77,10 +78,7 @@ def demo_summary(args) -> dict:
     return summary
 
 
-ENV_ID = "MicroConveyor-v0"
-
-
-def _demo_episode(path, env_id=ENV_ID, env_kwargs=None):
+def _demo_episode(path, env_id=DEFAULT_ENV_ID, env_kwargs=None):
     """One episode of ``env_id`` (with ``env_kwargs``) with a fixed schedule: every actuator
     fires 950 Hz, 200 um, no delay; rendered."""
     import warnings
@@ -90,7 +88,7 @@ def _demo_episode(path, env_id=ENV_ID, env_kwargs=None):
     from ..envs.core import actions
     from ..plots import save_frames
 
-    with warnings.catch_warnings():  # the demo picks v0 on purpose: no "out of date" notice
+    with warnings.catch_warnings():  # v0 when asked for: no "out of date" notice
         warnings.filterwarnings("ignore", message=".*is out of date", category=DeprecationWarning)
         env = gym.make(env_id, render_mode="rgb_array", **(env_kwargs or {}))
     env.reset(seed=0, options={"target": 1e-3})

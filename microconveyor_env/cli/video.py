@@ -76,11 +76,13 @@ def schedule_args(p: argparse.ArgumentParser) -> None:
 
 
 def _video_args(p: argparse.ArgumentParser) -> None:
-    from ..envs import ENV_IDS, LATEST
+    from ..env_ids import DEFAULT_ENV_ID
+    from ..envs import ENV_IDS
 
     video_args(p)
     schedule_args(p)
-    p.add_argument("--env", choices=ENV_IDS, default=LATEST, help=f"env id (default: {LATEST})")
+    p.add_argument("--env", choices=ENV_IDS, default=DEFAULT_ENV_ID,
+                   help=f"env id (default: {DEFAULT_ENV_ID})")
 
 
 def schedule_actor(args: argparse.Namespace, config: Any) -> tuple[Callable[[Any], Any],

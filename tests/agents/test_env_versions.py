@@ -81,14 +81,14 @@ def test_train_evaluate_round_trip_and_scene_refusals(tmp_path):
 
 
 def test_shipped_v0_policy_refuses_v1_and_keeps_its_scene():
-    pol = load_policy(shipped_path())
+    pol = load_policy(shipped_path("ppo", "MicroConveyor-v0"))
     assert pol.env_id == "MicroConveyor-v0" and pol.config.preset == "feasibility"
     with pytest.raises(PolicyError, match="preset: trained 'feasibility', asked 'conveyor'"):
-        load_policy(shipped_path(), env_config("MicroConveyor-v1"))
+        load_policy(shipped_path("ppo", "MicroConveyor-v0"), env_config("MicroConveyor-v1"))
     # randomisation is a test condition, not the scene: the randomised policy loads nominal
-    rand = load_policy(shipped_path("ppo_randomised"))
+    rand = load_policy(shipped_path("ppo_randomised", "MicroConveyor-v0"))
     assert rand.config.action_noise == 0.0 and rand.config.friction_factor_range == (1.0, 1.0)
-    load_policy(shipped_path(), env_config("MicroConveyor-v0", action_noise=0.01))
+    load_policy(shipped_path("ppo", "MicroConveyor-v0"), env_config("MicroConveyor-v0", action_noise=0.01))
 
 
 def test_commands_take_env_and_refuse_what_does_not_fit(tmp_path):

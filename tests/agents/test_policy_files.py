@@ -30,7 +30,7 @@ class _Payload:
 
 def _copy_shipped(tmp_path, name="ppo"):
     dst = tmp_path / name
-    shutil.copytree(shipped_path(name), dst)
+    shutil.copytree(shipped_path(name, "MicroConveyor-v0"), dst)
     return dst
 
 
@@ -59,7 +59,7 @@ def _drop_hashes(folder):
 
 def test_shipped_folders_hold_no_pickle_and_load():
     for name in ("ppo", "ppo_randomised"):
-        folder = shipped_path(name)
+        folder = shipped_path(name, "MicroConveyor-v0")
         assert not list(folder.glob("*.pkl"))
         pol = load_policy(folder)
         assert pol.normalizer is not None and pol.metadata["algo"] == "ppo"
@@ -74,7 +74,8 @@ def test_malicious_vecnormalize_pickle_is_never_loaded(tmp_path):
     with pytest.raises(PolicyError, match="is a pickle.*convert-stats"):
         load_policy(folder)
     for cmd in (("evaluate", "--policy", str(folder), "--targets", "2", "--json"),
-                ("demo", "--policy", str(folder), "--out", str(tmp_path / "demo"), "--json")):
+                ("demo", "--policy", str(folder), "--env", "MicroConveyor-v0", "--out",
+                 str(tmp_path / "demo"), "--json")):
         r = _cli(*cmd)
         assert r.returncode == 2 and "is a pickle" in json.loads(r.stdout)["error"], r.stdout
         assert len(r.stderr.strip().splitlines()) == 1

@@ -72,7 +72,7 @@ def assert_reproduces(name: str, key: str, env_id: str = "MicroConveyor-v0") -> 
 
 
 def test_shipped_policy_loads_and_reproduces_its_metadata():
-    meta = load_policy(shipped_path()).metadata
+    meta = load_policy(shipped_path("ppo", "MicroConveyor-v0")).metadata
     assert meta["steps"] > 0 and meta["wall_time_s"] <= 15 * 60 + 60 and meta["config_hash"]
     assert meta["evaluation_provenance"]["package_version"] and meta["files"]
     res = assert_reproduces("ppo", "evaluation")
@@ -83,7 +83,7 @@ def test_shipped_policy_loads_and_reproduces_its_metadata():
 def test_randomised_policy_reproduces_its_metadata():
     """The PPO trained under randomisation: its evaluation on the randomised config it was
     trained on and on the nominal env."""
-    meta = load_policy(shipped_path("ppo_randomised")).metadata
+    meta = load_policy(shipped_path("ppo_randomised", "MicroConveyor-v0")).metadata
     cfg = _config(meta, "trained")
     assert cfg.action_noise > 0 and cfg.friction_factor_range[0] < 1 < cfg.friction_factor_range[1]
     for key in ("evaluation", "evaluation_nominal"):

@@ -86,7 +86,9 @@ def test_bench_plane_reports_the_2d_cost_ratio():
 
 
 def test_demo_writes_charts_and_summary(tmp_path):
-    r = run("demo", "--out", str(tmp_path), "--json")
+    """The demo on MicroConveyor-v0 (chapter 3's surface, whose figures are validated); the
+    default env's demo: tests/cli/test_demo.py."""
+    r = run("demo", "--env", "MicroConveyor-v0", "--out", str(tmp_path), "--json")
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     for name in ("contact.png", "firing.png", "sweep.png", "episode.png", "summary.json"):

@@ -73,6 +73,10 @@ RUNS: dict[str, list[list[str]]] = {
                   "--budget", "30", "--popsize", "10", "--seed", "1", "--method", "de", "--plot",
                   "{tmp}/o.png"],
                  ["--problem", "dissertation", "--budget", "30", "--method", "cmaes"]],
+    "place": [["--target", "2e-3", "--method", "mpc", "--mpc-budgets", "10,10", "--policy",
+               V1_POLICY, "--seed", "1", "--noise", "1e-3", "--spread", "0.01", "--env",
+               "MicroConveyor-v1", "--preset", "conveyor"],
+              ["--target", "1e-3", "--method", "de", "--budget", "20"]],
     "reach": [["--targets", "1e-3", "--budget", "10", "--robust-budget", "0", "--noisy", "2",
                "--sigma", "1e-3", "--seed", "1", "--plot", "{tmp}/r.png", "--env",
                "MicroConveyor-v0", "--preset", "feasibility"]],
@@ -203,7 +207,7 @@ def _setup(name: str, tmp: Path) -> dict[str, str]:
 
 def test_every_command_has_runs():
     assert sorted(RUNS) == sorted(COMMANDS)
-    assert len(COMMANDS) == 21
+    assert len(COMMANDS) == 22
 
 
 # commands whose modules belong to other work: what they break is reported, not fixed here

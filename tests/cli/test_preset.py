@@ -69,5 +69,5 @@ def test_evaluate_refuses_a_policy_on_another_preset(capsys):
     rc, out = _run(capsys, "evaluate", "--targets", "2", "--preset", "silicon", "--json")
     err = json.loads(out)["error"]
     assert rc == 2 and "differs in preset" in err and "another scene is refused" in err
-    rc, out = _run(capsys, "evaluate", "--targets", "2", "--preset", "feasibility", "--json")
+    rc, out = _run(capsys, "evaluate", "--targets", "2", "--preset", "conveyor", "--json")
     assert rc == 0 and json.loads(out)["env_kwargs"] == {"num_threads": 1}

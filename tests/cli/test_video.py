@@ -42,7 +42,7 @@ def test_policy_gif_and_human_text(tmp_path):
     r = run("--policy", "shipped", "--target", "1e-3", "--frames-per-stroke", "2", "--out",
             str(gif), "--fps", "5")
     assert r.returncode == 0, r.stderr
-    assert "MicroConveyor-v0, policy " in r.stdout and " µm)" in r.stdout and " ms simulated" \
+    assert "MicroConveyor-v1, policy " in r.stdout and "MicroConveyor-v1/ppo_refined" in r.stdout and " µm)" in r.stdout and " ms simulated" \
         in r.stdout and "at 5 fps" in r.stdout
     n = _frames(gif)
     firings = int(r.stdout.split(" after ")[1].split(" firing")[0])

@@ -10,13 +10,26 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-DEFAULT_ENV_ID = "MicroConveyor-v0"
+from microconveyor_env.env_ids import DEFAULT_ENV_ID
+
+# the policy every command uses for an env id unless told (``--policy``): the most accurate one
+# shipped for it; an id not named here uses ``ppo``. Chosen here, in code, rather than by a
+# marker in a policy's metadata: metadata travels with a folder a user copies or receives, and
+# one table cannot name two defaults for one id.
+DEFAULT_POLICIES = {"MicroConveyor-v1": "ppo_refined"}
 
 
-def shipped_path(name: str = "ppo", env_id: str = DEFAULT_ENV_ID) -> Path:
-    """The folder of a shipped policy of ``env_id``: ``ppo`` (the default, trained on the
-    nominal env) or ``ppo_randomised`` (trained under per-episode randomisation,
-    configs/ppo_randomised.yml)."""
+def default_policy_name(env_id: str = DEFAULT_ENV_ID) -> str:
+    """The name of ``env_id``'s default shipped policy (:data:`DEFAULT_POLICIES`, else ``ppo``)."""
+    return DEFAULT_POLICIES.get(env_id, "ppo")
+
+
+def shipped_path(name: str | None = None, env_id: str = DEFAULT_ENV_ID) -> Path:
+    """The folder of a shipped policy of ``env_id``: ``ppo`` (trained on the nominal env),
+    ``ppo_randomised`` (trained under per-episode randomisation, configs/ppo_randomised.yml),
+    ``ppo_refined`` (``ppo`` with its aim corrected on the simulator); None: the env's default
+    (:func:`default_policy_name`)."""
+    name = default_policy_name(env_id) if name is None else name
     return Path(str(resources.files("agents") / "policies" / env_id / name))
 
 
@@ -27,8 +40,15 @@ def shipped_policies() -> dict[str, list[str]]:
             for env in sorted(root.iterdir()) if env.is_dir()}
 
 
-def require_shipped(env_id: str = DEFAULT_ENV_ID, name: str = "ppo") -> Path:
-    """:func:`shipped_path`, or a ValueError naming what is shipped when there is none."""
+def require_shipped(env_id: str = DEFAULT_ENV_ID, name: str | None = None) -> Path:
+    """:func:`shipped_path` (``name`` None: the env's default policy; for an interface variant
+    with no policy of its own, e.g. the goal env, its scene version's default), or a ValueError
+    naming what is shipped when there is none."""
+    from microconveyor_env.env_ids import base_id
+
+    if name is None and not shipped_path(None, env_id).is_dir():
+        env_id = base_id(env_id)
+    name = default_policy_name(env_id) if name is None else name
     path = shipped_path(name, env_id)
     if not (path / "model.zip").is_file():
         have = "; ".join(f"{e}: {', '.join(n)}" for e, n in shipped_policies().items()) or "none"
