@@ -137,15 +137,16 @@ class EnvRenderer:
         if self.n == 1:
             self.pending.append(self._now(""))
             return
-        from ...physics.trajectory import firing_trajectory
+        from ...physics.trajectory import Firing, Integration, firing_trajectory
 
         e = self.env
         c, cfg = e.conveyor, e.config
         xa = float(c.positions[k])
         to_rest = k == cfg.n_actuators - 1 or outcome == "rest"  # the last, or delivered
-        traj = firing_trajectory(*before, xa, f, h, d, c.consts.dt, c.consts.min_steps, to_rest,
-                                 cfg.max_time, c.consts.P[0], c.consts.tu, c.consts.tq,
-                                 c.consts.tqu)
+        traj = firing_trajectory(before, Firing(xa, f, h, d),
+                                 Integration(c.consts.dt, c.consts.min_steps, to_rest,
+                                             cfg.max_time),
+                                 c.consts.P[0], (c.consts.tu, c.consts.tq, c.consts.tqu))
         if (traj.x, traj.v, traj.t) != (e.x, e.v, e.t):
             raise RuntimeError(f"rendering: the recorded firing ended at x = {traj.x!r} m, "
                                f"t = {traj.t!r} s, the step at x = {e.x!r} m, t = {e.t!r} s "
