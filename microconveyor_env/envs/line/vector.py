@@ -2,16 +2,15 @@
 (numba prange), bit-identical to N single envs (the shared machinery: :mod:`.core.vector`)."""
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import Any, ClassVar, cast
 
 import numpy as np
 
-from .common import check_target, spec_id
-from .config import EnvConfig
-from ..core.checks import check_actions
 from ..core.vector import MAX_ENVS, BatchedEnv
+from .common import check_target
+from .config import EnvConfig
 from .part_state import PartState
-from .state import Conveyor, OwnsConveyor, Resets, conveyor_field
+from .state import Conveyor, OwnsConveyor, conveyor_field
 
 __all__ = ["MAX_ENVS", "MicroConveyorVectorEnv"]
 
@@ -37,23 +36,16 @@ class MicroConveyorVectorEnv(OwnsConveyor, BatchedEnv):
     """
 
     config_class: ClassVar[type] = EnvConfig
+    conveyor_class = Conveyor
     step_info = (("frequency_hz", "frequency", 0.0), ("stroke_m", "stroke", 0.0),
                  ("delay_s", "delay", 0.0))
+    sb3_info = ("is_success", "position_error_m", "outcome", "sim_time_s", "frequency_hz",
+                "stroke_m", "delay_s", "friction_factor", "mass_factor")
     config: EnvConfig
     conveyor: Conveyor
 
-    def _conveyor(self, n: int) -> Conveyor:
-        # the parts' state, randomisation and compiled step (state.py), shared with the single env
-        return Conveyor(self.config, n, self.config.num_threads)
-
     def _episode_limit(self) -> tuple[int, str]:
         return self.config.n_actuators, f"the {self.config.n_actuators} actuators"
-
-    def _check_reset(self, options: dict | None) -> Resets:
-        return self.conveyor.check_reset(options, batched=True)
-
-    def _check_actions(self, actions: Any) -> np.ndarray:
-        return check_actions(actions, self.num_envs, out=self.conveyor.action_input)
 
     # the parts' state (arrays, one element per sub-env; written in place) and configuration
     x = conveyor_field("parts.x", "Positions [m].")
@@ -87,9 +79,9 @@ class MicroConveyorVectorEnv(OwnsConveyor, BatchedEnv):
         return self._obs()
 
     def get_state(self, i: int) -> PartState:
-        """Sub-env ``i``'s part state now (:class:`~.part_state.PartState`, naming the env id
-        and the scene)."""
-        return self.conveyor.get_state(int(i), spec_id(self))
+        """Sub-env ``i``'s :class:`~.part_state.PartState` now (naming the env id and the
+        scene; see the single env)."""
+        return cast(PartState, super().get_state(i))
 
     def _infos(self, outcome: np.ndarray, success: np.ndarray) -> dict:
         infos = {"is_success": success.copy(), "position_error_m": self.x - self.target,

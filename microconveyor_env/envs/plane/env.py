@@ -1,9 +1,8 @@
 """MicroConveyor2D-v0: position a micropart in a plane with a grid of micro-actuators."""
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
-import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 from gymnasium.core import RenderFrame
@@ -11,12 +10,14 @@ from gymnasium.core import RenderFrame
 from ...physics import dynamics_kernel as kernel
 from . import task as plane_task
 from ..core.checks import check_render_mode, config_of
+from ..core.single import SingleEnv
 from .config import PlaneEnvConfig
-from .state import PlaneConveyor, check_plane_actions
+from .part_state import PlaneState
+from .state import PlaneConveyor
 from .step import ACTION_DIM
 
 
-class MicroConveyor2DEnv(gym.Env):
+class MicroConveyor2DEnv(SingleEnv):
     """Goal-conditioned micropart positioning on a surface (docs/physics.md §10: the 1-D model's
     Kogut–Etsion contact and stick–slip dynamics on a plane deformed by radial bumps).
 
@@ -103,6 +104,10 @@ class MicroConveyor2DEnv(gym.Env):
     Any field of :class:`PlaneEnvConfig` (SI units), e.g. ``gym.make("MicroConveyor2D-v0",
     nx=7, ny=7, tolerance=100e-6)``, or ``config=PlaneEnvConfig(...)``.
     ``reset(options={"target": (x, y)})`` sets the target [m] (actuator 0 at the origin).
+    ``reset(options={"state": s})`` starts from a saved part state ``s`` (:meth:`get_state`, a
+    :class:`~.part_state.PlaneState` or its dict): the episode continues exactly as the one it
+    was saved in; a state of another scene or id, or a value out of bounds, is refused before
+    anything changes (:mod:`.part_state`).
     ``spec.max_episode_steps`` is 1000, an upper bound that never cuts an episode short.
 
     ## Rendering
@@ -145,22 +150,19 @@ class MicroConveyor2DEnv(gym.Env):
     path = property(lambda self: tuple(self._path),
                     doc="the part's positions [m] after the reset and each step")
 
-    def reset(self, *, seed: int | None = None,
-              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
-        targets = self.conveyor.check_targets(options, batched=False)  # before anything changes
-        super().reset(seed=seed)
-        self.conveyor.reset_part(0, self.np_random, None if targets is None else targets[0])
-        self._done = False
-        self._last_firing = None
+    def _after_reset(self) -> None:
         self._path = [(self.x, self.y)]
-        obs = self.conveyor.observe()[0].copy()
-        return obs, self._info("moving", False)
+
+    def get_state(self) -> PlaneState:
+        """The part's :class:`~.part_state.PlaneState` now (SI units): ``reset(options=
+        {"state": s})`` continues the episode from it exactly."""
+        return cast(PlaneState, super().get_state())
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         if self._done:
             raise RuntimeError("step() called on a finished episode: call reset() first")
         c = self.conveyor
-        a = check_plane_actions(action, None, c.action_input)
+        a = c.check_actions(action, None)
         out = c.step(a)
         outcome = kernel.OUTCOMES[int(out.outcome[0])]
         terminated = outcome in ("rest", "detached")
