@@ -1,4 +1,5 @@
-"""MicroConveyor-v0 / -v1: carry a micropart to a target with a linear array of micro-actuators."""
+"""The line's single env, MicroConveyor-v0 / -v1: carry a micropart to a target with a linear
+array of micro-actuators."""
 from __future__ import annotations
 
 from typing import Any, cast
@@ -119,7 +120,7 @@ class MicroConveyorEnv(OwnsConveyor, SingleEnv):
     (the slide through the delay, the stroke, the slide to rest), the part on the surface as it
     deforms, picked from the firing's real trajectory (:mod:`.frames`), and ``render_fps`` =
     4 n. Gymnasium's ``RecordVideo`` keeps only the last frame of each list;
-    :class:`~.video.RecordStrokeVideo` keeps them all.
+    :class:`~..core.video.RecordStrokeVideo` keeps them all.
     ``spec.max_episode_steps`` (v1) is 1000, the most actuators a config allows: an upper bound
     that never cuts an episode short, whatever ``n_actuators`` is (an episode ends by itself
     after at most ``n_actuators`` steps).

@@ -4,7 +4,7 @@ env share.
 As brax's typed ``State`` ("write once, vectorise"): the state is a few typed NamedTuples of
 arrays, one element or row per part (:mod:`.step`, where the compiled code that reads them lives:
 :class:`~.step.Parts`, :class:`~.step.Constants`, :class:`~.step.Outputs`, with
-:class:`~.actions.ActionConstants` and :class:`~.task.TaskConstants`), and :class:`Conveyor`
+:class:`~..core.actions.ActionConstants` and :class:`~.task.TaskConstants`), and :class:`Conveyor`
 owns them and implements, once for both envs,
 
 * the reset options of all parts (targets, saved states), checked whole before any part changes
@@ -12,8 +12,8 @@ owns them and implements, once for both envs,
   (:func:`.task.initial_state`), its randomisation streams (derived from the part's generator,
   re-derived when the generator is replaced) and draws (:mod:`.randomisation`), or a saved state;
 * the step of all parts: one compiled call (:func:`.step.step_serial` or, chosen by
-  :class:`.threads.ThreadChooser`, :func:`.step.step_parallel`) with its arguments built once,
-  through the container every scene shares (:class:`.core.parts.PartsBase`).
+  :class:`~..core.threads.ThreadChooser`, :func:`.step.step_parallel`) with its arguments built once,
+  through the container every scene shares (:class:`~..core.parts.PartsBase`).
 
 Everything Gym-specific (spaces, seeding, info dicts, autoreset, rendering) stays in the envs.
 """
@@ -60,7 +60,7 @@ class Conveyor(PartsBase):
     ``obs`` (n, ``obs_dim``): the observations the envs return, each part's row and, with
     ``observe_history`` k > 0, its k latest firings (``history``, a view; ``out.obs`` itself when
     k = 0). ``friction_factor`` / ``mass_factor``: each part's factors this episode (1 while
-    randomisation is off). ``num_threads``: as :class:`.threads.ThreadChooser` (the single env
+    randomisation is off). ``num_threads``: as :class:`~..core.threads.ThreadChooser` (the single env
     passes 1: always the serial loop). The compiled calls hold these very arrays: write them in
     place, never rebind them. Pickles (the compiled calls are rebuilt after loading).
     """

@@ -1,8 +1,8 @@
 """The reach-target task of the line (MicroConveyor-v0, -v1): start, observation, reward,
 success.
 
-What the part should do, apart from how it moves (:mod:`..physics`) and how an action fires an
-actuator (:mod:`.actions`); :mod:`.step` composes the three into the compiled per-part step, so
+What the part should do, apart from how it moves (:mod:`...physics`) and how an action fires an
+actuator (:mod:`..core.actions`); :mod:`.step` composes the three into the compiled per-part step, so
 a task variant is a configuration (:class:`.config.EnvConfig`) of these few functions. The task's
 constants travel as one :class:`TaskConstants` ``TC`` (:func:`constants`; a NamedTuple read by
 field name in compiled code).

@@ -1,5 +1,5 @@
 """Batched MicroConveyor-v0/v1: N parts on the line stepped together by one compiled call
-(numba prange), bit-identical to N single envs (the shared machinery: :mod:`.core.vector`)."""
+(numba prange), bit-identical to N single envs (the shared machinery: :mod:`..core.vector`)."""
 from __future__ import annotations
 
 from typing import Any, ClassVar, cast
@@ -25,7 +25,7 @@ class MicroConveyorVectorEnv(OwnsConveyor, BatchedEnv):
     once; the last observation and info are in ``info["final_obs"]`` / ``info["final_info"]``).
     Threads: ``num_threads`` (an EnvConfig field, also a ``make_vec`` keyword): 1 runs a serial
     loop, k > 1 numba's parallel loop with k threads, ``None`` (default) picks between the two by
-    measuring them as it runs (:mod:`.threads`). Results are bit-identical in every case.
+    measuring them as it runs (:mod:`..core.threads`). Results are bit-identical in every case.
     ``max_episode_steps`` (``make_vec`` passes the spec's): checked to be >= ``n_actuators``.
     ``reset(options={"state": s})``: every sub-env starts from the part state ``s`` (a list:
     one per sub-env); see the single env and :mod:`.part_state`.
@@ -56,7 +56,7 @@ class MicroConveyorVectorEnv(OwnsConveyor, BatchedEnv):
     friction_factor = conveyor_field("friction_factor",
                                      "This episode's factor on the friction [-], per sub-env.")
     mass_factor = conveyor_field("mass_factor", "This episode's factor on the mass [-], per sub-env.")
-    threads = conveyor_field("threads", "Serial or parallel, per step (:mod:`.threads`).")
+    threads = conveyor_field("threads", "Serial or parallel, per step (:mod:`..core.threads`).")
 
     def set_targets(self, indices: Any, targets: Any) -> np.ndarray:
         """Give the parts of sub-envs ``indices`` new targets [m] (checked as reset's ``target``

@@ -39,7 +39,7 @@ class MicroConveyor2DEnv(SingleEnv):
     | 3 | stroke height h [m] | linear onto ``stroke_range`` (100–200 µm) |
     | 4 | delay before the stroke [s] | linear onto ``delay_range`` (0–0.1 s) |
 
-    Components 2–4 decode exactly as MicroConveyor-v1's action (:func:`.actions.decode`).
+    Components 2–4 decode exactly as MicroConveyor-v1's action (:func:`..core.actions.decode`).
     Out-of-range actions are **clipped** to [-1, 1]; NaN or inf, a shape other than ``(5,)`` or a
     non-numeric dtype raise ``ValueError``.
 
@@ -71,7 +71,7 @@ class MicroConveyor2DEnv(SingleEnv):
     twice the farthest start-to-target distance). On detachment the part forfeits all progress,
     pays the time cost up to ``max_time`` and ``detach_penalty``: any episode ending at rest
     returns more than any detaching one, and at equal time a closer rest returns more
-    (:mod:`.plane_task`; hypothesis properties in tests/envs/test_plane_env_reward.py).
+    (:mod:`.task`; hypothesis properties in tests/envs/test_plane_env_reward.py).
 
     ## Episode end
     ``terminated``: at rest after the ``max_firings``-th firing (default 8), delivered
@@ -82,7 +82,7 @@ class MicroConveyor2DEnv(SingleEnv):
     ``frequency_hz``, ``stroke_m``, ``delay_s``.
 
     ## Scene (``configs/envs/MicroConveyor2D-v0.yaml``; any field of :class:`PlaneEnvConfig`)
-    5 x 5 actuators 0.5 mm apart (a 2 x 2 mm grid: the issue's example, the 1-D pitch) on
+    5 x 5 actuators 0.5 mm apart (a 2 x 2 mm grid at the 1-D pitch) on
     MicroConveyor-v1's surface (preset ``conveyor``, chapter 4), Gaussian bumps of wavelength
     **2 mm** (width WL/6 = 0.33 mm) and frequencies up to **2000 Hz**. Why
     (``scripts/plane_scene_scan.py``: 400 random firings as the env picks them, from a part at
@@ -116,7 +116,7 @@ class MicroConveyor2DEnv(SingleEnv):
     the reset and each step), the part, the target and its tolerance disc. Never changes a step.
 
     ## Version history
-    * **v0** (package 0.2.0, issue 22): the first 2-D version. No per-episode randomisation and
+    * **v0** (package 0.2.0): the first 2-D version. No per-episode randomisation and
       no observation history yet (the 1-D v1 has both).
     """
 

@@ -1,5 +1,5 @@
 """Batched MicroConveyor2D-v0: N parts on the plane stepped together by one compiled call (numba
-prange), bit-identical to N single envs (the shared machinery: :mod:`.core.vector`)."""
+prange), bit-identical to N single envs (the shared machinery: :mod:`..core.vector`)."""
 from __future__ import annotations
 
 from typing import ClassVar, cast
