@@ -30,7 +30,7 @@ import yaml
 
 from .physics.calibration import Calibration, calibrate
 from .physics.materials import ContactParams, Materials, ParameterError, Part, Surface
-from .physics.simulator import STRETCH_FIELDS, Simulator, Stretch
+from .physics.simulator import Simulator
 
 _TOP_KEYS = {"name", "description", "materials", "surface", "part", "friction_scale",
              "calibration", "dynamics"}
@@ -195,11 +195,8 @@ def simulator(preset: str = DEFAULT_PRESET, contact: ContactParams | None = None
     :class:`~.physics.simulator.Stretch` settings, ``zone_length``, ``max_strain``,
     ``n_sigma``, which constant roughness ignores)."""
     p = load_preset(preset)
-    kw = {**p.dynamics, **kw}
-    settings = {k: kw.pop(k) for k in STRETCH_FIELDS if k in kw}
-    if settings and kw.get("roughness") == "stretch":
-        kw["roughness"] = Stretch(**settings)
-    return Simulator(p.contact if contact is None else contact, **kw)
+    return Simulator.from_keywords(p.contact if contact is None else contact,
+                                   **{**p.dynamics, **kw})
 
 
 def _calibrate(params: ContactParams, cal: dict[str, Any]) -> tuple[ContactParams, dict[str, Any]]:

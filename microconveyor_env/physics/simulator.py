@@ -110,8 +110,9 @@ class Simulator:
     roughness : ``constant`` (the preset's sigma), ``stretch`` or a :class:`Stretch` of its
         settings (docs/physics.md §4: the strain of the active zone under the part sets sigma,
         and Q(N) and the pull-off force follow it; tables over ``n_sigma`` strains in
-        [0, ``max_strain``], see :mod:`.stretch`). :func:`microconveyor_env.presets.simulator`
-        also takes the settings as keywords (``roughness="stretch", n_sigma=11``).
+        [0, ``max_strain``], see :mod:`.stretch`). :meth:`from_keywords` (and
+        :func:`microconveyor_env.presets.simulator`) also take the settings as keywords
+        (``roughness="stretch", n_sigma=11``).
     max_steps : cap on the RK4 steps of one :meth:`simulate` call (default ``MAX_STEPS``, 1e7:
         seconds of computing); a schedule needing more is refused up front. Raise it if you mean it.
     """
@@ -168,6 +169,16 @@ class Simulator:
         self.stretch: Any = None  # StretchContact with roughness='stretch'
         if stretch is not None:
             self._setup_stretch(stretch)
+
+    @classmethod
+    def from_keywords(cls, contact: ContactParams, **kw: Any) -> Simulator:
+        """``Simulator(contact, **kw)`` where ``kw`` may also hold the fields of the
+        :class:`Stretch` settings (``zone_length``, ``max_strain``, ``n_sigma``): with
+        ``roughness="stretch"`` they make its ``Stretch``; constant roughness ignores them."""
+        settings = {k: kw.pop(k) for k in STRETCH_FIELDS if k in kw}
+        if settings and kw.get("roughness") == "stretch":
+            kw["roughness"] = Stretch(**settings)
+        return cls(contact, **kw)
 
     # ------------------------------------------------------------------ stretch
     def _setup_stretch(self, settings: Stretch) -> None:

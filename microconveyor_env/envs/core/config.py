@@ -149,6 +149,11 @@ class SceneConfig:
         return cls(**data)
 
     @property
+    def episode_limit(self) -> tuple[int, str]:
+        """The most steps (firings) an episode takes, and how to say it."""
+        raise NotImplementedError
+
+    @property
     def log_freq_span(self) -> float:
         """ln(freq_range[1] / freq_range[0]) [-] (the action decoding's, :mod:`.actions`)."""
         return math.log(self.freq_range[1] / self.freq_range[0])

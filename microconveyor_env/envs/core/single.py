@@ -36,6 +36,13 @@ class SingleEnv(gym.Env):
         self._after_reset()
         return obs, self._info("moving", False)
 
+    def _checked_action(self, action: Any) -> np.ndarray:
+        """The start of a step: the episode is running and ``action`` checked into the part's
+        input buffer (a RuntimeError after the episode's end, a ValueError for a bad action)."""
+        if self._done:
+            raise RuntimeError("step() called on a finished episode: call reset() first")
+        return self.conveyor.check_actions(action, None)
+
     def _after_reset(self) -> None:
         """What the scene does after a reset, beside the part."""
 

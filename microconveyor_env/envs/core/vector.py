@@ -33,8 +33,8 @@ class BatchedEnv(VectorEnv):
     :class:`~.parts.PartsBase`: the reset options, actions and saved states are checked
     there), :attr:`step_info` (the per-firing info keys: name, the output array's field, the
     value a sub-env reset in the same step reports), :attr:`sb3_info` (the info keys
-    :mod:`.sb3` passes on per sub-env) and implements :meth:`_episode_limit` (the most steps an
-    episode of the config takes) and :meth:`_infos`. ``get_state(i)``: sub-env ``i``'s saved
+    :mod:`.sb3` passes on per sub-env) and implements :meth:`_infos`; the config says how many
+    steps an episode takes at most (``episode_limit``). ``get_state(i)``: sub-env ``i``'s saved
     part state; ``reset(options={"state": ...})`` starts sub-envs from saved states.
     """
 
@@ -62,9 +62,9 @@ class BatchedEnv(VectorEnv):
         self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
         self.config = config_of(self.config_class, config, kwargs)
         # make_vec passes the spec's step limit; an episode ends by itself within
-        # _episode_limit() steps, so a lower limit (which the single env's TimeLimit would
+        # config.episode_limit steps, so a lower limit (which the single env's TimeLimit would
         # apply) is refused
-        limit, what = self._episode_limit()
+        limit, what = self.config.episode_limit
         if max_episode_steps is not None and max_episode_steps < limit:
             raise ValueError(f"max_episode_steps={max_episode_steps} is below {what}: episodes "
                              f"would be cut short; pass max_episode_steps={limit}")
@@ -83,10 +83,6 @@ class BatchedEnv(VectorEnv):
         self._started: bool = False
 
     # ------------------------------------------------------------------ what a scene adds
-    def _episode_limit(self) -> tuple[int, str]:
-        """The most steps an episode takes, and how to say it."""
-        raise NotImplementedError
-
     def _infos(self, outcome: np.ndarray, success: np.ndarray) -> dict:
         """The info rows every step and reset returns (with their ``_key`` masks)."""
         raise NotImplementedError

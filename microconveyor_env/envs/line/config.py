@@ -98,6 +98,11 @@ class EnvConfig(SceneConfig):
                                  "n_actuators - 1 before it)")
 
     @property
+    def episode_limit(self) -> tuple[int, str]:
+        """One firing per actuator: ``n_actuators`` steps at most."""
+        return self.n_actuators, f"the {self.n_actuators} actuators"
+
+    @property
     def actuator_positions(self) -> tuple:
         return tuple(i * self.spacing for i in range(self.n_actuators))
 

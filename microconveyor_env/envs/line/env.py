@@ -185,10 +185,8 @@ class MicroConveyorEnv(OwnsConveyor, SingleEnv):
         return cast(PartState, super().get_state())
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        if self._done:
-            raise RuntimeError("step() called on a finished episode: call reset() first")
+        a = self._checked_action(action)
         c = self.conveyor
-        a = c.check_actions(action, None)
         k = int(c.parts.fired[0])
         xa = float(c.positions[k])
         # the state before the firing, kept only to draw it (rgb_array_list, human)

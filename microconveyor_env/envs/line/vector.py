@@ -44,9 +44,6 @@ class MicroConveyorVectorEnv(OwnsConveyor, BatchedEnv):
     config: EnvConfig
     conveyor: Conveyor
 
-    def _episode_limit(self) -> tuple[int, str]:
-        return self.config.n_actuators, f"the {self.config.n_actuators} actuators"
-
     # the parts' state (arrays, one element per sub-env; written in place) and configuration
     x = conveyor_field("parts.x", "Positions [m].")
     v = conveyor_field("parts.v", "Velocities [m/s].")

@@ -116,6 +116,11 @@ class PlaneEnvConfig(SceneConfig):
         return math.hypot(dx, dy)
 
     @property
+    def episode_limit(self) -> tuple[int, str]:
+        """``max_firings`` steps at most."""
+        return self.max_firings, f"max_firings = {self.max_firings}"
+
+    @property
     def actuator_positions(self) -> tuple[tuple[float, float], ...]:
         """``((x, y), ...)`` [m], index ``i + nx j`` at ``(i, j) * spacing``."""
         return tuple((i * self.spacing, j * self.spacing)

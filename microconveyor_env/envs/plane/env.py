@@ -159,10 +159,8 @@ class MicroConveyor2DEnv(SingleEnv):
         return cast(PlaneState, super().get_state())
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        if self._done:
-            raise RuntimeError("step() called on a finished episode: call reset() first")
+        a = self._checked_action(action)
         c = self.conveyor
-        a = c.check_actions(action, None)
         out = c.step(a)
         outcome = kernel.OUTCOMES[int(out.outcome[0])]
         terminated = outcome in ("rest", "detached")

@@ -36,9 +36,6 @@ class MicroConveyor2DVectorEnv(BatchedEnv):
     config: PlaneEnvConfig
     conveyor: PlaneConveyor
 
-    def _episode_limit(self) -> tuple[int, str]:
-        return self.config.max_firings, f"max_firings = {self.config.max_firings}"
-
     # the parts' state (arrays, one element per sub-env; written in place)
     x = property(lambda self: self.conveyor.parts.x, doc="x [m] per sub-env")
     y = property(lambda self: self.conveyor.parts.y, doc="y [m] per sub-env")
