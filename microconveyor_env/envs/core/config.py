@@ -35,6 +35,7 @@ class SceneConfig:
     delay_range: tuple
     tolerance: float
     progress_scale: float | None
+    progress_horizon: float | None
     dt: float
     min_steps: int
     max_time: float
@@ -64,11 +65,13 @@ class SceneConfig:
         value = getattr(self, name)
         if optional and value is None:
             return
-        if (isinstance(value, bool) or not isinstance(value, numbers.Real)
-                or not math.isfinite(value) or value != int(value) or not lo <= value <= hi):
+        x = math.nan
+        if isinstance(value, numbers.Real) and not isinstance(value, bool):
+            x = float(value)
+        if not math.isfinite(x) or x != int(x) or not lo <= x <= hi:
             raise ParameterError(f"{type(self).__name__}.{name} = {value!r} is invalid: must be "
                                  f"{must or f'an integer in [{lo}, {hi}]'}")
-        self._set(name, int(value))
+        self._set(name, int(x))
 
     def _check_flag(self, name: str) -> None:
         """Field ``name`` true or false."""

@@ -13,7 +13,6 @@ import gymnasium as gym
 import numpy as np
 
 from .checks import spec_id
-from .parts import PartsBase
 from .part_state import SavedState
 
 
@@ -21,7 +20,7 @@ class SingleEnv(gym.Env):
     """One part of a scene: ``reset`` (seed, ``options={"target": ...}`` or ``{"state": ...}``,
     checked before anything changes) and ``get_state``."""
 
-    conveyor: PartsBase
+    conveyor: Any  # the scene's PartsBase, N = 1
     _done: bool
     _last_firing: Any
 

@@ -45,7 +45,7 @@ class BatchedEnv(VectorEnv):
     step_info: ClassVar[tuple[tuple[str, str, float], ...]] = ()
     # the info keys of one sub-env (scalars or short rows) the SB3 adapter passes on, in order
     sb3_info: ClassVar[tuple[str, ...]] = ()
-    conveyor: PartsBase
+    conveyor: Any  # a conveyor_class
 
     def __init__(self, num_envs: int = 1, render_mode: str | None = None,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,

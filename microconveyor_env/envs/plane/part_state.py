@@ -30,6 +30,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
+import numpy as np
+
 from ..core.part_state import SavedState, check_fired, check_scene, check_time, max_speed, within
 from . import task as plane_task
 from .config import PlaneEnvConfig
@@ -62,10 +64,9 @@ class PlaneState(SavedState):
 
 def _pair(name: str, value: object) -> tuple[object, object]:
     """``value`` as two components, else a one-line ValueError naming ``name``."""
-    if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 2:  # type: ignore[arg-type]
-        raise ValueError(f"part state {name} = {value!r} is invalid: must be an (x, y) pair")
-    a, b = value  # type: ignore[misc]
-    return a, b
+    if isinstance(value, (tuple, list, np.ndarray)) and len(value) == 2:
+        return value[0], value[1]
+    raise ValueError(f"part state {name} = {value!r} is invalid: must be an (x, y) pair")
 
 
 def check_plane_state(state: PlaneState | dict, config: PlaneEnvConfig) -> PlaneState:
