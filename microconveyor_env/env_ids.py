@@ -102,7 +102,7 @@ def _overrides(env_id: str) -> tuple[tuple[str, Any], ...]:
 
 def overrides(env_id: str) -> dict[str, Any]:
     """``env_id``'s defaults beyond MicroConveyor-v0's (its ``configs/envs/<id>.yaml``); the
-    kwargs it is registered with. Unchecked: :func:`..envs.versions.registered_kwargs` checks."""
+    kwargs it is registered with. Unchecked: :func:`.envs.versions.registered_kwargs` checks."""
     return dict(_overrides(env_id))
 
 

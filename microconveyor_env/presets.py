@@ -191,9 +191,12 @@ def simulator(preset: str = DEFAULT_PRESET, contact: ContactParams | None = None
               **kw: Any) -> Simulator:
     """A :class:`Simulator` of a preset (name or YAML path): its contact parameters (or
     ``contact``, if given), its dynamics defaults (e.g. ``kinematics``), then ``kw`` (any
-    Simulator argument, SI units)."""
+    Simulator argument, SI units; with ``roughness="stretch"`` also the fields of its
+    :class:`~.physics.simulator.Stretch` settings, ``zone_length``, ``max_strain``,
+    ``n_sigma``, which constant roughness ignores)."""
     p = load_preset(preset)
-    return Simulator(p.contact if contact is None else contact, **{**p.dynamics, **kw})
+    return Simulator.from_keywords(p.contact if contact is None else contact,
+                                   **{**p.dynamics, **kw})
 
 
 def _calibrate(params: ContactParams, cal: dict[str, Any]) -> tuple[ContactParams, dict[str, Any]]:

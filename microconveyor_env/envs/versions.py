@@ -1,11 +1,13 @@
-"""The registered versions of the conveyor env: their ids, defaults and what counts as the scene.
+"""The registered env ids as the envs see them: the config of any id, its config class and
+batched env, and what counts as the scene (over the registry of :mod:`microconveyor_env.env_ids`).
 
-Every version is :class:`~.conveyor.MicroConveyorEnv` with different defaults:
-``MicroConveyor-v0`` the dataclass defaults of :class:`~.config.EnvConfig`
+The line's versions are :class:`~.line.env.MicroConveyorEnv` with different defaults:
+``MicroConveyor-v0`` the dataclass defaults of :class:`~.line.config.EnvConfig`
 (``configs/envs/MicroConveyor-v0.yaml``), each later version those plus the overrides of its own
 ``configs/envs/<id>.yaml``, which become the registered ``gym.spec(id).kwargs`` (as Gymnasium's
-own versions carry theirs). What each version changed and why: the env card's version history
-(:class:`~.conveyor.MicroConveyorEnv`, docs/env.md).
+own versions carry theirs). The plane's MicroConveyor2D-v0 is
+:class:`~.plane.env.MicroConveyor2DEnv` on :class:`~.plane.config.PlaneEnvConfig`. What each
+version changed and why: the env cards' version histories (docs/env.md).
 """
 from __future__ import annotations
 
@@ -22,7 +24,7 @@ from .line.config import EnvConfig
 __all__ = ["ALL_ENV_IDS", "DEFAULT_ENV_ID", "ENTRY_POINTS", "FIRST_ENV_ID", "ENV_IDS",
            "GOAL_ENV_IDS", "LATEST", "MAX_ACTUATORS", "PLANE_ENV_IDS", "base_env_id",
            "check_env_id", "config_class", "env_config", "nominal", "registered_kwargs",
-           "scene_config", "scene_differences", "scene_of"]
+           "scene_config", "scene_differences", "scene_of", "vector_class", "vector_class_of"]
 _ = (PERTURBATION_FIELDS, REWARD_FIELDS, RUNTIME_FIELDS)   # re-exported for their users
 
 
@@ -38,14 +40,37 @@ def base_env_id(env_id: str) -> str:
     return base_id(check_env_id(env_id))
 
 
-def config_class(env_id: str) -> type:
-    """The config class of a registered ``env_id`` (:class:`EnvConfig`, or the plane's
-    :class:`~.plane_config.PlaneEnvConfig`), as its registration names it."""
+def _load(ref: str) -> type:
+    """The class a registration names (``module:Class``)."""
     import importlib
 
-    module, name = REGISTRY[check_env_id(env_id)].config.split(":")
+    module, name = ref.split(":")
     cls: type = getattr(importlib.import_module(module), name)
     return cls
+
+
+def config_class(env_id: str) -> type:
+    """The config class of a registered ``env_id`` (:class:`EnvConfig`, or the plane's
+    :class:`~.plane.config.PlaneEnvConfig`), as its registration names it."""
+    return _load(REGISTRY[check_env_id(env_id)].config)
+
+
+def vector_class(env_id: str) -> type:
+    """The batched env of a registered ``env_id`` (an interface variant's: its scene
+    version's), as its registration names it."""
+    reg = REGISTRY[check_env_id(env_id)]
+    ref = reg.vector_entry_point or REGISTRY[reg.base].vector_entry_point
+    if ref is None:
+        raise ParameterError(f"{env_id} has no batched env")
+    return _load(ref)
+
+
+def vector_class_of(config: Any) -> type:
+    """The batched env of the scene whose config class ``config`` is an instance of."""
+    for env_id in ALL_ENV_IDS:
+        if config_class(env_id) is type(config):
+            return vector_class(env_id)
+    raise ParameterError(f"no registered env takes a {type(config).__name__}")
 
 
 def registered_kwargs(env_id: str) -> dict[str, Any]:

@@ -108,7 +108,7 @@ def coast(x, v, duration, P, tu, tq, tqu):
 # They are inlined into stroke() by numba (inline="always") and stroke() is compiled without
 # numba's reference-counting runtime (_nrt=False; it allocates nothing, and numba refuses to
 # compile it if it ever does): as separate calls, or inlined with reference counting, every step
-# would pay an atomic incref/decref per array argument, 10-30 % of a step's time (issue 18).
+# would pay an atomic incref/decref per array argument, 10-30 % of a step's time.
 @njit(cache=True, inline="always")
 def _stop(out, t, x, v, outcome):
     """Note where and when the stroke ended early (O_EVENT_T/O_EVENT_X); (x, v, outcome)."""

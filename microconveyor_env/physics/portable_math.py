@@ -1,8 +1,8 @@
 """Elementary functions and sums that give the same bits on every machine.
 
 The contact table (:mod:`.contact_table`) is stored data: the env's trajectories, the stored
-rollouts and every policy evaluation depend on its last bit. Two things made it depend on the
-machine (issue 17):
+rollouts and every policy evaluation depend on its last bit. Two things would make it depend on
+the machine:
 
 * **sums by BLAS** (``phi @ wt`` is a dgemv whose blocking and SIMD width differ per CPU kernel:
   10-155 ULP between OpenBLAS core types);

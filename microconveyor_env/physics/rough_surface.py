@@ -24,7 +24,7 @@ gap integral, whose integrand peaks over ``eps`` (~0.02 sigma) and decays like `
 ``d*`` (``phi' = -z phi``, ``phi'' = (z^2 - 1) phi``), which the contact table uses for Hermite
 interpolation. Accuracy is checked against ``scipy.integrate.quad`` in the tests.
 
-*Same bits on every machine* (issue 17): the nodes come from :mod:`.gauss_rules` (decimal Newton,
+*Same bits on every machine*: the nodes come from :mod:`.gauss_rules` (decimal Newton,
 not LAPACK), ``exp``/``power`` from :mod:`.portable_math` (IEEE basic operations only, not numpy's
 CPU-dispatched ufuncs) and every sum over nodes runs in index order
 (:func:`.portable_math.ordered_dot`, not a BLAS dgemv), so the contact table, and everything

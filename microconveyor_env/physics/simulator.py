@@ -72,6 +72,24 @@ class Result:
         return d
 
 
+@dataclass(frozen=True)
+class Stretch:
+    """Stretch-dependent roughness (docs/physics.md §4), the settings of
+    ``Simulator(roughness=Stretch(...))`` (``roughness="stretch"``: these defaults).
+
+    ``zone_length``: length of the active zone centred on the firing actuator [m] (None: the
+    wavelength); outside it the surface under the part is unstrained. ``max_strain``,
+    ``n_sigma``: the strain range [0, max_strain] [-] and the number of sigma nodes of the
+    tables (:mod:`.stretch`)."""
+
+    zone_length: float | None = None
+    max_strain: float = 0.4
+    n_sigma: int = 21
+
+
+STRETCH_FIELDS = ("zone_length", "max_strain", "n_sigma")
+
+
 class Simulator:
     """Part dynamics on an actuated surface.
 
@@ -89,12 +107,12 @@ class Simulator:
         resolved whatever dt is); fewer than 20 steps per stroke gives a StepSizeWarning.
     slope : constant tilt of the carrier, tan(angle) [-] (0: horizontal).
     max_time : simulated-time limit [s].
-    roughness : ``constant`` (the preset's sigma) or ``stretch`` (docs/physics.md §4: the strain of the
-        active zone under the part sets sigma, and Q(N) and the pull-off force follow it; tables
-        over ``n_sigma`` strains in [0, ``max_strain``], see :mod:`.stretch`).
-    zone_length : length of the active zone centred on the firing actuator [m] (default: the
-        wavelength); outside it the surface under the part is unstrained.
-    max_strain, n_sigma : the strain range [-] and number of sigma nodes of the stretch tables.
+    roughness : ``constant`` (the preset's sigma), ``stretch`` or a :class:`Stretch` of its
+        settings (docs/physics.md §4: the strain of the active zone under the part sets sigma,
+        and Q(N) and the pull-off force follow it; tables over ``n_sigma`` strains in
+        [0, ``max_strain``], see :mod:`.stretch`). :meth:`from_keywords` (and
+        :func:`microconveyor_env.presets.simulator`) also take the settings as keywords
+        (``roughness="stretch", n_sigma=11``).
     max_steps : cap on the RK4 steps of one :meth:`simulate` call (default ``MAX_STEPS``, 1e7:
         seconds of computing); a schedule needing more is refused up front. Raise it if you mean it.
     """
@@ -103,8 +121,7 @@ class Simulator:
                  kinematics: str = "reduced", mode: str = DEFAULT_MODE, dt: float = DEFAULT_DT,
                  slope: float = 0.0, max_time: float = 10.0,
                  min_steps: int = MIN_STEPS_PER_STROKE, max_steps: int = MAX_STEPS,
-                 roughness: str = "constant", zone_length: float | None = None,
-                 max_strain: float = 0.4, n_sigma: int = 21) -> None:
+                 roughness: str | Stretch = "constant") -> None:
         if not isinstance(contact, ContactParams):
             raise ParameterError(f"contact = {contact!r} is invalid: Simulator takes ContactParams; "
                                  "for a preset by name use microconveyor_env.presets.simulator("
@@ -114,10 +131,13 @@ class Simulator:
         kinematics = kinematics_level(kinematics, "Simulator")
         if mode not in MODES:
             raise ParameterError(f"mode = {mode!r} is invalid: must be one of {sorted(MODES)}")
-        if roughness not in ROUGHNESS:
+        stretch: Stretch | None = roughness if isinstance(roughness, Stretch) else None
+        if stretch is None and roughness not in ROUGHNESS:
             raise ParameterError(f"roughness = {roughness!r} is invalid: must be one of "
-                                 f"{ROUGHNESS}")
-        self.roughness = roughness
+                                 f"{ROUGHNESS} or a Stretch")
+        if roughness == "stretch":
+            stretch = Stretch()
+        self.roughness = "constant" if stretch is None else "stretch"
         self.contact = contact
         self.shape, self.kinematics, self.mode = shape, kinematics, mode
         self.wavelength = check_range("Simulator", "wavelength", wavelength, MIN_WAVELENGTH, 1.0,
@@ -147,13 +167,25 @@ class Simulator:
         self.tables: tuple[np.ndarray, ...] = (np.ascontiguousarray(tu), np.ascontiguousarray(tq),
                               np.ascontiguousarray(tqu))
         self.stretch: Any = None  # StretchContact with roughness='stretch'
-        if roughness == "stretch":
-            self._setup_stretch(zone_length, max_strain, n_sigma)
+        if stretch is not None:
+            self._setup_stretch(stretch)
+
+    @classmethod
+    def from_keywords(cls, contact: ContactParams, **kw: Any) -> Simulator:
+        """``Simulator(contact, **kw)`` where ``kw`` may also hold the fields of the
+        :class:`Stretch` settings (``zone_length``, ``max_strain``, ``n_sigma``): with
+        ``roughness="stretch"`` they make its ``Stretch``; constant roughness ignores them."""
+        settings = {k: kw.pop(k) for k in STRETCH_FIELDS if k in kw}
+        if settings and kw.get("roughness") == "stretch":
+            kw["roughness"] = Stretch(**settings)
+        return cls(contact, **kw)
 
     # ------------------------------------------------------------------ stretch
-    def _setup_stretch(self, zone_length: float | None, max_strain: float, n_sigma: int) -> None:
+    def _setup_stretch(self, settings: Stretch) -> None:
         from .stretch import StretchContact, pack_tables, strain_table
 
+        zone_length, max_strain, n_sigma = settings.zone_length, settings.max_strain, \
+            settings.n_sigma
         zone = self.wavelength if zone_length is None else check_range(
             "Simulator", "zone_length", zone_length, 0, 1.0, True, unit="m")
         self.zone_length = zone

@@ -38,14 +38,38 @@ def row_capacity(f: float, dt: float, min_steps: int) -> int:
     return steps * (kernel.MAX_EVENTS_PER_STEP + 3) + 2 * kernel.COAST_POINTS + 16
 
 
-def firing_trajectory(x: float, v: float, t: float, xa: float, f: float, h: float,
-                      delay: float, dt: float, min_steps: int, to_rest: bool, t_max: float,
-                      P: np.ndarray, tu: np.ndarray, tq: np.ndarray,
-                      tqu: np.ndarray) -> FiringTrajectory:
-    """Fire the actuator at ``xa`` [m] (``f`` [Hz], ``h`` [m], after ``delay`` [s]) from ``(x, v)``
-    at time ``t``, as :func:`.dynamics_kernel.fire` with the same arguments, recording the
-    trajectory. ``P`` is the row of physics constants the firing used (an env's part: its own
-    row, with this episode's mass and friction factors); ``tu, tq, tqu`` the contact tables."""
+class Firing(NamedTuple):
+    """One firing: the actuator at ``xa`` [m] strokes ``h`` [m] at ``f`` [Hz] after ``delay``
+    [s]."""
+
+    xa: float
+    f: float
+    h: float
+    delay: float
+
+
+class Integration(NamedTuple):
+    """How a firing is integrated: largest RK4 step ``dt`` [s], at least ``min_steps`` steps a
+    stroke, ``to_rest`` (coast to rest after the stroke), time limit ``t_max`` [s]."""
+
+    dt: float
+    min_steps: int
+    to_rest: bool
+    t_max: float
+
+
+def firing_trajectory(state: tuple[float, float, float], firing: Firing, run: Integration,
+                      P: np.ndarray,
+                      tables: tuple[np.ndarray, np.ndarray, np.ndarray]) -> FiringTrajectory:
+    """Fire ``firing`` from the part's ``state`` = (x [m], v [m/s], t [s]) as
+    :func:`.dynamics_kernel.fire` does with the same arguments (``run``: its integration
+    settings), recording the trajectory. ``P`` is the row of physics constants the firing used
+    (an env's part: its own row, with this episode's mass and friction factors); ``tables`` the
+    contact tables ``(tu, tq, tqu)``."""
+    x, v, t = state
+    xa, f, h, delay = firing
+    dt, min_steps, to_rest, t_max = run
+    tu, tq, tqu = tables
     rec = np.zeros((row_capacity(f, dt, min_steps), kernel.N_REC))
     out = np.zeros(kernel.N_OUT)
     kernel.reset_out(out)

@@ -51,7 +51,8 @@ class Scene:
                    if getattr(self, k) is not None}
         if changes:
             contact = contact.replace(**changes)
-        return Simulator(contact, shape=self.profile, wavelength=self.wavelength, **self.sim_kw)
+        return Simulator.from_keywords(contact, shape=self.profile, wavelength=self.wavelength,
+                                       **self.sim_kw)
 
     def run(self, record: bool = False) -> Result:
         """The scene's single firing (``record``: keep the trajectory)."""

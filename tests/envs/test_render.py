@@ -11,7 +11,7 @@ from microconveyor_env.envs import MicroConveyorEnv
 from microconveyor_env.envs.core import actions
 from microconveyor_env.envs.line.frames import FrameState
 from microconveyor_env.physics import dynamics_kernel as kernel
-from microconveyor_env.physics.trajectory import firing_trajectory
+from microconveyor_env.physics.trajectory import Firing, Integration, firing_trajectory
 
 SCHEDULE = (950.0, 200e-6, 2e-3)  # f [Hz], h [m], delay [s]: the part slides between strokes
 
@@ -82,9 +82,10 @@ def test_frames_show_the_recorded_states_of_the_firing():
     states = [s for s in env._renderer.pending if isinstance(s, FrameState)][1:]
     c = env.conveyor
     f, h, d = info["frequency_hz"], info["stroke_m"], info["delay_s"]  # as fired (float32 actions)
-    traj = firing_trajectory(*before, 0.0, f, h, d, c.consts.dt, c.consts.min_steps, False,
-                             env.config.max_time, c.consts.P[0], c.consts.tu, c.consts.tq,
-                             c.consts.tqu)
+    traj = firing_trajectory(before, Firing(0.0, f, h, d),
+                             Integration(c.consts.dt, c.consts.min_steps, False,
+                                         env.config.max_time),
+                             c.consts.P[0], (c.consts.tu, c.consts.tq, c.consts.tqu))
     rows = set(zip(traj.t_s.tolist(), traj.x_m.tolist(), strict=True))
     assert all((s.t, s.x) in rows for s in states)  # simulator states, never interpolated
     during = [s for s in states if s.firing == 0]
@@ -104,7 +105,8 @@ def test_firing_trajectory_ends_where_the_firing_ends():
         out = np.zeros(kernel.N_OUT)
         kernel.reset_out(out)
         x, v, t, code = kernel.fire(*args, np.zeros((0, kernel.N_REC)), out)
-        traj = firing_trajectory(*args)
+        traj = firing_trajectory(args[:3], Firing(*args[3:7]), Integration(*args[7:11]),
+                                 args[11], args[12:])
         assert (traj.x, traj.v, traj.t, traj.outcome) == (x, v, t, code)
         assert np.all(np.diff(traj.t_s) >= 0) and traj.t_s.size >= 2
         assert traj.stroke_start_s == d

@@ -1,4 +1,6 @@
-"""The action of MicroConveyor-v0: one firing of the next actuator, ``(frequency, stroke, delay)``.
+"""The firing every scene's action decodes to, ``(frequency, stroke, delay)``: the line's whole
+action (the next actuator fires), the plane's last three components (after the aim that picks
+the actuator).
 
 Each component lives in [-1, 1] (clipped): frequency maps log-uniformly onto ``freq_range`` [Hz],
 stroke linearly onto ``stroke_range`` [m], delay linearly onto ``delay_range`` [s]. The mapping's
@@ -9,12 +11,8 @@ field name in compiled code) into the compiled :func:`decode`, with the executio
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, NamedTuple
-
-if TYPE_CHECKING:
-    from ..line.config import EnvConfig
-
 import math
+from typing import NamedTuple, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -37,13 +35,27 @@ class ActionConstants(NamedTuple):
     noise: float     # action units, execution noise sigma (0: off)
 
 
-def constants(cfg: EnvConfig) -> ActionConstants:
-    """The action mapping of ``cfg`` (an EnvConfig)."""
+class FiringRanges(Protocol):
+    """What the decoding reads of a scene's config (:class:`~.config.SceneConfig` has it)."""
+
+    @property
+    def freq_range(self) -> tuple: ...
+    @property
+    def stroke_range(self) -> tuple: ...
+    @property
+    def delay_range(self) -> tuple: ...
+    @property
+    def log_freq_span(self) -> float: ...
+
+
+def constants(cfg: FiringRanges, noise: float = 0.0) -> ActionConstants:
+    """The action mapping of ``cfg`` (a scene's config) with execution noise ``noise`` [action
+    units] (the line's ``action_noise``; 0: off)."""
     return ActionConstants(
         f0=float(cfg.freq_range[0]), log_span=float(cfg.log_freq_span),
         h0=float(cfg.stroke_range[0]), h_span=float(cfg.stroke_range[1] - cfg.stroke_range[0]),
         d0=float(cfg.delay_range[0]), d_span=float(cfg.delay_range[1] - cfg.delay_range[0]),
-        noise=float(cfg.action_noise))
+        noise=float(noise))
 
 
 @njit(cache=True)
@@ -57,7 +69,7 @@ def decode(a0: float, a1: float, a2: float, AC: ActionConstants) -> tuple[float,
 
 
 def encode_actions(f: npt.ArrayLike, h: npt.ArrayLike, delay: npt.ArrayLike,
-                   cfg: EnvConfig) -> np.ndarray:
+                   cfg: FiringRanges) -> np.ndarray:
     """Inverse of :func:`decode`: SI values (f [Hz], h [m], delay [s], arrays or scalars) ->
     actions in [-1, 1]^3 (float32)."""
     def lin(val: npt.ArrayLike, lo: float, hi: float) -> np.ndarray:

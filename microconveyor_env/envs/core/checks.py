@@ -1,4 +1,5 @@
-"""Checks every scene's envs apply to what a user passes: actions, render modes."""
+"""Checks every scene's envs apply to what a user passes: actions, render modes, configs; the
+id an env was made with."""
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -66,3 +67,9 @@ def config_of(cls: Any, config: Any, kwargs: dict[str, Any]) -> Any:
         article = "an" if cls.__name__[0] in "AEIOU" else "a"
         raise ValueError(f"config must be {article} {cls.__name__}, got {type(config).__name__}")
     return config or cls.from_yaml(**kwargs)
+
+
+def spec_id(env: Any) -> str | None:
+    """The registered id ``env`` was made with (``gym.make``, ``make_vec``); None without."""
+    spec = getattr(env, "spec", None)
+    return None if spec is None else str(spec.id)

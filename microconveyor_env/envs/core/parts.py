@@ -1,5 +1,6 @@
 """The container of N parts that every scene's envs own: the compiled step bound once, the
-serial or parallel loop chosen by measuring, the active mask, pickling.
+serial or parallel loop chosen by measuring, the active mask, the reset options checked whole
+(targets, saved part states: :mod:`.part_state`), pickling.
 
 A scene subclasses :class:`PartsBase` with its state arrays (typed NamedTuples, as brax's typed
 ``State``) and says which compiled functions step and observe them (:meth:`PartsBase.compiled`);
@@ -10,14 +11,18 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple, TypeVar
 
 import numba
 import numpy as np
 
 from ...physics.contact_table import TableRangeError
 from ...physics.simulator import Simulator
+from .checks import check_actions
+from .part_state import SavedState, reset_state
 from .threads import ThreadChooser, threads
+
+T = TypeVar("T")
 
 
 class BoundCall:
@@ -60,20 +65,47 @@ def raise_if_beyond_table(outcome: str, sim: Simulator) -> None:
                               "N) during a stroke; rebuild the table with a larger load_ratio")
 
 
+class Resets(NamedTuple):
+    """Checked reset options, one entry per part (None: nothing given, the part draws)."""
+
+    targets: list[Any] | None
+    states: list[Any] | None
+
+    def of(self, i: int) -> tuple[Any, Any]:
+        """Part ``i``'s (target, state), the arguments of ``reset_part`` after its generator."""
+        return (None if self.targets is None else self.targets[i],
+                None if self.states is None else self.states[i])
+
+
+def for_part(i: int, check: Callable[..., T], *args: Any) -> T:
+    """``check(*args)`` for part ``i`` of a batch, its error naming the part."""
+    try:
+        return check(*args)
+    except ValueError as exc:
+        raise ValueError(f"env {i}: {exc}") from None
+
+
 class PartsBase:
-    """``n`` parts of one scene: the base of :class:`~..state.Conveyor` (the line) and
+    """``n`` parts of one scene: the base of :class:`~..line.state.Conveyor` (the line) and
     :class:`~..plane.state.PlaneConveyor` (the plane).
 
     A subclass builds its arrays (``parts``, ``consts``, ``action``, ``task``, ``out``) and
-    then calls :meth:`_start` with the number of action components; :meth:`compiled` names its
+    then calls :meth:`_start`; :attr:`components` names the action's components;
+    :meth:`compiled` names its
     compiled step (serial, parallel: ``fn(actions, active, parts, consts, action, task, out)``,
     returning how many parts left the contact table) and observation (``fn(*observe_args)``).
     The compiled calls hold these very arrays: write them in place, never rebind them.
-    ``num_threads``: as :class:`..threads.ThreadChooser` (the single env passes 1: always the
+    ``num_threads``: as :class:`.threads.ThreadChooser` (the single env passes 1: always the
     serial loop). Pickles (the compiled calls are rebuilt after loading).
+
+    Resets: :meth:`check_reset` checks the options of every part before any changes, through
+    the scene's :meth:`check_targets` and :meth:`check_state`; :meth:`reset_part` (the scene's)
+    starts one part's episode; :meth:`get_state` saves one part's state.
     """
 
     n: int
+    # the action's components (named in the messages of refused actions)
+    components: tuple[str, ...] = ("frequency", "stroke", "delay")
     sim: Any
     parts: Any
     consts: Any
@@ -81,11 +113,11 @@ class PartsBase:
     task: Any
     out: Any
 
-    def _start(self, n: int, action_dim: int, num_threads: int | None) -> None:
+    def _start(self, n: int, num_threads: int | None) -> None:
         """The common tail of a subclass's ``__init__``: the thread chooser, the actions'
         input buffer (envs check their actions straight into it), the active mask, the calls."""
         self.threads = ThreadChooser(num_threads, n)
-        self.action_input: np.ndarray = np.zeros((n, action_dim))
+        self.action_input: np.ndarray = np.zeros((n, len(self.components)))
         self._active = np.ones(n, dtype=np.bool_)
         self._all_active = True
         self._bind()
@@ -95,6 +127,43 @@ class PartsBase:
         """The scene's compiled step (serial, parallel), its observation and that one's
         arguments."""
         raise NotImplementedError
+
+    def check_actions(self, actions: Any, n: int | None) -> np.ndarray:
+        """The actions checked straight into the input buffer (:func:`.checks.check_actions`:
+        ``n`` None the single env's one action, else ``n`` of them)."""
+        return check_actions(actions, n, self.action_input, self.components)
+
+    def check_targets(self, given: Any, batched: bool) -> list[Any]:
+        """Every part's target from reset's ``"target"`` option, checked: ``batched``, one for
+        every part or one per part; else the single env's one."""
+        raise NotImplementedError
+
+    def check_state(self, state: Any) -> SavedState:
+        """A saved part state (the scene's state class or its dict), checked against the
+        config; a one-line ValueError names what is wrong."""
+        raise NotImplementedError
+
+    def get_state(self, i: int, env_id: str | None = None) -> SavedState:
+        """Part ``i``'s state now, naming ``env_id`` and the config's scene."""
+        raise NotImplementedError
+
+    def check_reset(self, options: dict[str, Any] | None, batched: bool) -> Resets:
+        """Every part's reset from reset ``options``, all checked before any part changes (a
+        refused reset leaves every part as it was): ``"target"`` (:meth:`check_targets`),
+        ``"state"`` a saved part state (:meth:`check_state`), not both. ``batched``: a state may
+        also be one per part (a sequence of ``n``); otherwise the one given is every part's."""
+        state = reset_state(options)
+        n = self.n
+        if state is not None:
+            if batched and isinstance(state, (list, tuple)):
+                if len(state) != n:
+                    raise ValueError(f"{len(state)} part states for {n} envs")
+                return Resets(None, [for_part(i, self.check_state, s)
+                                     for i, s in enumerate(state)])
+            return Resets(None, [self.check_state(state)] * n)
+        if options and "target" in options:
+            return Resets(self.check_targets(options["target"], batched), None)
+        return Resets(None, None)
 
     def table_simulator(self) -> Simulator:
         """The simulator whose contact table a step's load is checked against."""

@@ -1,7 +1,9 @@
-"""Adapter from the batched gymnasium env to stable-baselines3's ``VecEnv`` interface.
+"""The stable-baselines3 adapter of any scene's batched env.
 
-SB3 cannot take a gymnasium ``VectorEnv``; this wraps :class:`MicroConveyorVectorEnv` (in
-``SAME_STEP`` autoreset mode) so ``PPO("MlpPolicy", MicroConveyorSB3VecEnv(64))`` trains on the
+SB3 cannot take a gymnasium ``VectorEnv``; :class:`MicroConveyorSB3VecEnv` wraps the batched env
+of a registered id (the line's :class:`~..line.vector.MicroConveyorVectorEnv`, the plane's
+:class:`~..plane.vector.MicroConveyor2DVectorEnv`; in ``SAME_STEP`` autoreset mode) so
+``PPO("MlpPolicy", MicroConveyorSB3VecEnv(64, env_id="MicroConveyor2D-v0"))`` trains on the
 compiled batch. Finished sub-envs are reset in the same step; their last observation is in
 ``infos[i]["terminal_observation"]`` and ``infos[i]["TimeLimit.truncated"]`` flags truncation, as
 SB3 expects. Requires the ``train`` extra (stable-baselines3).
@@ -14,29 +16,31 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
-from ..line.vector import MicroConveyorVectorEnv
-
-_SCALAR_INFO = ("is_success", "position_error_m", "outcome", "sim_time_s", "frequency_hz",
-                "stroke_m", "delay_s", "friction_factor", "mass_factor")
+from ..versions import scene_config, vector_class, vector_class_of
+from .vector import BatchedEnv
 
 
 class MicroConveyorSB3VecEnv(VecEnv):
     """``num_envs`` parts in one compiled batch, with SB3's VecEnv semantics.
 
-    ``env_id``: a registered version (``"MicroConveyor-v1"``: its defaults, as ``gym.make``
-    gives them; None: MicroConveyor-v0's); keyword arguments are
-    :class:`~microconveyor_env.envs.EnvConfig` fields overriding them (or ``config=``).
+    ``env_id``: any registered id (``"MicroConveyor-v1"``, ``"MicroConveyor2D-v0"``: its batched
+    env with its defaults, as ``gym.make`` gives them; None: MicroConveyor-v0's); keyword
+    arguments are fields of its config class overriding them. Or ``config=`` a config (an
+    :class:`~..line.config.EnvConfig` or a :class:`~..plane.config.PlaneEnvConfig`: its class
+    chooses the scene). The per-env info dicts hold the batched env's ``sb3_info`` keys.
     """
 
     def __init__(self, num_envs: int = 8, env_id: str | None = None, **kwargs: Any) -> None:
+        cls = vector_class("MicroConveyor-v0")
         if env_id is not None:
             if "config" in kwargs:
                 raise ValueError("give either env_id (with keyword overrides) or config=")
-            from ..versions import env_config
-
-            kwargs = {"config": env_config(env_id, **kwargs)}
-        self.venv = MicroConveyorVectorEnv(num_envs, autoreset_mode=AutoresetMode.SAME_STEP,
-                                           **kwargs)
+            cls = vector_class(env_id)
+            kwargs = {"config": scene_config(env_id, **kwargs)}
+        elif kwargs.get("config") is not None:
+            cls = vector_class_of(kwargs["config"])
+        self.venv: BatchedEnv = cls(num_envs, autoreset_mode=AutoresetMode.SAME_STEP, **kwargs)
+        self._info_keys: tuple[str, ...] = self.venv.sb3_info
         self._actions: np.ndarray | None = None
         super().__init__(num_envs, self.venv.single_observation_space,
                          self.venv.single_action_space)
@@ -88,17 +92,21 @@ class MicroConveyorSB3VecEnv(VecEnv):
         per-element conversion cost as much as the compiled step)."""
         sel = slice(None) if rows is None else rows
         cols = [(k, infos[k][sel].tolist(), infos["_" + k][sel].tolist())
-                for k in _SCALAR_INFO if k in infos]
+                for k in self._info_keys if k in infos]
         n = self.num_envs if rows is None else len(rows)
         return [{k: vals[j] for k, vals, present in cols if present[j]} for j in range(n)]
 
     def set_targets(self, indices: Any, targets: Any) -> np.ndarray:
         """New targets [m] for sub-envs at the start of their episodes; every observation
-        (:meth:`MicroConveyorVectorEnv.set_targets`)."""
-        obs = self.venv.set_targets(indices, targets)
+        (the line's :meth:`~..line.vector.MicroConveyorVectorEnv.set_targets`)."""
+        venv: Any = self.venv
+        if not hasattr(venv, "set_targets"):
+            raise AttributeError(f"{type(venv).__name__} has no set_targets: give targets as "
+                                 "reset options (set_options)")
+        obs = venv.set_targets(indices, targets)
         for i in np.atleast_1d(np.asarray(indices, dtype=np.int64)).tolist():
             if "position_error_m" in self.reset_infos[i]:
-                self.reset_infos[i]["position_error_m"] = float(self.venv.x[i] - self.venv.target[i])
+                self.reset_infos[i]["position_error_m"] = float(venv.x[i] - venv.target[i])
         return obs
 
     def close(self) -> None:

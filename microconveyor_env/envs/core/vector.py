@@ -19,7 +19,8 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from ...physics import dynamics_kernel as kernel
-from .checks import check_render_mode, config_of
+from .checks import check_render_mode, config_of, spec_id
+from .parts import PartsBase
 
 MAX_ENVS = 1_000_000  # parts in one batch (each costs ~1 kB of state)
 
@@ -28,18 +29,23 @@ class BatchedEnv(VectorEnv):
     """``num_envs`` independent copies of a scene's single env (see the subclasses:
     :class:`~..line.vector.MicroConveyorVectorEnv`, :class:`~..plane.vector.MicroConveyor2DVectorEnv`).
 
-    A subclass sets :attr:`config_class`, :attr:`step_info` (the per-firing info keys: name,
-    the output array's field, the value a sub-env reset in the same step reports) and
-    implements :meth:`_conveyor` (its part container), :meth:`_episode_limit` (the most steps
-    an episode of the config takes), :meth:`_check_reset` (every sub-env's reset arguments from
-    the options, checked before any changes), :meth:`_check_actions` and :meth:`_infos`.
+    A subclass sets :attr:`config_class`, :attr:`conveyor_class` (its part container, a
+    :class:`~.parts.PartsBase`: the reset options, actions and saved states are checked
+    there), :attr:`step_info` (the per-firing info keys: name, the output array's field, the
+    value a sub-env reset in the same step reports), :attr:`sb3_info` (the info keys
+    :mod:`.sb3` passes on per sub-env) and implements :meth:`_infos`; the config says how many
+    steps an episode takes at most (``episode_limit``). ``get_state(i)``: sub-env ``i``'s saved
+    part state; ``reset(options={"state": ...})`` starts sub-envs from saved states.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4,
                 "autoreset_mode": AutoresetMode.NEXT_STEP}
     config_class: ClassVar[type]
+    conveyor_class: ClassVar[type[PartsBase]]
     step_info: ClassVar[tuple[tuple[str, str, float], ...]] = ()
-    conveyor: Any
+    # the info keys of one sub-env (scalars or short rows) the SB3 adapter passes on, in order
+    sb3_info: ClassVar[tuple[str, ...]] = ()
+    conveyor: Any  # a conveyor_class
 
     def __init__(self, num_envs: int = 1, render_mode: str | None = None,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
@@ -56,15 +62,16 @@ class BatchedEnv(VectorEnv):
         self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
         self.config = config_of(self.config_class, config, kwargs)
         # make_vec passes the spec's step limit; an episode ends by itself within
-        # _episode_limit() steps, so a lower limit (which the single env's TimeLimit would
+        # config.episode_limit steps, so a lower limit (which the single env's TimeLimit would
         # apply) is refused
-        limit, what = self._episode_limit()
+        limit, what = self.config.episode_limit
         if max_episode_steps is not None and max_episode_steps < limit:
             raise ValueError(f"max_episode_steps={max_episode_steps} is below {what}: episodes "
                              f"would be cut short; pass max_episode_steps={limit}")
         self.num_envs = n = int(num_envs)
         self.render_mode = render_mode
-        self.conveyor = self._conveyor(n)
+        # the parts' state and compiled step, shared with the single env
+        self.conveyor = self.conveyor_class(self.config, n, self.config.num_threads)
         c = self.conveyor
         self.single_action_space = spaces.Box(-1.0, 1.0, (c.action_input.shape[1],), np.float32)
         self.single_observation_space = spaces.Box(-c.obs_bound, c.obs_bound, (c.obs_dim,),
@@ -76,33 +83,23 @@ class BatchedEnv(VectorEnv):
         self._started: bool = False
 
     # ------------------------------------------------------------------ what a scene adds
-    def _conveyor(self, n: int) -> Any:
-        raise NotImplementedError
-
-    def _episode_limit(self) -> tuple[int, str]:
-        """The most steps an episode takes, and how to say it."""
-        raise NotImplementedError
-
-    def _check_reset(self, options: dict | None) -> Any:
-        """Every sub-env's reset from ``options``, checked whole: an object whose ``of(i)``
-        gives sub-env ``i``'s arguments to the container's ``reset_part``."""
-        raise NotImplementedError
-
-    def _check_actions(self, actions: Any) -> np.ndarray:
-        raise NotImplementedError
-
     def _infos(self, outcome: np.ndarray, success: np.ndarray) -> dict:
         """The info rows every step and reset returns (with their ``_key`` masks)."""
         raise NotImplementedError
 
     # ------------------------------------------------------------------ resets
+    def get_state(self, i: int) -> Any:
+        """Sub-env ``i``'s part state now (the scene's saved state, naming the env id and the
+        scene): ``reset(options={"state": ...})`` continues its episode from it."""
+        return self.conveyor.get_state(int(i), spec_id(self))
+
     def _reset_one(self, i: int, *args: Any) -> None:
         self.conveyor.reset_part(i, self.rngs[i], *args)
         self.done[i] = False
 
     def reset(self, *, seed: int | list | None = None,
               options: dict | None = None) -> tuple[np.ndarray, dict]:
-        resets = self._check_reset(options)  # before anything changes
+        resets = self.conveyor.check_reset(options, batched=True)  # before anything changes
         if seed is not None:
             seeds = ([int(seed) + i for i in range(self.num_envs)]
                      if isinstance(seed, (int, np.integer)) else [int(s) for s in seed])
@@ -118,7 +115,7 @@ class BatchedEnv(VectorEnv):
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
         if not self._started:
             raise RuntimeError("call reset() before step()")
-        a = self._check_actions(actions)
+        a = self.conveyor.check_actions(actions, self.num_envs)
         resetting = self.done.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP else \
             np.zeros(self.num_envs, dtype=bool)
         for i in np.flatnonzero(resetting):

@@ -1,10 +1,9 @@
-"""Checks and constructors shared by the single and the batched MicroConveyor-v0 env."""
+"""What the line's single and batched envs share beyond the core: the simulator a config
+builds and the check of a target option."""
 from __future__ import annotations
 
 import math
 import numbers
-from typing import Any
-
 import numpy as np
 
 from ...physics.contact_table import TableRangeError
@@ -13,7 +12,6 @@ from ...physics.simulator import Simulator
 from ...presets import simulator
 from . import task
 from .config import EnvConfig
-
 
 
 def make_simulator(cfg: EnvConfig) -> Simulator:
@@ -51,8 +49,3 @@ def check_target(target: object) -> float:
                          f"beyond actuator 1 within ±{limit * 1e3:g} mm")
     return t
 
-
-def spec_id(env: Any) -> str | None:
-    """The registered id ``env`` was made with (``gym.make``, ``make_vec``); None without."""
-    spec = getattr(env, "spec", None)
-    return None if spec is None else str(spec.id)

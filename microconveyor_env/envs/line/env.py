@@ -1,9 +1,9 @@
-"""MicroConveyor-v0 / -v1: carry a micropart to a target with a linear array of micro-actuators."""
+"""The line's single env, MicroConveyor-v0 / -v1: carry a micropart to a target with a linear
+array of micro-actuators."""
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
-import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 from gymnasium.core import RenderFrame
@@ -11,15 +11,15 @@ from gymnasium.core import RenderFrame
 from ...physics import dynamics_kernel as kernel
 from ..core import actions
 from . import task
-from .common import spec_id
-from ..core.checks import check_actions, check_render_mode, config_of
+from ..core.checks import check_render_mode, config_of
+from ..core.single import SingleEnv
 from .part_state import PartState
 from .config import EnvConfig
 from .frames import EnvRenderer, check_frames_per_stroke
 from .state import Conveyor, OwnsConveyor
 
 
-class MicroConveyorEnv(OwnsConveyor, gym.Env):
+class MicroConveyorEnv(OwnsConveyor, SingleEnv):
     """Goal-conditioned micropart conveyor (physics: Kogut–Etsion contact, stick–slip dynamics).
 
     A part starts ``start_offset`` upstream of actuator 1 (at x = 0) of a linear array of
@@ -120,7 +120,7 @@ class MicroConveyorEnv(OwnsConveyor, gym.Env):
     (the slide through the delay, the stroke, the slide to rest), the part on the surface as it
     deforms, picked from the firing's real trajectory (:mod:`.frames`), and ``render_fps`` =
     4 n. Gymnasium's ``RecordVideo`` keeps only the last frame of each list;
-    :class:`~.video.RecordStrokeVideo` keeps them all.
+    :class:`~..core.video.RecordStrokeVideo` keeps them all.
     ``spec.max_episode_steps`` (v1) is 1000, the most actuators a config allows: an upper bound
     that never cuts an episode short, whatever ``n_actuators`` is (an episode ends by itself
     after at most ``n_actuators`` steps).
@@ -173,30 +173,20 @@ class MicroConveyorEnv(OwnsConveyor, gym.Env):
                            doc="this episode's factor on the mass [-]")
 
     # ------------------------------------------------------------------ API
-    def reset(self, *, seed: int | None = None,
-              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
-        resets = self.conveyor.check_reset(options, batched=False)  # before anything changes
-        super().reset(seed=seed)
-        self.conveyor.reset_part(0, self.np_random, *resets.of(0))
-        self._done = False
-        self._last_firing = None
-        obs = self.conveyor.observe()[0].copy()
+    def _after_reset(self) -> None:
         self._renderer.reset()
         if self.render_mode == "human":
             self.render()
-        return obs, self._info("moving", False)
 
     def get_state(self) -> PartState:
-        """The part's state now (:class:`~.part_state.PartState`, SI units): ``reset(options=
-        {"state": s})`` continues the episode from it exactly. It names the env id and the
-        scene: an env of another scene refuses it."""
-        return self.conveyor.get_state(0, spec_id(self))
+        """The part's :class:`~.part_state.PartState` now (SI units): ``reset(options=
+        {"state": s})`` continues the episode from it exactly; an env of another scene refuses
+        it."""
+        return cast(PartState, super().get_state())
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        if self._done:
-            raise RuntimeError("step() called on a finished episode: call reset() first")
+        a = self._checked_action(action)
         c = self.conveyor
-        a = check_actions(action, None, out=c.action_input)
         k = int(c.parts.fired[0])
         xa = float(c.positions[k])
         # the state before the firing, kept only to draw it (rgb_array_list, human)

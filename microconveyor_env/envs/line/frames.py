@@ -1,5 +1,5 @@
 """Frames during a firing (``render_frames_per_stroke`` > 1): which states of the simulation a
-video shows, picked from the firing's real trajectory (:mod:`..physics.trajectory`).
+video shows, picked from the firing's real trajectory (:mod:`...physics.trajectory`).
 
 An env step is one firing: the part slides through the delay (the slide that follows the
 previous stroke), the stroke runs, and, when the episode ends at rest, the part slides to rest.
@@ -10,7 +10,7 @@ closed-form coast), never an interpolation between rows. So a 0.1 ms stroke and 
 get the same number of frames: a video is evenly paced per phase, not in simulated time; every
 frame's title gives its simulated time. A phase with fewer recorded rows than ``n`` gets one
 frame per row. The surface is drawn as it is at the frame's time: the actuator displacement
-``p(t)`` of the quintic stroke (:func:`..physics.kinematics.stroke_eval`) times the
+``p(t)`` of the quintic stroke (:func:`...physics.kinematics.stroke_eval`) times the
 deformation shape.
 """
 from __future__ import annotations
@@ -106,7 +106,7 @@ class EnvRenderer:
     :func:`.render.render_frame` draws it for ``rgb_array`` (what gymnasium's
     ``RenderCollection`` would collect); with ``n`` > 1 the frames of each firing
     (:func:`firing_states`), its trajectory recomputed from the state before the step by the
-    very compiled firing the step ran (:func:`..physics.trajectory.firing_trajectory`; checked to
+    very compiled firing the step ran (:func:`...physics.trajectory.firing_trajectory`; checked to
     end where the step ended, so rendering cannot change a step's result)."""
 
     def __init__(self, env: Any, mode: str | None, n: int) -> None:
@@ -137,15 +137,16 @@ class EnvRenderer:
         if self.n == 1:
             self.pending.append(self._now(""))
             return
-        from ...physics.trajectory import firing_trajectory
+        from ...physics.trajectory import Firing, Integration, firing_trajectory
 
         e = self.env
         c, cfg = e.conveyor, e.config
         xa = float(c.positions[k])
         to_rest = k == cfg.n_actuators - 1 or outcome == "rest"  # the last, or delivered
-        traj = firing_trajectory(*before, xa, f, h, d, c.consts.dt, c.consts.min_steps, to_rest,
-                                 cfg.max_time, c.consts.P[0], c.consts.tu, c.consts.tq,
-                                 c.consts.tqu)
+        traj = firing_trajectory(before, Firing(xa, f, h, d),
+                                 Integration(c.consts.dt, c.consts.min_steps, to_rest,
+                                             cfg.max_time),
+                                 c.consts.P[0], (c.consts.tu, c.consts.tq, c.consts.tqu))
         if (traj.x, traj.v, traj.t) != (e.x, e.v, e.t):
             raise RuntimeError(f"rendering: the recorded firing ended at x = {traj.x!r} m, "
                                f"t = {traj.t!r} s, the step at x = {e.x!r} m, t = {e.t!r} s "

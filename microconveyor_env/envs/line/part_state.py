@@ -15,15 +15,12 @@ randomisation fields ``None``: an env started from it keeps its own (drawn) fact
 
 A state names where it was saved: ``env_id`` (the registered id the env was made with, ``None``
 for an env made without ``gym.make``) and ``scene``, the env's config fields that are its scene
-(:func:`~.versions.scene_of`: what :func:`~.versions.scene_differences` compares; per-episode
-randomisation, runtime knobs and the reward's weights are not the scene). An env of another
-scene refuses it in one line naming the fields that differ: a position or a firing count means
-something else with other actuators, surfaces or time limits. A dict without ``env_id`` and
-``scene`` (saved before states named them) is refused too, saying how to go on: nothing can
-check it, and a state taken into the wrong scene runs without error and silently means
-something else, which a warning in a long batch would not prevent. A :class:`PartState` built in
-code without a scene (as a controller builds the state it observed) is taken as the env's own:
-the code that built it vouches for it, and ``PartState(**d)`` does the same for a dict.
+(:func:`~..versions.scene_of`: what :func:`~..versions.scene_differences` compares; per-episode
+randomisation, runtime knobs and the reward's weights are not the scene). What every scene's
+saved state shares (naming the scene, the dict form, the refusal of another scene's state or of
+a dict that names none, the common bounds) is :mod:`..core.part_state`; a :class:`PartState`
+built in code without a scene (as a controller builds the state it observed) is taken as the
+env's own, and ``PartState(**d)`` does the same for a dict.
 
 Bounds (:func:`check_state`; a value outside is refused in one line naming the field, its value
 and the range). With ``h``, ``f`` the top of the scene's ``stroke_range`` and ``freq_range``:
@@ -40,28 +37,31 @@ and the range). With ``h``, ``f`` the top of the scene's ``stroke_range`` and ``
 """
 from __future__ import annotations
 
-import math
-import numbers
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 
-from ...physics.materials import G0
+from ..core.part_state import (
+    SavedState,
+    check_fired,
+    check_scene,
+    check_time,
+    max_speed,
+    reset_state,
+    within,
+)
 from .config import MAX_TARGET, EnvConfig
-from ..versions import scene_of
 
+__all__ = ["NOISE_BOUND", "PartState", "StateBounds", "check_state", "reset_state",
+           "state_bounds"]
 # standard normals beyond it are never drawn (numpy's ziggurat on 53-bit uniforms cannot return
 # |z| >= 12.23; P(|z| > 13) = 1.2e-38)
 NOISE_BOUND = 13.0
-_FIELDS = ("position_m", "velocity_m_s", "time_s", "fired", "target_m", "friction_factor",
-           "mass_factor", "noise", "env_id", "scene")
-_RANDOMISATION = _FIELDS[5:8]
-_SAVED_IN = _FIELDS[8:]
 
 
 @dataclass(frozen=True)
-class PartState:
+class PartState(SavedState):
     """One part between firings (SI units).
 
     ``position_m`` [m] (from actuator 1), ``velocity_m_s`` [m/s], ``time_s`` [s] simulated time
@@ -70,6 +70,10 @@ class PartState:
     [-] this episode's factors and ``noise`` the ``(n_actuators, 3)`` standard normals of its
     execution noise (None: the env's own draws); ``env_id`` and ``scene`` where it was saved
     (None: built in code, taken as the env's own; module docstring)."""
+
+    REQUIRED: ClassVar[tuple[str, ...]] = ("position_m", "velocity_m_s", "time_s", "fired",
+                                           "target_m")
+    NESTED: ClassVar[tuple[str, ...]] = ("noise",)
 
     position_m: float
     velocity_m_s: float
@@ -82,42 +86,6 @@ class PartState:
     env_id: str | None = None
     scene: dict[str, Any] | None = field(default=None, hash=False, repr=False)
 
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-safe dict (the randomisation keys only when set; ``env_id`` and ``scene`` when
-        the state names its scene)."""
-        d: dict[str, Any] = {k: getattr(self, k) for k in _FIELDS[:5]}
-        for k in _RANDOMISATION:
-            val = getattr(self, k)
-            if val is not None:
-                d[k] = [list(r) for r in val] if k == "noise" else val
-        if self.scene is not None:
-            d["env_id"], d["scene"] = self.env_id, dict(self.scene)
-        return d
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> PartState:
-        """The state a dict of :meth:`to_dict` describes (unknown or missing keys refused, a dict
-        without ``env_id`` and ``scene`` too: module docstring)."""
-        if not isinstance(d, dict):
-            raise ValueError(f"a part state must be a dict or PartState, got {type(d).__name__}")
-        unknown = sorted(set(d) - set(_FIELDS))
-        missing = [k for k in _FIELDS[:5] if k not in d]
-        if unknown or missing:
-            raise ValueError(f"part state: unknown keys {unknown}, missing keys {missing} "
-                             f"(keys: {list(_FIELDS)})")
-        if any(k not in d for k in _SAVED_IN):
-            raise ValueError("part state names no env id and scene (keys 'env_id', 'scene'; a "
-                             "state saved before states named them), so it cannot be checked "
-                             "against this env's scene: save it again with "
-                             "env.get_state().to_dict(), or, if it is this env's, start from "
-                             "it in code: PartState(**d)")
-        noise, scene = d.get("noise"), d["scene"]
-        if not isinstance(scene, dict):
-            raise ValueError(f"part state scene = {scene!r} is invalid: must be a mapping of "
-                             "the env config's scene fields")
-        return cls(**{**d, "noise": None if noise is None else tuple(map(tuple, noise)),
-                      "scene": dict(scene)})
-
 
 class StateBounds(NamedTuple):
     """What a part can do in a scene (:func:`state_bounds`), SI units."""
@@ -128,33 +96,11 @@ class StateBounds(NamedTuple):
 
 def state_bounds(config: EnvConfig) -> StateBounds:
     """The speed and positions a part can reach in ``config``'s scene (module docstring)."""
-    h, f = config.stroke_range[1], config.freq_range[1]
-    speed = 2.0 * 3.75 * h * f + math.sqrt(2.0 * G0 * h)
+    speed = max_speed(config)
     reach = speed * config.max_time
     start = -config.start_offset
     return StateBounds(speed, (start - config.start_jitter - reach,
                                start + config.start_jitter + reach))
-
-
-def _within(name: str, value: object, lo: float, hi: float, unit: str, scale: float,
-            why: str, hi_open: bool = False) -> float:
-    """``value`` as a float if it is a finite real number in [lo, hi] (SI; ``hi_open``: below
-    hi), else a one-line ValueError naming ``name``, the value and the range in ``unit`` (SI
-    times ``scale``)."""
-    x = math.nan
-    if isinstance(value, (numbers.Real, np.floating, np.integer)) and not isinstance(
-            value, (bool, np.bool_)):
-        x = float(value)
-    if math.isfinite(x) and lo <= x <= hi and not (hi_open and x == hi):
-        return x
-    u = f" {unit}" if unit else ""
-    shown = repr(value) if math.isnan(x) and not isinstance(value, float) else repr(x)
-    if scale != 1.0 and math.isfinite(x):
-        shown += f" ({x * scale:.6g}{u})"
-    allowed = (f"±{hi * scale:.6g}" if lo == -hi else
-               f"[{lo * scale:.6g}, {hi * scale:.6g}{')' if hi_open else ']'}")
-    raise ValueError(f"part state {name} = {shown} is invalid: must be finite and within "
-                     f"{allowed}{u} ({why})")
 
 
 def check_state(state: PartState | dict, config: EnvConfig) -> PartState:
@@ -166,27 +112,22 @@ def check_state(state: PartState | dict, config: EnvConfig) -> PartState:
     if s.scene is not None:
         check_scene(s, config)
     n = config.n_actuators
-    fired = s.fired
-    if (isinstance(fired, (bool, np.bool_)) or not isinstance(fired, (numbers.Integral,))
-            or not 0 <= int(fired) < n):
-        raise ValueError(f"part state fired = {fired!r} is invalid: must be an integer in "
-                         f"[0, {n - 1}] (a firing must be left)")
+    fired = check_fired(s.fired, n)
     bounds = state_bounds(config)
     v_max, (x_lo, x_hi) = bounds.speed_m_s, bounds.position_m
-    x = _within("position_m", s.position_m, x_lo, x_hi, "mm", 1e3,
-                f"reachable from the start in max_time at {v_max * 1e3:.6g} mm/s")
-    v = _within("velocity_m_s", s.velocity_m_s, -v_max, v_max, "mm/s", 1e3,
-                "twice the peak surface speed of the fastest, highest stroke plus a slide down "
-                "its bump")
-    t = _within("time_s", s.time_s, 0.0, config.max_time, "ms", 1e3,
-                "the episode's max_time", hi_open=True)
-    target = _within("target_m", s.target_m, -MAX_TARGET, MAX_TARGET, "mm", 1e3,
-                     "where the observation can show it")
+    x = within("position_m", s.position_m, x_lo, x_hi, "mm", 1e3,
+               f"reachable from the start in max_time at {v_max * 1e3:.6g} mm/s")
+    v = within("velocity_m_s", s.velocity_m_s, -v_max, v_max, "mm/s", 1e3,
+               "twice the peak surface speed of the fastest, highest stroke plus a slide down "
+               "its bump")
+    t = check_time(s.time_s, config)
+    target = within("target_m", s.target_m, -MAX_TARGET, MAX_TARGET, "mm", 1e3,
+                    "where the observation can show it")
     ff, mf, noise = s.friction_factor, s.mass_factor, s.noise
     for name, val, (lo, hi) in (("friction_factor", ff, config.friction_factor_range),
                                 ("mass_factor", mf, config.mass_factor_range)):
         if val is not None:
-            _within(name, val, lo, hi, "", 1.0, f"this env's {name}_range")
+            within(name, val, lo, hi, "", 1.0, f"this env's {name}_range")
     if noise is not None:
         if config.action_noise <= 0.0:
             raise ValueError("part state noise is given but the env has no execution noise "
@@ -201,43 +142,9 @@ def check_state(state: PartState | dict, config: EnvConfig) -> PartState:
         bad = np.argwhere(~(np.abs(arr) <= NOISE_BOUND))  # NaN too
         if len(bad):
             i, j = bad[0]
-            _within(f"noise[{i}][{j}]", arr[i, j], -NOISE_BOUND, NOISE_BOUND, "", 1.0,
-                    "standard normal draws")
+            within(f"noise[{i}][{j}]", arr[i, j], -NOISE_BOUND, NOISE_BOUND, "", 1.0,
+                   "standard normal draws")
         noise = tuple(map(tuple, arr.tolist()))
-    return PartState(x, v, t, int(fired), target,
+    return PartState(x, v, t, fired, target,
                      None if ff is None else float(ff), None if mf is None else float(mf),
                      noise, s.env_id, s.scene)
-
-
-def check_scene(state: PartState, config: EnvConfig) -> None:
-    """A one-line ValueError if ``state`` was saved in another scene than ``config``'s, naming
-    the fields that differ (saved, here)."""
-    env_id, saved = state.env_id, state.scene
-    if env_id is not None and not isinstance(env_id, str):
-        raise ValueError(f"part state env_id = {env_id!r} is invalid: must be an env id or null")
-    here = scene_of(config)
-    absent = "(absent)"
-
-    def plain(v: Any) -> Any:
-        return list(v) if isinstance(v, tuple) else v
-
-    saved = {k: plain(v) for k, v in (saved or {}).items()}
-    diff = [f"{k}: saved {saved.get(k, absent)!r}, here {here.get(k, absent)!r}"
-            for k in sorted(set(saved) | set(here))
-            if saved.get(k, absent) != here.get(k, absent)]
-    if diff:
-        where = env_id or "an env made without an id"
-        raise ValueError(f"part state saved in {where} is of another scene than this env's: "
-                         f"{'; '.join(diff)} (a state starts an episode only in its own scene; "
-                         "randomisation and runtime knobs may differ)")
-
-
-def reset_state(options: dict[str, Any] | None) -> Any:
-    """The ``"state"`` of reset ``options`` (None without one); refuses it beside a ``"target"``
-    (the state holds its target)."""
-    if not options or options.get("state") is None:
-        return None
-    if "target" in options:
-        raise ValueError("reset options: give 'state' (which holds its target) or 'target', "
-                         "not both")
-    return options["state"]

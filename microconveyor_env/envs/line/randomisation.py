@@ -1,4 +1,4 @@
-"""Per-episode randomisation of MicroConveyor-v0 (all off by default; docs/randomisation.md).
+"""Per-episode randomisation of the line's envs (all off by default; docs/randomisation.md).
 
 Three options of :class:`.config.EnvConfig`:
 

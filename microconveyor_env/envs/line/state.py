@@ -4,7 +4,7 @@ env share.
 As brax's typed ``State`` ("write once, vectorise"): the state is a few typed NamedTuples of
 arrays, one element or row per part (:mod:`.step`, where the compiled code that reads them lives:
 :class:`~.step.Parts`, :class:`~.step.Constants`, :class:`~.step.Outputs`, with
-:class:`~.actions.ActionConstants` and :class:`~.task.TaskConstants`), and :class:`Conveyor`
+:class:`~..core.actions.ActionConstants` and :class:`~.task.TaskConstants`), and :class:`Conveyor`
 owns them and implements, once for both envs,
 
 * the reset options of all parts (targets, saved states), checked whole before any part changes
@@ -12,15 +12,14 @@ owns them and implements, once for both envs,
   (:func:`.task.initial_state`), its randomisation streams (derived from the part's generator,
   re-derived when the generator is replaced) and draws (:mod:`.randomisation`), or a saved state;
 * the step of all parts: one compiled call (:func:`.step.step_serial` or, chosen by
-  :class:`.threads.ThreadChooser`, :func:`.step.step_parallel`) with its arguments built once,
-  through the container every scene shares (:class:`.core.parts.PartsBase`).
+  :class:`~..core.threads.ThreadChooser`, :func:`.step.step_parallel`) with its arguments built once,
+  through the container every scene shares (:class:`~..core.parts.PartsBase`).
 
 Everything Gym-specific (spaces, seeding, info dicts, autoreset, rendering) stays in the envs.
 """
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any, NamedTuple, TypeVar
+from typing import Any
 
 import numpy as np
 
@@ -29,9 +28,9 @@ from ...physics.simulator import Simulator
 from ..core import actions
 from . import randomisation, task
 from .common import check_target, make_simulator
-from ..core.parts import PartsBase
+from ..core.parts import PartsBase, Resets, for_part
 from .config import EnvConfig
-from .part_state import PartState, check_state, reset_state
+from .part_state import PartState, check_state
 from .step import (
     NO_NOISE,
     NO_RECORD,
@@ -50,27 +49,7 @@ Streams = tuple[np.random.Generator, np.random.Generator]
 # [-1, 1] as the decoding clips it, before execution noise) and 1.0 (the slot holds a firing; an
 # empty slot is all zeros)
 HISTORY_ROW = task.OBS_DIM + actions.ACTION_DIM + 1
-T = TypeVar("T")
-
-
-class Resets(NamedTuple):
-    """Checked reset options, one entry per part (None: nothing given, the part draws)."""
-
-    targets: list[float] | None
-    states: list[PartState] | None
-
-    def of(self, i: int) -> tuple[float | None, PartState | None]:
-        """Part ``i``'s (target, state)."""
-        return (None if self.targets is None else self.targets[i],
-                None if self.states is None else self.states[i])
-
-
-def _part(i: int, check: Callable[..., T], *args: Any) -> T:
-    """``check(*args)`` for part ``i`` of a batch, its error naming the part."""
-    try:
-        return check(*args)
-    except ValueError as exc:
-        raise ValueError(f"env {i}: {exc}") from None
+__all__ = ["HISTORY_ROW", "Conveyor", "OwnsConveyor", "Resets", "conveyor_field"]
 
 
 class Conveyor(PartsBase):
@@ -81,7 +60,7 @@ class Conveyor(PartsBase):
     ``obs`` (n, ``obs_dim``): the observations the envs return, each part's row and, with
     ``observe_history`` k > 0, its k latest firings (``history``, a view; ``out.obs`` itself when
     k = 0). ``friction_factor`` / ``mass_factor``: each part's factors this episode (1 while
-    randomisation is off). ``num_threads``: as :class:`.threads.ThreadChooser` (the single env
+    randomisation is off). ``num_threads``: as :class:`~..core.threads.ThreadChooser` (the single env
     passes 1: always the serial loop). The compiled calls hold these very arrays: write them in
     place, never rebind them. Pickles (the compiled calls are rebuilt after loading).
     """
@@ -91,7 +70,7 @@ class Conveyor(PartsBase):
         self.n = n
         self.sim = make_simulator(config)
         self.positions: np.ndarray = np.asarray(config.actuator_positions, dtype=np.float64)
-        self.action = actions.constants(config)
+        self.action = actions.constants(config, config.action_noise)
         self.task = task.constants(config)
         self.parts = Parts(x=np.zeros(n), v=np.zeros(n), t=np.zeros(n),
                            fired=np.zeros(n, dtype=np.int64), target=np.zeros(n))
@@ -123,7 +102,7 @@ class Conveyor(PartsBase):
                                 np.zeros((n, self.obs_dim), dtype=np.float32))
         # the compiled calls' inputs (owned, so their types never change) and the calls; the envs
         # check their actions straight into ``action_input`` (core.checks.check_actions(out=...))
-        self._start(n, actions.ACTION_DIM, num_threads)
+        self._start(n, num_threads)
         if self.history_len:   # each step adds the firing to the observation history
             self.after_step = self._remember_all
 
@@ -132,31 +111,22 @@ class Conveyor(PartsBase):
                                                          self.out.obs)
 
     # ------------------------------------------------------------------ reset
-    def check_reset(self, options: dict[str, Any] | None, batched: bool) -> Resets:
-        """Every part's reset from reset ``options``, all checked before any part changes (a
-        refused reset leaves every part as it was): ``"target"`` a distance [m]
-        (:func:`.common.check_target`), ``"state"`` a part state
-        (:func:`.part_state.check_state`), not both. ``batched``: each may also be one per part
-        (a sequence of ``n``); otherwise the one given is every part's."""
-        state = reset_state(options)
+    def check_targets(self, given: Any, batched: bool) -> list[float]:
+        """Every part's target [m] (:func:`.common.check_target`): ``batched``, one for every
+        part or a sequence of ``n``, one per part."""
+        if not batched:
+            return [check_target(given)]
         n = self.n
-        if state is not None:
-            if batched and isinstance(state, (list, tuple)):
-                if len(state) != n:
-                    raise ValueError(f"{len(state)} part states for {n} envs")
-                return Resets(None, [_part(i, check_state, s, self.config)
-                                     for i, s in enumerate(state)])
-            return Resets(None, [check_state(state, self.config)] * n)
-        if options and "target" in options:
-            if not batched:
-                return Resets([check_target(options["target"])], None)
-            try:
-                tv = np.broadcast_to(np.asarray(options["target"], dtype=float), (n,))
-            except (TypeError, ValueError):
-                raise ValueError(f"options['target'] = {options['target']!r} is invalid: give "
-                                 f"one target [m] or {n}, one per env") from None
-            return Resets([_part(i, check_target, t) for i, t in enumerate(tv)], None)
-        return Resets(None, None)
+        try:
+            tv = np.broadcast_to(np.asarray(given, dtype=float), (n,))
+        except (TypeError, ValueError):
+            raise ValueError(f"options['target'] = {given!r} is invalid: give "
+                             f"one target [m] or {n}, one per env") from None
+        return [for_part(i, check_target, t) for i, t in enumerate(tv)]
+
+    def check_state(self, state: Any) -> PartState:
+        """A saved part state checked against the config (:func:`.part_state.check_state`)."""
+        return check_state(state, self.config)
 
     def reset_part(self, i: int, rng: np.random.Generator, target: float | None = None,
                    state: PartState | None = None) -> None:

@@ -1,5 +1,5 @@
-"""The env's compiled per-part step: decode the action (:mod:`.actions`), fire the next actuator
-(:func:`..physics.dynamics_kernel.fire`), score and observe (:mod:`.task`).
+"""The line's compiled per-part step: decode the action (:mod:`..core.actions`), fire the next
+actuator (:func:`...physics.dynamics_kernel.fire`), score and observe (:mod:`.task`).
 
 The single env (N = 1) and the batched env run the very same per-part function
 (:func:`_step_part`), serially or in numba's parallel loop, so their rollouts are bit-identical;
@@ -17,15 +17,15 @@ step):
 * :class:`Outputs`: what a step reports per part (reward, outcome code, success, the firing as
   fired, the observation row, and the kernel's output row, whose columns are the kernel's
   ``O_*``);
-* :class:`~.actions.ActionConstants` and :class:`~.task.TaskConstants` (scalars), passed on their
-  own: numba's parallel loop cannot take a NamedTuple of scalars nested inside another one.
+* :class:`~..core.actions.ActionConstants` and :class:`~.task.TaskConstants` (scalars), passed on
+  their own: numba's parallel loop cannot take a NamedTuple of scalars nested inside another one.
 
-The types live here and in :mod:`.actions` / :mod:`.task`, modules whose edits invalidate the
-compiled code's on-disk cache (``physics/jit_cache.COMPILED_SOURCES``): a cached function is keyed
-by a NamedTuple's class and field types, not its field names, so a reordered field defined in a
-module outside that list could load stale machine code. The only index constants the env still
-uses are the physics' own (``forces.I_*`` into a row of ``P``, ``dynamics_kernel.O_*`` into a row
-of ``Outputs.kernel``), defined in :mod:`..physics`.
+The types live here and in :mod:`..core.actions` / :mod:`.task`, compiled modules: an edit of any
+compiled module discards the cached machine code of every other (:mod:`microconveyor_env.jit_cache`
+finds them by their ``refresh`` call), since a cached function is keyed by a NamedTuple's class
+and field types, not its field names. The only index constants the env still uses are the
+physics' own (``forces.I_*`` into a row of ``P``, ``dynamics_kernel.O_*`` into a row of
+``Outputs.kernel``), defined in :mod:`...physics`.
 
 Execution noise: with ``AC.noise = sigma > 0`` part ``i`` fires ``clip(action + sigma * noise[i,
 k])`` at its firing ``k`` (``noise``: standard normals drawn per episode, ``(N, n_actuators,

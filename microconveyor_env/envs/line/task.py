@@ -1,13 +1,15 @@
-"""The reach-target task of MicroConveyor-v0: start, observation, reward, success.
+"""The reach-target task of the line (MicroConveyor-v0, -v1): start, observation, reward,
+success.
 
-What the part should do, apart from how it moves (:mod:`..physics`) and how an action fires an
-actuator (:mod:`.actions`); :mod:`.step` composes the three into the compiled per-part step, so
+What the part should do, apart from how it moves (:mod:`...physics`) and how an action fires an
+actuator (:mod:`..core.actions`); :mod:`.step` composes the three into the compiled per-part step, so
 a task variant is a configuration (:class:`.config.EnvConfig`) of these few functions. The task's
 constants travel as one :class:`TaskConstants` ``TC`` (:func:`constants`; a NamedTuple read by
 field name in compiled code).
 
 Success (at rest within ``tolerance`` of the target) is decided here and only here: the compiled
-step reports it, and the envs read it from there.
+step reports it, and the envs read it from there. The reward's arithmetic, in distances to the
+target, is the one every scene shares (:mod:`..core.reward`).
 
 Reward ranking (the task is well posed). An episode's return telescopes to
 ``Phi(end) - Phi(start) - time_cost * T + success_bonus * [success] - ...`` with the potential
@@ -32,8 +34,10 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from ...physics import dynamics_kernel as kernel
 from ...jit_cache import refresh as refresh_jit_cache
+from ...physics import dynamics_kernel as kernel
+from ..core import reward as scored
+from ..core.reward import reward_constants
 
 OBS_DIM = 6
 OBS_BOUND = 10.0          # observations are clipped to [-OBS_BOUND, OBS_BOUND]
@@ -58,12 +62,8 @@ class TaskConstants(NamedTuple):
 
 def constants(cfg) -> TaskConstants:
     """The task constants of ``cfg`` (an EnvConfig)."""
-    return TaskConstants(
-        n_actuators=int(cfg.n_actuators), spacing=float(cfg.spacing),
-        max_time=float(cfg.max_time), progress_scale=float(cfg.progress_scale),
-        time_cost=float(cfg.time_cost), success_bonus=float(cfg.success_bonus),
-        detach_penalty=float(cfg.detach_penalty), tolerance=float(cfg.tolerance),
-        progress_horizon=float(cfg.progress_horizon), stop_at_target=bool(cfg.stop_at_target))
+    return TaskConstants(n_actuators=int(cfg.n_actuators), spacing=float(cfg.spacing),
+                         **reward_constants(cfg))
 
 
 def initial_state(cfg, rng: np.random.Generator, target: float | None = None) -> tuple:
@@ -78,13 +78,13 @@ def initial_state(cfg, rng: np.random.Generator, target: float | None = None) ->
 @njit(cache=True)
 def potential(x, target, TC):
     """Phi = -min(|x - target|, progress_horizon) / progress_scale."""
-    return -min(abs(x - target), TC.progress_horizon) / TC.progress_scale
+    return scored.potential(abs(x - target), TC)
 
 
 @njit(cache=True)
 def is_success(code, x, target, TC):
     """At rest within the tolerance of the target."""
-    return code == kernel.REST and abs(x - target) <= TC.tolerance
+    return scored.is_success(code, abs(x - target), TC)
 
 
 @njit(cache=True)
@@ -108,14 +108,7 @@ def reward(code, x_old, x_new, t_old, t_new, target, TC):
     """Potential-based progress, minus the time cost, plus the success bonus; on detachment the
     part takes the horizon's potential, pays the time cost up to ``max_time`` and the detachment
     penalty (see the module docstring for why)."""
-    if code == kernel.DETACHED:
-        return -TC.progress_horizon / TC.progress_scale - potential(x_old, target, TC) \
-            - TC.time_cost * (max(TC.max_time, t_new) - t_old) - TC.detach_penalty
-    r = potential(x_new, target, TC) - potential(x_old, target, TC) \
-        - TC.time_cost * (t_new - t_old)
-    if is_success(code, x_new, target, TC):
-        r += TC.success_bonus
-    return r
+    return scored.reward(code, abs(x_old - target), abs(x_new - target), t_old, t_new, TC)
 
 
 @njit(cache=True)

@@ -1,17 +1,16 @@
 """Batched MicroConveyor-v0/v1: N parts on the line stepped together by one compiled call
-(numba prange), bit-identical to N single envs (the shared machinery: :mod:`.core.vector`)."""
+(numba prange), bit-identical to N single envs (the shared machinery: :mod:`..core.vector`)."""
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import Any, ClassVar, cast
 
 import numpy as np
 
-from .common import check_target, spec_id
-from .config import EnvConfig
-from ..core.checks import check_actions
 from ..core.vector import MAX_ENVS, BatchedEnv
+from .common import check_target
+from .config import EnvConfig
 from .part_state import PartState
-from .state import Conveyor, OwnsConveyor, Resets, conveyor_field
+from .state import Conveyor, OwnsConveyor, conveyor_field
 
 __all__ = ["MAX_ENVS", "MicroConveyorVectorEnv"]
 
@@ -26,7 +25,7 @@ class MicroConveyorVectorEnv(OwnsConveyor, BatchedEnv):
     once; the last observation and info are in ``info["final_obs"]`` / ``info["final_info"]``).
     Threads: ``num_threads`` (an EnvConfig field, also a ``make_vec`` keyword): 1 runs a serial
     loop, k > 1 numba's parallel loop with k threads, ``None`` (default) picks between the two by
-    measuring them as it runs (:mod:`.threads`). Results are bit-identical in every case.
+    measuring them as it runs (:mod:`..core.threads`). Results are bit-identical in every case.
     ``max_episode_steps`` (``make_vec`` passes the spec's): checked to be >= ``n_actuators``.
     ``reset(options={"state": s})``: every sub-env starts from the part state ``s`` (a list:
     one per sub-env); see the single env and :mod:`.part_state`.
@@ -37,23 +36,13 @@ class MicroConveyorVectorEnv(OwnsConveyor, BatchedEnv):
     """
 
     config_class: ClassVar[type] = EnvConfig
+    conveyor_class = Conveyor
     step_info = (("frequency_hz", "frequency", 0.0), ("stroke_m", "stroke", 0.0),
                  ("delay_s", "delay", 0.0))
+    sb3_info = ("is_success", "position_error_m", "outcome", "sim_time_s", "frequency_hz",
+                "stroke_m", "delay_s", "friction_factor", "mass_factor")
     config: EnvConfig
     conveyor: Conveyor
-
-    def _conveyor(self, n: int) -> Conveyor:
-        # the parts' state, randomisation and compiled step (state.py), shared with the single env
-        return Conveyor(self.config, n, self.config.num_threads)
-
-    def _episode_limit(self) -> tuple[int, str]:
-        return self.config.n_actuators, f"the {self.config.n_actuators} actuators"
-
-    def _check_reset(self, options: dict | None) -> Resets:
-        return self.conveyor.check_reset(options, batched=True)
-
-    def _check_actions(self, actions: Any) -> np.ndarray:
-        return check_actions(actions, self.num_envs, out=self.conveyor.action_input)
 
     # the parts' state (arrays, one element per sub-env; written in place) and configuration
     x = conveyor_field("parts.x", "Positions [m].")
@@ -64,7 +53,7 @@ class MicroConveyorVectorEnv(OwnsConveyor, BatchedEnv):
     friction_factor = conveyor_field("friction_factor",
                                      "This episode's factor on the friction [-], per sub-env.")
     mass_factor = conveyor_field("mass_factor", "This episode's factor on the mass [-], per sub-env.")
-    threads = conveyor_field("threads", "Serial or parallel, per step (:mod:`.threads`).")
+    threads = conveyor_field("threads", "Serial or parallel, per step (:mod:`..core.threads`).")
 
     def set_targets(self, indices: Any, targets: Any) -> np.ndarray:
         """Give the parts of sub-envs ``indices`` new targets [m] (checked as reset's ``target``
@@ -87,9 +76,9 @@ class MicroConveyorVectorEnv(OwnsConveyor, BatchedEnv):
         return self._obs()
 
     def get_state(self, i: int) -> PartState:
-        """Sub-env ``i``'s part state now (:class:`~.part_state.PartState`, naming the env id
-        and the scene)."""
-        return self.conveyor.get_state(int(i), spec_id(self))
+        """Sub-env ``i``'s :class:`~.part_state.PartState` now (naming the env id and the
+        scene; see the single env)."""
+        return cast(PartState, super().get_state(i))
 
     def _infos(self, outcome: np.ndarray, success: np.ndarray) -> dict:
         infos = {"is_success": success.copy(), "position_error_m": self.x - self.target,

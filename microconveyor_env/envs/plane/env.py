@@ -1,9 +1,8 @@
 """MicroConveyor2D-v0: position a micropart in a plane with a grid of micro-actuators."""
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
-import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 from gymnasium.core import RenderFrame
@@ -11,12 +10,14 @@ from gymnasium.core import RenderFrame
 from ...physics import dynamics_kernel as kernel
 from . import task as plane_task
 from ..core.checks import check_render_mode, config_of
+from ..core.single import SingleEnv
 from .config import PlaneEnvConfig
-from .state import PlaneConveyor, check_plane_actions
+from .part_state import PlaneState
+from .state import PlaneConveyor
 from .step import ACTION_DIM
 
 
-class MicroConveyor2DEnv(gym.Env):
+class MicroConveyor2DEnv(SingleEnv):
     """Goal-conditioned micropart positioning on a surface (docs/physics.md §10: the 1-D model's
     Kogut–Etsion contact and stick–slip dynamics on a plane deformed by radial bumps).
 
@@ -38,7 +39,7 @@ class MicroConveyor2DEnv(gym.Env):
     | 3 | stroke height h [m] | linear onto ``stroke_range`` (100–200 µm) |
     | 4 | delay before the stroke [s] | linear onto ``delay_range`` (0–0.1 s) |
 
-    Components 2–4 decode exactly as MicroConveyor-v1's action (:func:`.actions.decode`).
+    Components 2–4 decode exactly as MicroConveyor-v1's action (:func:`..core.actions.decode`).
     Out-of-range actions are **clipped** to [-1, 1]; NaN or inf, a shape other than ``(5,)`` or a
     non-numeric dtype raise ``ValueError``.
 
@@ -70,7 +71,7 @@ class MicroConveyor2DEnv(gym.Env):
     twice the farthest start-to-target distance). On detachment the part forfeits all progress,
     pays the time cost up to ``max_time`` and ``detach_penalty``: any episode ending at rest
     returns more than any detaching one, and at equal time a closer rest returns more
-    (:mod:`.plane_task`; hypothesis properties in tests/envs/test_plane_env_reward.py).
+    (:mod:`.task`; hypothesis properties in tests/envs/test_plane_env_reward.py).
 
     ## Episode end
     ``terminated``: at rest after the ``max_firings``-th firing (default 8), delivered
@@ -81,7 +82,7 @@ class MicroConveyor2DEnv(gym.Env):
     ``frequency_hz``, ``stroke_m``, ``delay_s``.
 
     ## Scene (``configs/envs/MicroConveyor2D-v0.yaml``; any field of :class:`PlaneEnvConfig`)
-    5 x 5 actuators 0.5 mm apart (a 2 x 2 mm grid: the issue's example, the 1-D pitch) on
+    5 x 5 actuators 0.5 mm apart (a 2 x 2 mm grid at the 1-D pitch) on
     MicroConveyor-v1's surface (preset ``conveyor``, chapter 4), Gaussian bumps of wavelength
     **2 mm** (width WL/6 = 0.33 mm) and frequencies up to **2000 Hz**. Why
     (``scripts/plane_scene_scan.py``: 400 random firings as the env picks them, from a part at
@@ -103,6 +104,10 @@ class MicroConveyor2DEnv(gym.Env):
     Any field of :class:`PlaneEnvConfig` (SI units), e.g. ``gym.make("MicroConveyor2D-v0",
     nx=7, ny=7, tolerance=100e-6)``, or ``config=PlaneEnvConfig(...)``.
     ``reset(options={"target": (x, y)})`` sets the target [m] (actuator 0 at the origin).
+    ``reset(options={"state": s})`` starts from a saved part state ``s`` (:meth:`get_state`, a
+    :class:`~.part_state.PlaneState` or its dict): the episode continues exactly as the one it
+    was saved in; a state of another scene or id, or a value out of bounds, is refused before
+    anything changes (:mod:`.part_state`).
     ``spec.max_episode_steps`` is 1000, an upper bound that never cuts an episode short.
 
     ## Rendering
@@ -111,7 +116,7 @@ class MicroConveyor2DEnv(gym.Env):
     the reset and each step), the part, the target and its tolerance disc. Never changes a step.
 
     ## Version history
-    * **v0** (package 0.2.0, issue 22): the first 2-D version. No per-episode randomisation and
+    * **v0** (package 0.2.0): the first 2-D version. No per-episode randomisation and
       no observation history yet (the 1-D v1 has both).
     """
 
@@ -145,22 +150,17 @@ class MicroConveyor2DEnv(gym.Env):
     path = property(lambda self: tuple(self._path),
                     doc="the part's positions [m] after the reset and each step")
 
-    def reset(self, *, seed: int | None = None,
-              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
-        targets = self.conveyor.check_targets(options, batched=False)  # before anything changes
-        super().reset(seed=seed)
-        self.conveyor.reset_part(0, self.np_random, None if targets is None else targets[0])
-        self._done = False
-        self._last_firing = None
+    def _after_reset(self) -> None:
         self._path = [(self.x, self.y)]
-        obs = self.conveyor.observe()[0].copy()
-        return obs, self._info("moving", False)
+
+    def get_state(self) -> PlaneState:
+        """The part's :class:`~.part_state.PlaneState` now (SI units): ``reset(options=
+        {"state": s})`` continues the episode from it exactly."""
+        return cast(PlaneState, super().get_state())
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        if self._done:
-            raise RuntimeError("step() called on a finished episode: call reset() first")
+        a = self._checked_action(action)
         c = self.conveyor
-        a = check_plane_actions(action, None, c.action_input)
         out = c.step(a)
         outcome = kernel.OUTCOMES[int(out.outcome[0])]
         terminated = outcome in ("rest", "detached")

@@ -1,10 +1,12 @@
 """N parts on the plane: the state and the step that the single MicroConveyor2D-v0 env (N = 1)
-and its batched env share (the plane's :class:`.state.Conveyor`: arrays in :mod:`.plane_step`,
-one compiled call per step, serial or numba's parallel loop as :class:`.threads.ThreadChooser`
-picks; results bit-identical either way)."""
+and its batched env share (arrays in :mod:`.step`, one compiled call per step through the
+container every scene shares, :class:`~..core.parts.PartsBase`: serial or numba's parallel loop
+as :class:`~..core.threads.ThreadChooser` picks; results bit-identical either way), the reset of
+one part (a drawn or given target, or a saved :class:`~.part_state.PlaneState`) and its saved
+state."""
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
@@ -17,7 +19,6 @@ from ..core import actions
 from . import task as plane_task
 from .config import PlaneEnvConfig
 from .step import (
-    ACTION_DIM,
     NO_RECORD,
     PlaneConstants,
     PlaneOutputs,
@@ -26,8 +27,9 @@ from .step import (
     step_parallel,
     step_serial,
 )
-from ..core.checks import check_actions
-from ..core.parts import PartsBase
+from ..core.parts import PartsBase, for_part
+from ..versions import scene_of
+from .part_state import PlaneState, check_plane_state
 
 
 def make_plane_simulator(cfg: PlaneEnvConfig) -> PlaneSimulator:
@@ -41,14 +43,6 @@ def make_plane_simulator(cfg: PlaneEnvConfig) -> PlaneSimulator:
     except TableRangeError as exc:
         raise ParameterError(f"PlaneEnvConfig.freq_range / stroke_range: {exc}") from None
     return sim
-
-
-PLANE_COMPONENTS = ("aim x", "aim y", "frequency", "stroke", "delay")
-
-
-def check_plane_actions(raw_actions: Any, n: int | None, out: np.ndarray) -> np.ndarray:
-    """:func:`.core.checks.check_actions` of the plane's five components, into ``out``."""
-    return check_actions(raw_actions, n, out, PLANE_COMPONENTS)
 
 
 def check_plane_target(target: object) -> tuple[float, float]:
@@ -66,21 +60,13 @@ def check_plane_target(target: object) -> tuple[float, float]:
     return float(arr[0]), float(arr[1])
 
 
-class PlaneResets(NamedTuple):
-    """Checked reset options of a batch of plane parts (None: each part draws its target)."""
-
-    targets: list[tuple[float, float]] | None
-
-    def of(self, i: int) -> tuple[tuple[float, float] | None]:
-        """Part ``i``'s arguments to :meth:`PlaneConveyor.reset_part` after its generator."""
-        return (None if self.targets is None else self.targets[i],)
-
-
 class PlaneConveyor(PartsBase):
-    """``n`` parts on one :class:`PlaneEnvConfig`: their state and step (see :mod:`.plane_step`
+    """``n`` parts on one :class:`PlaneEnvConfig`: their state and step (see :mod:`.step`
     for ``parts``, ``consts``, ``action``, ``task``, ``out``). ``num_threads``: as
-    :class:`.threads.ThreadChooser` (the single env passes 1). The compiled calls hold these very
-    arrays: write them in place, never rebind them. Pickles."""
+    :class:`~..core.threads.ThreadChooser` (the single env passes 1). The compiled calls hold
+    these very arrays: write them in place, never rebind them. Pickles."""
+
+    components = ("aim x", "aim y", "frequency", "stroke", "delay")
 
     def __init__(self, config: PlaneEnvConfig, n: int, num_threads: int | None = 1) -> None:
         self.config = config
@@ -88,7 +74,7 @@ class PlaneConveyor(PartsBase):
         self.sim = make_plane_simulator(config)
         pos = np.asarray(config.actuator_positions, dtype=np.float64).reshape(-1, 2)
         self.positions: np.ndarray = pos
-        self.action = actions.constants(config)  # type: ignore[arg-type]  # same fields
+        self.action = actions.constants(config)  # no execution noise
         self.task = plane_task.constants(config)
         self.parts = PlaneParts(x=np.zeros(n), y=np.zeros(n), vx=np.zeros(n), vy=np.zeros(n),
                                 t=np.zeros(n), fired=np.zeros(n, dtype=np.int64),
@@ -106,7 +92,7 @@ class PlaneConveyor(PartsBase):
             kernel=np.zeros((n, plane_kernel.N_OUT)))
         self.obs_dim: int = plane_task.OBS_DIM
         self.obs_bound: float = plane_task.OBS_BOUND
-        self._start(n, ACTION_DIM, num_threads)
+        self._start(n, num_threads)
 
     @property
     def obs(self) -> np.ndarray:
@@ -119,18 +105,9 @@ class PlaneConveyor(PartsBase):
     def table_simulator(self) -> Any:
         return self.sim.line
 
-    def check_reset(self, options: dict[str, Any] | None, batched: bool) -> PlaneResets:
-        """Every part's reset from reset ``options``, all checked before any part changes."""
-        return PlaneResets(self.check_targets(options, batched))
-
-    def check_targets(self, options: dict[str, Any] | None,
-                      batched: bool) -> list[tuple[float, float]] | None:
-        """Every part's target from reset ``options`` (None: none given, each part draws its
-        own), all checked before any part changes (:func:`check_plane_target`): an ``(x, y)``
-        pair [m] for every part or, ``batched``, an ``(n, 2)`` array, one per part."""
-        if not options or "target" not in options:
-            return None
-        given = options["target"]
+    def check_targets(self, given: Any, batched: bool) -> list[tuple[float, float]]:
+        """Every part's target (:func:`check_plane_target`): an ``(x, y)`` pair [m] for every
+        part or, ``batched``, an ``(n, 2)`` array, one per part."""
         if not batched:
             return [check_plane_target(given)]
         try:
@@ -142,23 +119,35 @@ class PlaneConveyor(PartsBase):
                              f"({self.n}, 2) [m]")
         if tv.ndim == 1:
             return [check_plane_target(given)] * self.n
-        out = []
-        for i in range(self.n):
-            try:
-                out.append(check_plane_target(tv[i]))
-            except ValueError as exc:
-                raise ValueError(f"env {i}: {exc}") from None
-        return out
+        return [for_part(i, check_plane_target, tv[i]) for i in range(self.n)]
+
+    def check_state(self, state: Any) -> PlaneState:
+        """A saved part state checked against the config
+        (:func:`.part_state.check_plane_state`)."""
+        return check_plane_state(state, self.config)
 
     def reset_part(self, i: int, rng: np.random.Generator,
-                   target: tuple[float, float] | None = None) -> None:
-        """Start part ``i``'s next episode: start and target from ``rng`` (``target``, as
-        :meth:`check_targets` gives it, overrides the drawn one)."""
+                   target: tuple[float, float] | None = None,
+                   state: PlaneState | None = None) -> None:
+        """Start part ``i``'s next episode: start and target from ``rng`` (``target`` overrides
+        the drawn one); then ``state``, if given, in place of them. ``target`` and ``state`` as
+        :meth:`check_reset` gives them."""
         x0, y0, tx, ty = plane_task.initial_state(self.config, rng, target)
         p = self.parts
         p.x[i], p.y[i], p.vx[i], p.vy[i], p.t[i] = x0, y0, 0.0, 0.0, 0.0
         p.fired[i] = 0
         p.tx[i], p.ty[i] = tx, ty
+        if state is not None:
+            (p.x[i], p.y[i]), (p.vx[i], p.vy[i]) = state.position_m, state.velocity_m_s
+            p.t[i], p.fired[i] = state.time_s, state.fired
+            p.tx[i], p.ty[i] = state.target_m
+
+    def get_state(self, i: int, env_id: str | None = None) -> PlaneState:
+        """Part ``i``'s state now, naming ``env_id`` and this config's scene."""
+        p = self.parts
+        return PlaneState((float(p.x[i]), float(p.y[i])), (float(p.vx[i]), float(p.vy[i])),
+                          float(p.t[i]), int(p.fired[i]), (float(p.tx[i]), float(p.ty[i])),
+                          env_id, scene_of(self.config))
 
     def observe(self) -> np.ndarray:
         """Every part's observation, into (and returned as) ``out.obs``: copy to keep it."""

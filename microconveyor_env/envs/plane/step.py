@@ -1,10 +1,10 @@
 """MicroConveyor2D-v0's compiled per-part step: pick the actuator and decode the firing
-(:func:`.plane_task.pick`, :func:`.actions.decode`), fire it (:func:`..physics.plane_kernel.fire`),
-score and observe (:mod:`.plane_task`).
+(:func:`.task.pick`, :func:`..core.actions.decode`), fire it
+(:func:`...physics.plane.kernel.fire`), score and observe (:mod:`.task`).
 
-As in 1-D (:mod:`.step`), the single env (N = 1) and the batched env run the very same per-part
+As on the line (:mod:`..line.step`), the single env (N = 1) and the batched env run the very same per-part
 function (:func:`_step_part`), serially or in numba's parallel loop, so their rollouts are
-bit-identical; both reach it through :class:`.plane_state.PlaneConveyor`, which owns the arrays
+bit-identical; both reach it through :class:`.state.PlaneConveyor`, which owns the arrays
 below (typed NamedTuples of arrays, one element or row per part, read by field name):
 
 * :class:`PlaneParts`: the part state ``x, y, vx, vy, t, fired, tx, ty``;
@@ -12,7 +12,7 @@ below (typed NamedTuples of arrays, one element or row per part, read by field n
   actuator positions ``ax, ay``, the physics rows ``P`` (one per part), the contact-table arrays
   ``tu, tq, tqu`` and ``rec`` (no trajectories are recorded);
 * :class:`PlaneOutputs`: what a step reports per part;
-* :class:`~.actions.ActionConstants` and :class:`~.plane_task.PlaneTaskConstants` (scalars),
+* :class:`~..core.actions.ActionConstants` and :class:`~.task.PlaneTaskConstants` (scalars),
   passed on their own (numba's parallel loop cannot take nested NamedTuples of scalars).
 """
 from __future__ import annotations

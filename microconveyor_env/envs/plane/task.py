@@ -1,12 +1,12 @@
 """The reach-target task of MicroConveyor2D-v0: start, actuator pick, observation, reward, success.
 
-The plane's counterpart of :mod:`.task`, with the Euclidean distance ``|p - target|`` in place of
+The plane's counterpart of the line's :mod:`..line.task`, with the Euclidean distance ``|p - target|`` in place of
 ``|x - target|``: the potential ``Phi(p) = -min(|p - target|, H) / progress_scale`` saturating at
 ``H = progress_horizon`` (validated >= the farthest start-to-target distance), the time cost, the
 success bonus (at rest within ``tolerance``, a disc) and detachment scored as the worst state
 there is (the horizon's potential, the time cost up to ``max_time``, then ``detach_penalty`` >
-0). The 1-D task's ranking therefore carries over word for word, for every configuration
-validation accepts:
+0), with the arithmetic every scene shares (:mod:`..core.reward`). The 1-D task's ranking
+therefore carries over word for word, for every configuration validation accepts:
 
 * any episode that ends at rest returns more than any episode that detaches;
 * at equal simulated time, resting closer to the target returns more (strictly, within the
@@ -29,6 +29,11 @@ from numba import njit
 from ...jit_cache import refresh as refresh_jit_cache
 from ...physics import dynamics_kernel as kernel
 from ...physics.plane import kernel as plane_kernel
+from ..core.reward import is_success, potential, reward, reward_constants
+
+__all__ = ["LENGTH_SCALE", "OBS_BOUND", "OBS_DIM", "PlaneTaskConstants", "constants",
+           "initial_state", "is_success", "observe_part", "pick", "potential", "reward",
+           "stop_if_delivered"]
 
 OBS_DIM = 10
 OBS_BOUND = 10.0          # observations are clipped to [-OBS_BOUND, OBS_BOUND]
@@ -58,15 +63,11 @@ class PlaneTaskConstants(NamedTuple):
 
 
 def constants(cfg: Any) -> PlaneTaskConstants:
-    """The task constants of ``cfg`` (a :class:`.plane_config.PlaneEnvConfig`)."""
+    """The task constants of ``cfg`` (a :class:`~.config.PlaneEnvConfig`)."""
     cx, cy = cfg.centre
     return PlaneTaskConstants(
         nx=int(cfg.nx), ny=int(cfg.ny), spacing=float(cfg.spacing), reach=float(cfg.pick_reach),
-        cx=float(cx), cy=float(cy), max_firings=int(cfg.max_firings),
-        max_time=float(cfg.max_time), progress_scale=float(cfg.progress_scale),
-        time_cost=float(cfg.time_cost), success_bonus=float(cfg.success_bonus),
-        detach_penalty=float(cfg.detach_penalty), tolerance=float(cfg.tolerance),
-        progress_horizon=float(cfg.progress_horizon), stop_at_target=bool(cfg.stop_at_target))
+        cx=float(cx), cy=float(cy), max_firings=int(cfg.max_firings), **reward_constants(cfg))
 
 
 def initial_state(cfg: Any, rng: np.random.Generator,
@@ -102,18 +103,6 @@ def pick(x: float, y: float, a0: float, a1: float, TC: PlaneTaskConstants) -> in
 
 
 @njit(cache=True)
-def potential(dist: float, TC: PlaneTaskConstants) -> float:
-    """Phi = -min(distance to the target [m], progress_horizon) / progress_scale."""
-    return -min(dist, TC.progress_horizon) / TC.progress_scale
-
-
-@njit(cache=True)
-def is_success(code: int, dist: float, TC: PlaneTaskConstants) -> bool:
-    """At rest within the tolerance (Euclidean) of the target."""
-    return code == kernel.REST and dist <= TC.tolerance
-
-
-@njit(cache=True)
 def stop_if_delivered(x, y, vx, vy, t, tx, ty, TC, P, tu, tq, tqu):
     """After a stroke that left the part moving (not the last firing): with ``stop_at_target``,
     if the part left alone comes to rest within the tolerance of the target before
@@ -126,21 +115,6 @@ def stop_if_delivered(x, y, vx, vy, t, tx, ty, TC, P, tu, tq, tqu):
         if rest and math.hypot(xr - tx, yr - ty) <= TC.tolerance:
             return xr, yr, 0.0, 0.0, t + used, kernel.REST
     return x, y, vx, vy, t, kernel.MOVING
-
-
-@njit(cache=True)
-def reward(code: int, d_old: float, d_new: float, t_old: float, t_new: float,
-           TC: PlaneTaskConstants) -> float:
-    """Potential-based progress (distances to the target [m] before and after), minus the time
-    cost, plus the success bonus; on detachment the horizon's potential, the time cost up to
-    ``max_time`` and the penalty (the module docstring says why)."""
-    if code == kernel.DETACHED:
-        return -TC.progress_horizon / TC.progress_scale - potential(d_old, TC) \
-            - TC.time_cost * (max(TC.max_time, t_new) - t_old) - TC.detach_penalty
-    r = potential(d_new, TC) - potential(d_old, TC) - TC.time_cost * (t_new - t_old)
-    if is_success(code, d_new, TC):
-        r += TC.success_bonus
-    return r
 
 
 @njit(cache=True)

@@ -1,20 +1,21 @@
 """Batched MicroConveyor2D-v0: N parts on the plane stepped together by one compiled call (numba
-prange), bit-identical to N single envs (the shared machinery: :mod:`.core.vector`)."""
+prange), bit-identical to N single envs (the shared machinery: :mod:`..core.vector`)."""
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import ClassVar, cast
 
 import numpy as np
 
 from ..core.vector import MAX_ENVS, BatchedEnv
 from .config import PlaneEnvConfig
-from .state import PlaneConveyor, PlaneResets, check_plane_actions
+from .part_state import PlaneState
+from .state import PlaneConveyor
 
 __all__ = ["MAX_ENVS", "MicroConveyor2DVectorEnv"]
 
 
 class MicroConveyor2DVectorEnv(BatchedEnv):
-    """``num_envs`` independent copies of :class:`~.plane_env.MicroConveyor2DEnv`.
+    """``num_envs`` independent copies of :class:`~.env.MicroConveyor2DEnv`.
 
     Same spaces, rewards and info keys as the single env (batched; ``position_error_m`` is an
     ``(num_envs, 2)`` array). Sub-env ``i`` reset with ``seed`` uses ``seed + i``, as
@@ -22,26 +23,18 @@ class MicroConveyor2DVectorEnv(BatchedEnv):
     ``NEXT_STEP`` (default) or ``SAME_STEP`` (``final_obs`` / ``final_info``). ``num_threads`` (a
     config field): 1 a serial loop, k > 1 numba's parallel loop with k threads, None (default)
     chosen by measuring. ``reset(options={"target": (x, y)})``: one target [m] for every
-    sub-env, or an ``(num_envs, 2)`` array.
+    sub-env, or an ``(num_envs, 2)`` array; ``reset(options={"state": s})``: every sub-env
+    starts from the saved part state ``s`` (a list: one per sub-env; :meth:`get_state`).
     """
 
     config_class: ClassVar[type] = PlaneEnvConfig
+    conveyor_class = PlaneConveyor
     step_info = (("actuator", "actuator", -1), ("frequency_hz", "frequency", 0.0),
                  ("stroke_m", "stroke", 0.0), ("delay_s", "delay", 0.0))
+    sb3_info = ("is_success", "position_error_m", "distance_m", "outcome", "sim_time_s",
+                "actuator", "frequency_hz", "stroke_m", "delay_s")
     config: PlaneEnvConfig
     conveyor: PlaneConveyor
-
-    def _conveyor(self, n: int) -> PlaneConveyor:
-        return PlaneConveyor(self.config, n, self.config.num_threads)
-
-    def _episode_limit(self) -> tuple[int, str]:
-        return self.config.max_firings, f"max_firings = {self.config.max_firings}"
-
-    def _check_reset(self, options: dict | None) -> PlaneResets:
-        return self.conveyor.check_reset(options, batched=True)
-
-    def _check_actions(self, actions: Any) -> np.ndarray:
-        return check_plane_actions(actions, self.num_envs, self.conveyor.action_input)
 
     # the parts' state (arrays, one element per sub-env; written in place)
     x = property(lambda self: self.conveyor.parts.x, doc="x [m] per sub-env")
@@ -50,6 +43,10 @@ class MicroConveyor2DVectorEnv(BatchedEnv):
     fired = property(lambda self: self.conveyor.parts.fired, doc="firings so far (int64)")
     target = property(lambda self: np.stack([self.conveyor.parts.tx, self.conveyor.parts.ty], 1),
                       doc="targets (num_envs, 2) [m] (a copy)")
+
+    def get_state(self, i: int) -> PlaneState:
+        """Sub-env ``i``'s :class:`~.part_state.PlaneState` now."""
+        return cast(PlaneState, super().get_state(i))
 
     def _infos(self, outcome: np.ndarray, success: np.ndarray) -> dict:
         p = self.conveyor.parts

@@ -3,7 +3,7 @@ stops or turns (:func:`_illinois_slip` on ``min(v . e / v_scale, (N + F_pull) / 
 a stuck part breaks away (:func:`_illinois_stick` on the disc test), and a pull-off hidden between
 two nodes (:func:`_hidden_pull_off`, a golden-section search on the Hermite path). The 2-D
 counterparts of :mod:`.events`, whose root finders (Illinois, secant) and constants they reuse;
-:mod:`.plane_kernel` calls them.
+:mod:`.kernel` calls them.
 
 The loops of the Illinois and golden-section searches are written out here as in :mod:`.events`
 rather than shared: a compiled search taking the searched function as an argument gives the
@@ -40,7 +40,7 @@ def _vscale(x, y, vx, vy, tl, hmax, ex, ey, xa, ya, f, h, P, tu, tq, tqu):
 @njit(cache=True)
 def _illinois_slip(x, y, vx, vy, tl, hmax, ex, ey, h_dir, vscale, xa, ya, f, h, P, tu, tq, tqu):
     """First tau in (0, hmax] where v . e or the load above pull-off reaches 0 (as
-    :func:`.events.illinois_slip`)."""
+    :func:`..events.illinois_slip`)."""
     a, b = 0.0, hmax
     fb = _slip_event(x, y, vx, vy, tl, b, ex, ey, h_dir, vscale, xa, ya, f, h, P, tu, tq, tqu)
     fa = _slip_event(x, y, vx, vy, tl, 0.0, ex, ey, h_dir, vscale, xa, ya, f, h, P, tu, tq, tqu)
@@ -82,7 +82,7 @@ def _load_on_hermite(th, x0, y0, vx0, vy0, x1, y1, vx1, vy1, tl, hs, xa, ya, f, 
 @njit(cache=True)
 def _hidden_pull_off(x0, y0, vx0, vy0, x1, y1, vx1, vy1, tl, hs, N1, xa, ya, f, h, P):
     """A dip of the load below pull-off inside an accepted sliding step (as
-    :func:`.events.hidden_pull_off`): the sub-step length at the minimum, or -1."""
+    :func:`..events.hidden_pull_off`): the sub-step length at the minimum, or -1."""
     n_min = P[I_NMIN]
     N0 = plane_normal_load(x0, y0, vx0, vy0, tl, xa, ya, f, h, P)[0]
     if min(N0, N1) >= 0.0:

@@ -4,7 +4,7 @@ The plane's counterpart of :mod:`.forces`: the normal load, the friction's direc
 acceleration, one RK4 step and the stick test of a part at ``(x, y)`` [m] with velocity
 ``(vx, vy)`` [m/s]. The model constants are the 1-D array ``P`` (:mod:`.forces` indices;
 ``P[I_SLOPE]`` must be 0 and the roughness constant: the plane is level and has no stretch) and
-the contact table arrays ``tu, tq, tqu`` (:func:`.forces.friction_of_load`).
+the contact table arrays ``tu, tq, tqu`` (:func:`..forces.friction_of_load`).
 
 Friction acts in the tangent plane against the sliding velocity relative to the surface,
 ``w = (vx, vy, grad Z . v)``; its horizontal part is ``-Q(N) d / sqrt(1 + (grad Z . d)^2)`` with

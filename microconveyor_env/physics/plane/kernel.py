@@ -1,5 +1,5 @@
 """Compiled dynamics of a part on the plane (docs/physics.md §10.4-10.6): the 2-D counterpart of
-:mod:`.dynamics_kernel`, event mode only. Plain arrays in, plain arrays out.
+:mod:`..dynamics_kernel`, event mode only. Plain arrays in, plain arrays out.
 
 State ``(x, y, vx, vy)`` [m, m, m/s, m/s] at time ``t`` [s]. One firing (:func:`fire`) coasts
 through the delay in closed form (:func:`coast`), integrates the stroke with fixed-step RK4 on the
@@ -7,10 +7,10 @@ through the delay in closed form (:func:`coast`), integrates the stroke with fix
 slip -> stick and detachment located inside the step, and optionally coasts to rest. Outcome codes
 are the 1-D kernel's (``REST``, ``DETACHED``, ``MAX_TIME``, ``MOVING``, ``TOO_MANY_EVENTS``,
 ``BEYOND_TABLE``). ``P``, ``tu, tq, tqu`` are the 1-D model constants and contact table arrays
-(:mod:`.plane_forces`); :class:`.plane.PlaneSimulator` builds them.
+(:mod:`.forces`); :class:`.simulator.PlaneSimulator` builds them.
 
 Sliding: a step starts with the reference direction ``e = v/|v|`` (from rest: the break-away
-direction), the friction directed over it by :func:`.plane_forces.step_direction`, and is accepted
+direction), the friction directed over it by :func:`.forces.step_direction`, and is accepted
 while ``v . e`` stays positive and the load above pull-off (a dip of the load inside the step is
 searched for as in 1-D). Otherwise the instant where ``min(v . e / v_scale, (N + F_pull) /
 F_pull)`` reaches 0 is located on the partial RK4 step (Illinois). There the part detaches if the

@@ -6,9 +6,9 @@ is
 
     Z(x, y, t) = p(t) g(r),      r = sqrt((x - x_a)^2 + (y - y_a)^2),
 
-a radially symmetric bump: the 1-D shape ``g`` (:func:`.kinematics.shape_eval`, peak 1 at
+a radially symmetric bump: the 1-D shape ``g`` (:func:`..kinematics.shape_eval`, peak 1 at
 ``r = 0``, wavelength ``wl``) taken as a function of the radial distance, and the 1-D quintic
-stroke ``p(t)`` (:func:`.kinematics.stroke_eval`). The plane is level (no tilt).
+stroke ``p(t)`` (:func:`..kinematics.stroke_eval`). The plane is level (no tilt).
 
 With ``e = (x - x_a, y - y_a) / r`` the unit radial vector and primes for derivatives in ``r``:
 
@@ -21,7 +21,7 @@ Hessian is finite and isotropic at the bump's centre (``g'(r)/r -> g''(0)``, eve
 continuous curvature there). On the line ``y = y_a`` these are the 1-D ``Y_x``, ``Y_xt`` and
 ``Y_xx`` bit for bit (``sqrt((x - x_a)^2) = |x - x_a|`` exactly and ``e = (+-1, 0)``).
 
-No input checking here (the Python layer, :mod:`.plane`, validates).
+No input checking here (the Python layer, :mod:`.simulator`, validates).
 """
 from __future__ import annotations
 
@@ -46,11 +46,11 @@ from ..kinematics import (
 @njit(cache=True)
 def radial_slope_over_r(kind, r, wl, g, g_r):
     """``g'(r) / r`` [1/m^2] of shape ``kind`` at radial distance ``r >= 0`` [m], exact at r = 0,
-    from ``g`` [-] and ``g_r = g'(r)`` [1/m] there (:func:`.kinematics.shape_eval`).
+    from ``g`` [-] and ``g_r = g'(r)`` [1/m] there (:func:`..kinematics.shape_eval`).
 
     Gaussian ``-g / s^2``; sinusoid ``g_r / r`` (``-k^2/2`` at 0, ``k = 2 pi / wl``); clamped beam
     ``-48 v / wl^3`` with ``v = wl/2 - r`` (its ``g_r = -48 v r / wl^3``, whose form in
-    :func:`.kinematics.shape_eval` cancels near the centre); 0 outside the compact shapes'
+    :func:`..kinematics.shape_eval` cancels near the centre); 0 outside the compact shapes'
     support ``r > wl/2``.
     """
     if kind == GAUSSIAN:

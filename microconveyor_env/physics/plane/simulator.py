@@ -4,11 +4,11 @@ surface, a part at ``(x, y)`` with velocity ``(vx, vy)``; ``simulate(schedule, .
 
 The Python layer validates and builds plain arrays; :mod:`.plane_kernel` integrates (event mode
 only). The contact table, the model constants and the firing checks are the 1-D
-:class:`.simulator.Simulator`'s, built with the same arguments, so a scene on one line of the plane
+:class:`..simulator.Simulator`'s, built with the same arguments, so a scene on one line of the plane
 is the 1-D scene.
 
 For a compiled caller (a batched env): ``PlaneSimulator.params`` and ``PlaneSimulator.tables`` are
-the arguments ``P, tu, tq, tqu`` of :func:`.plane_kernel.fire` and :func:`.plane_kernel.coast`.
+the arguments ``P, tu, tq, tqu`` of :func:`.kernel.fire` and :func:`.kernel.coast`.
 """
 from __future__ import annotations
 
@@ -67,7 +67,7 @@ class ActuatorGrid:
 
 @dataclass(frozen=True)
 class PlaneSchedule:
-    """Firings (the 1-D :class:`.schedule.Firing`: actuator index, frequency [Hz], stroke [m],
+    """Firings (the 1-D :class:`..schedule.Firing`: actuator index, frequency [Hz], stroke [m],
     delay [s]) on an :class:`ActuatorGrid`."""
 
     grid: ActuatorGrid
@@ -92,7 +92,7 @@ class PlaneSchedule:
 
 @dataclass
 class PlaneResult:
-    """Outcome of one plane simulation (SI units); outcomes as :class:`.simulator.Result`."""
+    """Outcome of one plane simulation (SI units); outcomes as :class:`..simulator.Result`."""
 
     start_m: tuple[float, float]
     final_position_m: tuple[float, float]
@@ -117,7 +117,7 @@ class PlaneResult:
 class PlaneSimulator:
     """Part dynamics on a surface over the plane, deformed by one actuator of a grid at a time.
 
-    Parameters (as :class:`.simulator.Simulator`, whose contact table and checks this uses)
+    Parameters (as :class:`..simulator.Simulator`, whose contact table and checks this uses)
     ----------
     contact : ContactParams (a preset's ``.contact``).
     shape : radial deformation shape, ``gaussian``, ``sinusoidal`` or ``clamped_beam``.
@@ -201,7 +201,7 @@ class PlaneSimulator:
     def check_firings(self, f: np.ndarray, h: np.ndarray, mass_factor: float = 1.0) -> None:
         """The 1-D checks of firings at frequencies ``f`` [Hz] with strokes ``h`` [m] (the step
         budget, under-resolved strokes, loads beyond the contact table for a part ``mass_factor``
-        [-] times heavier): :meth:`.simulator.Simulator.check_firings`."""
+        [-] times heavier): :meth:`..simulator.Simulator.check_firings`."""
         self.line.check_firings(np.asarray(f, dtype=float), np.asarray(h, dtype=float),
                                 mass_factor)
 
