@@ -7,4 +7,4 @@ policy).
 Loaded through the ``microconveyor_env.commands`` entry point (pyproject.toml): importing this
 package registers the commands with :func:`microconveyor_env.cli.base.command`.
 """
-from . import compare, demo, optimize, reach, rl, tune, video  # noqa: F401 - importing registers the commands
+from . import compare, demo, evaluate, optimize, reach, rl, tune, video  # noqa: F401 - importing registers the commands
