@@ -63,7 +63,7 @@ def _check_refinable(args: argparse.Namespace) -> None:
 
     from microconveyor_env.envs import env_config
 
-    from ..rl.artefacts.checkpoint import check_new_folder
+    from ..rl.artefacts.folders import check_new_folder
 
     if args.algo != "ppo" or args.env not in ("MicroConveyor-v0", "MicroConveyor-v1"):
         raise ValueError("--refine refines a PPO policy of MicroConveyor-v0 or -v1; got "
@@ -180,7 +180,7 @@ def _refine_args(p: argparse.ArgumentParser) -> None:
 def cmd_refine(args: argparse.Namespace) -> None:
     from pathlib import Path
 
-    from ..rl.artefacts.checkpoint import check_new_folder
+    from ..rl.artefacts.folders import check_new_folder
     from ..rl.refinement.settings import RefineSettings
 
     out = Path(args.out)

@@ -36,12 +36,11 @@ def write_refined(policy: Policy, report: dict[str, Any], out: str | Path,
         META,
         MODEL,
         NORMALIZATION,
-        check_new_folder,
         read_meta,
         sha256,
-        stale_temporaries,
         verify_files,
     )
+    from ..artefacts.folders import check_new_folder, stale_temporaries
     from ..artefacts.normalization import NORMALIZATION_LIMIT
     from ..artefacts.sb3_files import open_model, read_weights
 
