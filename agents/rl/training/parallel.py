@@ -286,6 +286,9 @@ def train_seeds(out: str | Path, seeds: Sequence[int], settings: TrainSettings,
         raise ValueError(f"give distinct seeds, got {seeds!r}")
     if settings.seed is not None:
         raise ValueError("seed is set per seed by train_seeds")
+    from .train import recipe
+
+    recipe(settings)   # a recipe every seed would refuse is refused once, here
     earlier = {s: _finished(Path(out) / f"seed-{s}", s) for s in seeds}
     tasks = [{"out": str(Path(out) / f"seed-{s}"), "seed": s, "train": settings,
               "verbose": verbose} for s in seeds if earlier[s] is None]

@@ -44,15 +44,19 @@ from .workers import _worker, _worker_died, shares
 
 def check_settings(job: dict) -> None:
     """Refuse settings that would fail every trial, before the storage is touched (ValueError
-    naming what is wrong): the budgets, the fixed parameters, the conf file's entry for the env,
-    the env with its kwargs, and one trial's hyperparameters (the fixed ones, the search
-    space's :data:`.tune_space.PROBE` for the others), which must make a PPO model on that env."""
+    naming what is wrong; the budgets: :class:`.settings.TuneSettings`): the fixed parameters,
+    the conf file's entry for the env (a recipe training takes), the env with its kwargs, and
+    one trial's hyperparameters (the fixed ones, the search space's :data:`.space.PROBE` for
+    the others), which must make a PPO model on that env."""
     import optuna
 
     from microconveyor_env.envs.versions import scene_config
 
-    from ..training.train import make_env, new_model
+    from ..training.settings import TrainSettings
+    from ..training.train import make_env, new_model, recipe
+
     fixed = tune_space.check_fixed(job["fixed"])  # unknown keys, impossible values
+    recipe(TrainSettings(env_id=job["env_id"], conf_file=job["conf_file"]))
     base = hyperparams.load(job["conf_file"], job["env_id"])  # the env's entry exists
     kwargs = {**(base.get("env_kwargs") or {}), **(job["env_kwargs"] or {})}
     try:
