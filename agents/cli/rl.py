@@ -108,7 +108,8 @@ def _kwargs_text(kwargs: dict[str, Any] | None) -> str:
     return ", ".join(f"{k}={v}" for k, v in (kwargs or {}).items())
 
 
-@command("train", "train PPO, SAC or TQC on the conveyor (checkpoints, evaluations, resume)",
+@command("train", "train PPO, SAC or TQC on any registered env (checkpoints, evaluations, "
+                  "resume)",
          _train_args)
 def cmd_train(args: argparse.Namespace) -> None:
     from ..rl.training.settings import TrainSettings

@@ -192,3 +192,19 @@ def test_seeds_refuses_runs_of_different_configs(tmp_path):
     (runs[2] / "metadata.json").write_text(json.dumps(meta))
     with pytest.raises(ValueError, match="differs from .* in env_kwargs, hyperparams.gamma"):
         aggregate(runs)
+
+
+def test_iqm_interval_over_seeds():
+    import math
+
+    from agents.rl.evaluation.seeds import iqm, iqm_interval
+
+    vals = [0.6, 0.7, 0.8, 0.9, 0.95]
+    out = iqm_interval(vals, seed=3)
+    assert out["per_seed"] == vals and out["iqm"] == iqm(vals)
+    lo, hi = out["ci95"]
+    assert 0.6 <= lo < out["iqm"] < hi <= 0.95
+    assert iqm_interval(vals, seed=3) == out                        # seeded: the same interval
+    assert iqm_interval([0.5, 0.5, 0.5])["ci95"] == [0.5, 0.5]      # equal scores: no spread
+    assert iqm_interval([0.7])["ci95"] == [0.7, 0.7]
+    assert all(math.isnan(x) for x in iqm_interval([])["ci95"])

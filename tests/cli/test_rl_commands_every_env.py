@@ -5,6 +5,7 @@ starts refusing an env it ran on (or the reverse) fails here."""
 from __future__ import annotations
 
 import pytest
+import yaml
 
 from microconveyor_env.cli import main
 from microconveyor_env.env_ids import REGISTRY
@@ -14,16 +15,9 @@ pytest.importorskip("stable_baselines3")
 PLANE = "MicroConveyor2D-v0"
 GOAL = "MicroConveyorGoal-v1"
 # a tiny PPO entry for every registered id (observations normalised, as the shipped recipes)
-ENTRY = """  env_kwargs: {num_threads: 1}
-  n_envs: 8
-  n_timesteps: 512
-  policy: MlpPolicy
-  normalize: true
-  n_steps: 32
-  batch_size: 64
-  n_epochs: 1
-  policy_kwargs: "dict(net_arch=dict(pi=[16], vf=[16]))"
-"""
+ENTRY = {"env_kwargs": {"num_threads": 1}, "n_envs": 8, "n_timesteps": 512, "n_steps": 32,
+         "batch_size": 64, "n_epochs": 1, "normalize": True, "policy": "MlpPolicy",
+         "policy_kwargs": "dict(net_arch=dict(pi=[16], vf=[16]))"}
 # command -> ids it refuses, with what its one line says
 REFUSED = {
     "train": {GOAL: "normalize: MicroConveyorGoal-v1 has Dict observations"},
@@ -51,7 +45,7 @@ def _argv(command: str, env_id: str, tmp, conf: str) -> list[str]:
 @pytest.mark.parametrize("command", list(REFUSED))
 def test_rl_command_runs_or_refuses_in_one_line(command, env_id, tmp_path, capsys):
     conf = tmp_path / "tiny.yml"
-    conf.write_text("".join(f"{i}:\n{ENTRY}" for i in REGISTRY))
+    conf.write_text(yaml.safe_dump({i: ENTRY for i in REGISTRY}))
     capsys.readouterr()
     code = main(_argv(command, env_id, tmp_path, str(conf)))
     err = capsys.readouterr().err

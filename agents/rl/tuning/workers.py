@@ -26,6 +26,7 @@ def score(ev: dict) -> float:
 def _objective(job: dict, worker: str, now: dict | None = None) -> Callable[[Any], float]:
     import optuna
 
+    from ..training.settings import TrainSettings
     from ..training.train import train
 
     base = hyperparams.load(job["conf_file"], job["env_id"])
@@ -71,13 +72,13 @@ def _objective(job: dict, worker: str, now: dict | None = None) -> Callable[[Any
                 trial.set_user_attr("pruned_at", at)
                 raise optuna.TrialPruned(f"pruned at step {at}")
 
-        meta = train(run, steps=steps, seed=job["seed"], conf_file=job["conf_file"],
-                     env_id=job["env_id"], env_kwargs=job["env_kwargs"],
-                     overrides=tune_space.overrides(base, flat),
-                     max_minutes=job["trial_minutes"], eval_freq=job["eval_freq"],
-                     eval_targets=job["eval_targets"], eval_seed=job["eval_seed"],
-                     checkpoint_freq=10**12, progress_bar=False, tensorboard=False,
-                     on_eval=on_eval)
+        settings = TrainSettings(
+            steps=steps, seed=job["seed"], conf_file=job["conf_file"], env_id=job["env_id"],
+            env_kwargs=job["env_kwargs"], overrides=tune_space.overrides(base, flat),
+            max_minutes=job["trial_minutes"], eval_freq=job["eval_freq"],
+            eval_targets=job["eval_targets"], eval_seed=job["eval_seed"],
+            checkpoint_freq=10**12, progress_bar=False, tensorboard=False)
+        meta = train(run, settings, on_eval=on_eval)
         ev = meta["evaluation"]
         for k in ("success_rate_50um", "median_abs_error_m"):
             trial.set_user_attr(k, ev[k])
