@@ -62,7 +62,7 @@ def rollout(policy: Actor, targets: np.ndarray, config: EnvConfig | PlaneEnvConf
     if plane and (targets.ndim != 2 or targets.shape[1] != 2):
         raise ValueError(f"targets have shape {targets.shape}: must be (n, 2) [m]")
     env = batched_env(config, len(targets))
-    path = [] if record and not plane else None
+    path: list[np.ndarray] | None = [] if record and not plane else None
 
     def trace(env: Any, src: dict[str, Any], new: np.ndarray, done: np.ndarray) -> None:
         if path is not None:
@@ -80,7 +80,7 @@ def rollout(policy: Actor, targets: np.ndarray, config: EnvConfig | PlaneEnvConf
     out = {"targets_m": targets, "error_m": f["distance_m" if plane else "position_error_m"],
            "outcome": f["outcome"], "success": f["is_success"], "time_s": f["sim_time_s"],
            "firings": ep.firings}
-    if not plane and config.randomised:
+    if isinstance(config, EnvConfig) and config.randomised:
         out.update({k: f.get(k, np.full(len(targets), np.nan))
                     for k in ("friction_factor", "mass_factor")})
     if path is not None:
