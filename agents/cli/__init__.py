@@ -1,5 +1,6 @@
 """The agents' ``microconveyor`` commands, one module per family: ``reach``, ``optimize``,
-``compare``, ``train``/``evaluate``/``seeds``/``convert-stats`` (:mod:`.rl`), ``tune``/``train-seeds``
+``compare``, ``train``/``refine``/``convert-stats`` (:mod:`.rl`), ``evaluate``/``seeds``
+(:mod:`.evaluate`), ``tune``/``train-seeds``
 (:mod:`.tune`), ``demo`` (which replaces the env package's demo with one that also runs the
 shipped policy) and ``video`` (which replaces the env package's with one that also films a
 policy).

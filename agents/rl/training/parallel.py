@@ -273,12 +273,12 @@ def _seed_died(task: dict, err: WorkerDied) -> Died[dict, dict]:
 def train_seeds(out: str | Path, seeds: Sequence[int], settings: TrainSettings,
                 workers: int = 1, verbose: bool = False) -> dict:
     """Train one run per seed into ``out/seed-<seed>`` (``workers`` processes at a time), then
-    aggregate the finished runs (:func:`.seeds.aggregate`: IQM and bootstrap CI). A seed whose
+    aggregate the finished runs (:func:`..evaluation.seeds.aggregate`: IQM and bootstrap CI). A seed whose
     worker process dies is a failed row; the other seeds go on.
     ``settings`` are every run's (:class:`.settings.TrainSettings`; the seed is each run's own,
-    the progress bar off; ``resume`` continues a seed's checkpoints, if it has some). Returns ``runs`` (one row
-    per seed: status, steps, wall time, final evaluation or error) and ``aggregate`` (None if no
-    run finished)."""
+    the progress bar off; ``resume`` continues a seed's checkpoints, if it has some). Returns
+    ``runs`` (one row per seed: status, steps, wall time, final evaluation or error) and
+    ``aggregate`` (None if no run finished)."""
     from ..evaluation.seeds import aggregate
 
     seeds = [int(s) for s in seeds]
