@@ -25,6 +25,7 @@ def _evaluate_args(p: argparse.ArgumentParser) -> None:
 @command("evaluate", "evaluate a policy (PPO, SAC, TQC, TD3) on a fixed seeded set of targets, "
                      "in the scene it was trained in", _evaluate_args)
 def cmd_evaluate(args: argparse.Namespace) -> None:
+    from microconveyor_env.env_ids import DEFAULT_ENV_ID
     from microconveyor_env.envs.versions import scene_config
 
     from ..rl.artefacts.policy_files import FIRST_ENV_ID, policy_env_kwargs, read_policy_meta
@@ -33,7 +34,7 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
 
     if args.tolerance is not None and not 0 < args.tolerance < 1:
         raise ValueError(f"--tolerance {args.tolerance!r} must be in (0, 1) m")
-    path = args.policy or require_shipped(args.env or "MicroConveyor-v0")
+    path = args.policy or require_shipped(args.env or DEFAULT_ENV_ID)
     asked = None
     if args.env or args.env_kwargs:
         # the scene asked for: the policy's own kwargs updated by --env-kwargs, on --env (or
