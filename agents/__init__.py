@@ -1,7 +1,6 @@
-"""Agents for MicroConveyor-v0, built on top of :mod:`microconveyor_env` (which never imports
-this package): open-loop optimisation (:mod:`.search` DE and CMA-ES, :mod:`.open_loop` one plan
-per target, :mod:`.dissertation` the dissertation's shared-parameter problem, :mod:`.table43`),
-the open-loop reach study (:mod:`.reach`), PPO training (:mod:`.train`) and evaluation
-(:mod:`.evaluate`) with stable-baselines3, the shipped policy (:mod:`.policy`) and the
-``microconveyor`` commands ``reach``, ``optimize``, ``train``, ``evaluate`` and ``demo``
-(:mod:`.cli`, :mod:`.cli_optimize`)."""
+"""Agents that drive :mod:`microconveyor_env` (which never imports this package): open-loop
+planning (:mod:`.openloop`: DE and CMA-ES, per-target plans, the dissertation's problem, Table
+4.3), reinforcement learning (:mod:`.rl`: PPO, SAC and TQC training, tuning, policy files,
+evaluation, refinement), model-predictive control (:mod:`.mpc`), the experiments that compare them
+(:mod:`.experiments`), their charts (:mod:`.plots`) and their ``microconveyor`` commands
+(:mod:`.cli`)."""

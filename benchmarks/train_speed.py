@@ -22,6 +22,7 @@ from stable_baselines3 import PPO
 
 from agents.rl.training import hyperparams
 from agents.rl.training import train as T
+from agents.rl.training.settings import TrainSettings
 from agents.rl.training.algos import algo_class
 
 BudgetPPO = algo_class("ppo")
@@ -56,9 +57,10 @@ def one(steps: int, update_threads: int, env_id: str, activation: str = "recipe"
     try:
         with tempfile.TemporaryDirectory() as out:
             t0 = time.perf_counter()
-            meta = T.train(out, steps=steps, eval_targets=0, eval_freq=0, checkpoint_freq=10**12,
-                           progress_bar=False, tensorboard=False, env_id=env_id,
-                           overrides=_activation(env_id, activation))
+            meta = T.train(out, TrainSettings(
+                steps=steps, eval_targets=0, eval_freq=0, checkpoint_freq=10**12,
+                progress_bar=False, tensorboard=False, env_id=env_id,
+                overrides=_activation(env_id, activation)))
             wall = time.perf_counter() - t0
     finally:
         PPO.collect_rollouts, BudgetPPO.train = collect, update

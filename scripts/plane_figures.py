@@ -22,7 +22,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from agents.rl.evaluation.evaluate_plane import PLANE_TARGET_SEED, plane_targets  # noqa: E402
+from agents.rl.evaluation.evaluate import PLANE_TARGET_SEED, fixed_targets  # noqa: E402
 from agents.rl.artefacts.shipped import shipped_path  # noqa: E402
 from microconveyor_env.envs.plane.config import PlaneEnvConfig  # noqa: E402
 
@@ -62,7 +62,7 @@ def main() -> None:
     folder = shipped_path("ppo", "MicroConveyor2D-v0")
     meta = json.loads((folder / "metadata.json").read_text())
     rec = json.loads((folder / "episodes.json").read_text())["evaluation"]
-    targets = plane_targets(PlaneEnvConfig.from_yaml(), 100, PLANE_TARGET_SEED)
+    targets = fixed_targets(PlaneEnvConfig.from_yaml(), 100, PLANE_TARGET_SEED)
     if not np.array_equal(np.array(rec["target_m"]), targets):
         raise SystemExit("the shipped policy's record is not on the 100 fixed targets")
     if args.de:

@@ -1,11 +1,12 @@
-"""The RL commands: ``train``, ``refine``, ``evaluate``, ``seeds`` and ``convert-stats``."""
+"""The RL commands that write policies: ``train``, ``refine`` and ``convert-stats`` (evaluating
+them: :mod:`.evaluate`)."""
 from __future__ import annotations
 
 import argparse
 import sys
 from typing import Any
 
-from microconveyor_env.cli.base import command, count, emit, plot_path
+from microconveyor_env.cli.base import command, count, emit
 
 from .args import add_env_args, env_kwargs_of, minutes
 
@@ -62,7 +63,7 @@ def _check_refinable(args: argparse.Namespace) -> None:
 
     from microconveyor_env.envs import env_config
 
-    from ..rl.artefacts.checkpoint import check_new_folder
+    from ..rl.artefacts.folders import check_new_folder
 
     if args.algo != "ppo" or args.env not in ("MicroConveyor-v0", "MicroConveyor-v1"):
         raise ValueError("--refine refines a PPO policy of MicroConveyor-v0 or -v1; got "
@@ -80,7 +81,8 @@ def _refine_folder(policy: str, out: Any, settings: Any, eval_targets: int) -> d
     import torch
 
     from ..rl.evaluation.evaluate import evaluate, load_policy
-    from ..rl.refinement.refine import refine, write_refined
+    from ..rl.refinement.refine import refine
+    from ..rl.refinement.writer import write_refined
 
     pol = load_policy(policy)
     threads = torch.get_num_threads()
@@ -106,9 +108,11 @@ def _kwargs_text(kwargs: dict[str, Any] | None) -> str:
     return ", ".join(f"{k}={v}" for k, v in (kwargs or {}).items())
 
 
-@command("train", "train PPO, SAC or TQC on the conveyor (checkpoints, evaluations, resume)",
+@command("train", "train PPO, SAC or TQC on any registered env (checkpoints, evaluations, "
+                  "resume)",
          _train_args)
 def cmd_train(args: argparse.Namespace) -> None:
+    from ..rl.training.settings import TrainSettings
     from ..rl.training.train import train
 
     def log(line: str) -> None:
@@ -123,12 +127,14 @@ def cmd_train(args: argparse.Namespace) -> None:
     if args.refine:
         _check_refinable(args)
     args.out = args.out or f"runs/{args.algo}"
-    meta = train(args.out, algo=args.algo, steps=args.steps, seed=args.seed, conf_file=args.conf_file,
-                 resume=args.resume, checkpoint_freq=args.checkpoint_freq,
-                 eval_freq=args.eval_freq, eval_targets=args.eval_targets,
-                 progress_bar=not args.no_progress, max_minutes=args.max_minutes,
-                 allow_config_change=args.allow_config_change, log=log, env_id=args.env,
-                 env_kwargs=env_kwargs_of(args), fork_seed=args.fork_seed)
+    settings = TrainSettings(
+        algo=args.algo, env_id=args.env, env_kwargs=env_kwargs_of(args), steps=args.steps,
+        seed=args.seed, conf_file=args.conf_file, resume=args.resume,
+        checkpoint_freq=args.checkpoint_freq, eval_freq=args.eval_freq,
+        eval_targets=args.eval_targets, progress_bar=not args.no_progress,
+        max_minutes=args.max_minutes, allow_config_change=args.allow_config_change,
+        fork_seed=args.fork_seed)
+    meta = train(args.out, settings, log=log)
     meta["out"] = args.out
     ev = meta["evaluation"]
     kwargs = _kwargs_text(meta.get("env_kwargs"))
@@ -139,7 +145,7 @@ def cmd_train(args: argparse.Namespace) -> None:
     if args.refine:
         from pathlib import Path
 
-        from ..rl.refinement.refine import RefineSettings
+        from ..rl.refinement.settings import RefineSettings
 
         res = _refine_folder(args.out, Path(args.out) / "refined", RefineSettings(),
                              args.eval_targets)
@@ -175,8 +181,8 @@ def _refine_args(p: argparse.ArgumentParser) -> None:
 def cmd_refine(args: argparse.Namespace) -> None:
     from pathlib import Path
 
-    from ..rl.artefacts.checkpoint import check_new_folder
-    from ..rl.refinement.refine import RefineSettings
+    from ..rl.artefacts.folders import check_new_folder
+    from ..rl.refinement.settings import RefineSettings
 
     out = Path(args.out)
     check_new_folder(out)   # before the refinement's minutes, not after them
@@ -211,131 +217,3 @@ def cmd_convert_stats(args: argparse.Namespace) -> None:
     stats = convert_pickle(src, out)
     emit(args, {"normalization_json": str(out), "obs_dim": len(stats["obs_rms"]["mean"])},
          f"wrote {out} (observation statistics of dimension {len(stats['obs_rms']['mean'])})")
-
-
-def _evaluate_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--policy", default=None, help="policy folder or model zip (default: shipped)")
-    p.add_argument("--targets", type=count(1, 100000), default=100, help="number of targets")
-    p.add_argument("--seed", type=int, default=0, help="seed of the fixed target set")
-    p.add_argument("--tolerance", type=float, default=None,
-                   help="success tolerance [m] (default: the env's, 50 um)")
-    from ..rl.artefacts.policy_files import PLANE_ENV_IDS
-
-    add_env_args(p, default=None, default_text="the policy's own, from its metadata",
-                 what=": refused if it differs from the scene the policy was trained in "
-                      "(randomisation aside); MicroConveyor2D-v0: the plane, targets on the "
-                      "grid's box, Euclidean errors", extra_ids=PLANE_ENV_IDS)
-
-
-@command("evaluate", "evaluate a policy (PPO, SAC, TQC, TD3) on a fixed seeded set of targets, "
-                     "in the scene it was trained in", _evaluate_args)
-def cmd_evaluate(args: argparse.Namespace) -> None:
-    from microconveyor_env.env_ids import DEFAULT_ENV_ID
-
-    from ..rl.evaluation.evaluate import evaluate, load_policy
-    from ..rl.artefacts.shipped import require_shipped
-
-    if args.tolerance is not None and not 0 < args.tolerance < 1:
-        raise ValueError(f"--tolerance {args.tolerance!r} must be in (0, 1) m")
-    path = args.policy or require_shipped(args.env or DEFAULT_ENV_ID)
-    if _plane_evaluation(args, path):
-        return
-    asked = None
-    if args.env or args.env_kwargs:
-        from microconveyor_env.envs import env_config
-
-        from ..rl.artefacts.policy_files import FIRST_ENV_ID, policy_env_kwargs, read_policy_meta
-
-        # the scene asked for: the policy's own kwargs updated by --env-kwargs, on --env (or
-        # the policy's env id); load_policy refuses it if it is another scene
-        meta = read_policy_meta(path)
-        asked = env_config(args.env or meta.get("env_id", FIRST_ENV_ID),
-                           **{**policy_env_kwargs(meta), **env_kwargs_of(args)})
-    pol = load_policy(path, asked)
-    res = evaluate(pol, args.targets, args.seed, args.tolerance, config=asked)
-    from ..rl.artefacts.policy_files import policy_env_kwargs
-
-    res.update(policy=str(pol.path), env_id=pol.env_id,
-               env_kwargs=policy_env_kwargs(pol.metadata))
-    emit(args, res)
-
-
-def _plane_evaluation(args: argparse.Namespace, path: Any) -> bool:
-    """``evaluate`` of a MicroConveyor2D-v0 policy (``--env`` or the policy's metadata say so):
-    targets uniform on the grid's box drawn with ``--seed``, success at rest within the
-    tolerance (Euclidean). False: not a plane policy."""
-    from microconveyor_env.envs.plane.config import PlaneEnvConfig
-
-    from ..rl.evaluation.evaluate_plane import (
-        plane_evaluation,
-        plane_rollout,
-        plane_summary,
-        plane_targets,
-    )
-    from ..rl.artefacts.policy_files import (
-        PLANE_ENV_IDS,
-        load_policy,
-        policy_env_kwargs,
-        read_policy_meta,
-    )
-
-    meta = read_policy_meta(path)
-    env_id = args.env or meta.get("env_id")
-    if env_id not in PLANE_ENV_IDS and meta.get("env_id") not in PLANE_ENV_IDS:
-        return False
-    if env_id not in PLANE_ENV_IDS:
-        raise ValueError(f"{str(path)!r} is a policy of {meta.get('env_id')} (the plane); --env "
-                         f"{env_id} is another env. Evaluating a policy on another scene is "
-                         "refused; give the policy's own --env (or none)")
-    asked = None
-    if args.env or args.env_kwargs:   # load_policy refuses another scene (or a 1-D policy)
-        asked = PlaneEnvConfig.from_yaml(**{**policy_env_kwargs(meta), **env_kwargs_of(args)})
-    pol = load_policy(path, asked)
-    cfg = asked or pol.config
-    if not isinstance(cfg, PlaneEnvConfig):
-        raise ValueError(f"{str(path)!r} is not a MicroConveyor2D-v0 policy (its metadata says "
-                         f"{meta.get('env_id')!r})")
-    res = plane_rollout(pol, plane_targets(cfg, args.targets, args.seed), cfg)
-    out = plane_evaluation(plane_summary(res, cfg.tolerance if args.tolerance is None
-                                         else args.tolerance))
-    out.update(seed=args.seed, target_box_m=[list(b) for b in cfg.grid_box], policy=str(pol.path),
-               env_id=pol.env_id, env_kwargs=policy_env_kwargs(pol.metadata))
-    emit(args, out, f"{pol.env_id}: {out['n_targets']} targets, success within "
-                    f"{out['tolerance_m'] * 1e6:.0f} µm (at rest, Euclidean) "
-                    f"{out['success_rate']:.1%}, median error {out['median_abs_error_m'] * 1e6:.1f} µm, "
-                    f"detached {out['detach_rate']:.1%}")
-    return True
-
-
-def _seeds_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("runs", nargs="+", help="run folders of `microconveyor train`")
-    p.add_argument("--plot", type=plot_path, default=None, help="write the learning curves here")
-
-
-@command("seeds", "aggregate training runs over seeds: IQM and bootstrap CI of the final "
-                  "evaluations, learning curves", _seeds_args)
-def cmd_seeds(args: argparse.Namespace) -> None:
-    from ..plots.seeds import plot_curves
-    from ..rl.evaluation.seeds import aggregate, curves
-
-    res = aggregate(args.runs)
-    res["curves"] = curves(args.runs)
-    if args.plot:
-        res["plot"] = plot_curves(res["curves"], args.plot)
-    emit(args, res, "\n".join(iqm_lines(res, per_seed=True)))
-
-
-def iqm_lines(agg: dict[str, Any], per_seed: bool) -> list[str]:
-    """One line per aggregated figure of :func:`agents.rl.evaluation.seeds.aggregate` (IQM, 95 % CI and,
-    with ``per_seed``, each run's value), in the units people read (%, µm)."""
-    from microconveyor_env.cli.human import format_value
-
-    def show(key: str, x: float) -> str:
-        return format_value(key, x)[1]
-
-    return [f"{format_value(k, 0.0)[0]}: IQM {show(k, v['iqm'])}, 95 % CI [{show(k, v['ci95'][0])}, "
-            f"{show(k, v['ci95'][1])}]"
-            + (f", per seed {', '.join(show(k, x) for x in v['per_seed'])}" if per_seed else "")
-            for k, v in agg.items() if isinstance(v, dict) and "iqm" in v]
-
-

@@ -7,7 +7,7 @@ import argparse
 from microconveyor_env.cli.base import command, count, emit, plot_path
 
 from .args import add_env_args, env_kwarg, env_kwargs_of, minutes
-from .rl import iqm_lines
+from .evaluate import iqm_lines
 
 
 def _budget_args(p: argparse.ArgumentParser, steps_help: str) -> None:
@@ -19,13 +19,13 @@ def _budget_args(p: argparse.ArgumentParser, steps_help: str) -> None:
     p.add_argument("--eval-freq", type=count(0), default=250_000,
                    help="steps between periodic evaluations (0: none)")
     p.add_argument("--eval-targets", type=count(1), default=100, help="targets per evaluation")
-    add_env_args(p, default="MicroConveyor-v1",
+    add_env_args(p, default="MicroConveyor-v1", goal=True,
                  what=" to train on (its entry in the conf file gives the base hyperparameters)")
     p.add_argument("--steps", type=count(1), default=None, help=steps_help)
 
 
 def _tune_args(p: argparse.ArgumentParser) -> None:
-    from ..rl.tuning.tune import DEFAULT_STUDY
+    from ..rl.tuning.settings import DEFAULT_STUDY
     from ..rl.tuning.space import SPACE
 
     p.add_argument("--trials", type=count(1), default=20,
@@ -63,16 +63,17 @@ def _tune_args(p: argparse.ArgumentParser) -> None:
                  "share one study in a database; writes the best as an rl-zoo3 config entry",
          _tune_args)
 def cmd_tune(args: argparse.Namespace) -> None:
+    from ..rl.tuning.settings import TuneSettings
     from ..rl.tuning.tune import tune
 
-    fixed = dict(args.fix or [])
-    res = tune(args.out, n_trials=args.trials, workers=args.workers, storage=args.storage,
-               study_name=args.study, env_id=args.env, env_kwargs=env_kwargs_of(args) or None,
-               conf_file=args.conf_file, trial_steps=args.steps or 1_000_000,
-               trial_minutes=args.trial_minutes, eval_freq=args.eval_freq,
-               eval_targets=args.eval_targets, seed=args.seed, fixed=fixed,
-               prune=not args.no_prune, sampler_seed=args.sampler_seed, best_file=args.best,
-               verbose=not args.quiet, heartbeat_s=args.heartbeat)
+    res = tune(TuneSettings(
+        out=args.out, n_trials=args.trials, workers=args.workers, storage=args.storage,
+        study_name=args.study, env_id=args.env, env_kwargs=env_kwargs_of(args) or None,
+        conf_file=args.conf_file, trial_steps=args.steps or 1_000_000,
+        trial_minutes=args.trial_minutes, eval_freq=args.eval_freq,
+        eval_targets=args.eval_targets, seed=args.seed, fixed=dict(args.fix or []),
+        prune=not args.no_prune, sampler_seed=args.sampler_seed, best_file=args.best,
+        verbose=not args.quiet, heartbeat_s=args.heartbeat))
     emit(args, res, tune_text(res))
     failed = res["failed"]
     if failed or res["died"]:
@@ -138,13 +139,15 @@ def _seeds_args(p: argparse.ArgumentParser) -> None:
                         "them (IQM and bootstrap CI, as `seeds`)", _seeds_args)
 def cmd_train_seeds(args: argparse.Namespace) -> None:
     from ..rl.training.parallel import train_seeds
+    from ..rl.training.settings import TrainSettings
 
-    res = train_seeds(args.out, args.seeds, workers=args.workers, verbose=not args.quiet,
-                      algo=args.algo, steps=args.steps, conf_file=args.conf_file,
-                      env_id=args.env, env_kwargs=env_kwargs_of(args) or None,
-                      max_minutes=args.max_minutes, checkpoint_freq=args.checkpoint_freq,
-                      eval_freq=args.eval_freq, eval_targets=args.eval_targets,
-                      resume=args.resume)
+    settings = TrainSettings(algo=args.algo, steps=args.steps, conf_file=args.conf_file,
+                             env_id=args.env, env_kwargs=env_kwargs_of(args) or None,
+                             max_minutes=args.max_minutes, checkpoint_freq=args.checkpoint_freq,
+                             eval_freq=args.eval_freq, eval_targets=args.eval_targets,
+                             resume=args.resume)
+    res = train_seeds(args.out, args.seeds, settings, workers=args.workers,
+                      verbose=not args.quiet)
     lines = [f"seed {r['seed']}: {r['status']}" + (f" ({r['error']})" if "error" in r else
                                                   f", {r['steps']} steps, {r['wall_time_s']:.0f} s")
              for r in res["runs"]]

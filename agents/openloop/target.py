@@ -22,6 +22,7 @@ import numpy as np
 
 from microconveyor_env.envs import EnvConfig, MicroConveyorVectorEnv, PartState
 from microconveyor_env.envs.core.actions import constants as action_constants, decode
+from microconveyor_env.envs.core.episodes import PlanActor, run_episodes
 
 from .search import SearchResult, minimize
 
@@ -88,26 +89,16 @@ class Rollouts:
                 raise ValueError(f"{len(seeds)} seeds for {b} plans")
         else:
             seeds = [int(seed)] * b if same_episode else [int(seed) + i for i in range(b)]
-        env.reset(seed=seeds,
-                  options={"target": target} if start is None else {"state": start})
-        targets = env.target.copy()
-        done = np.zeros(b, bool)
-        err, t = np.full(b, np.nan), np.full(b, np.nan)
-        outcome = np.full(b, "moving", dtype=object)
-        succ = np.zeros(b, bool)
-        for k in range(n):
-            _, _, term, trunc, info = env.step(plans[:, k, :].astype(np.float32))
-            src = info.get("final_info", info)
-            new = (term | trunc) & ~done
-            err[new] = src["position_error_m"][new]
-            outcome[new] = src["outcome"][new]
-            succ[new] = src["is_success"][new]
-            t[new] = src["sim_time_s"][new]
-            done |= term | trunc
-            if done.all():
-                break
+        if start is None:
+            targets = np.broadcast_to(np.asarray(target, float), (b,)).copy()
+        else:
+            targets = np.full(b, float(start.target_m))
+        ep = run_episodes(env, PlanActor(plans), seeds,
+                          {"target": target} if start is None else {"state": start}, max_steps=n)
         self.episodes += b
-        return Replay(targets, err, outcome, succ, t)
+        f = ep.final
+        outcome = np.where(ep.ended, f["outcome"], "moving").astype(object)
+        return Replay(targets, f["position_error_m"], outcome, f["is_success"], f["sim_time_s"])
 
 
 def replay(plan: np.ndarray, target_m: float, config: EnvConfig | None = None,

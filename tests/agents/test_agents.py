@@ -12,6 +12,7 @@ pytest.importorskip("stable_baselines3")
 from agents.rl.training import hyperparams  # noqa: E402
 from agents.rl.evaluation.evaluate import PolicyError, evaluate, load_policy  # noqa: E402
 from agents.experiments.reach import reach_study, widest_robust_range  # noqa: E402
+from agents.rl.training.settings import TrainSettings  # noqa: E402
 from agents.rl.training.train import train  # noqa: E402
 
 SMALL = {"n_envs": 16, "n_steps": 32, "batch_size": 256, "n_epochs": 1}
@@ -36,8 +37,9 @@ def test_ppo_trains_saves_loads_and_resumes(tmp_path):
     from agents.rl.artefacts.checkpoint import generations
 
     lines = []
-    meta = train(tmp_path, steps=1024, seed=1, overrides=SMALL, checkpoint_freq=512,
-                 eval_freq=512, eval_targets=8, progress_bar=False, log=lines.append)
+    meta = train(tmp_path, TrainSettings(steps=1024, seed=1, overrides=SMALL, checkpoint_freq=512,
+                                         eval_freq=512, eval_targets=8, progress_bar=False),
+                                         log=lines.append)
     assert meta["steps"] >= 1024 and meta["wall_time_s"] > 0
     gens = generations(tmp_path)
     assert 1 <= len(gens) <= 2 and gens[0].name == f"gen-{meta['steps']:012d}"
@@ -51,9 +53,9 @@ def test_ppo_trains_saves_loads_and_resumes(tmp_path):
     assert any(x.startswith("eval: step") for x in lines)           # one line per evaluation
     assert any(x.startswith("checkpoint: step") for x in lines)     # and per checkpoint
     ckpt = json.loads((gens[0] / "metadata.json").read_text())["steps"]
-    resumed = train(tmp_path, steps=2048, seed=1, overrides=SMALL, resume=True,
-                    checkpoint_freq=512, eval_freq=0, eval_targets=8, progress_bar=False,
-                    log=lines.append)
+    resumed = train(tmp_path, TrainSettings(steps=2048, seed=1, overrides=SMALL, resume=True,
+                                            checkpoint_freq=512, eval_freq=0, eval_targets=8,
+                                            progress_bar=False), log=lines.append)
     assert any(x.startswith(f"resume: from step {ckpt}") for x in lines)
     assert resumed["steps"] >= 2048 and resumed["steps"] - ckpt <= 2048 - ckpt + 512
     assert resumed["wall_time_s"] > meta["wall_time_s"]  # wall time carried over
@@ -190,3 +192,19 @@ def test_seeds_refuses_runs_of_different_configs(tmp_path):
     (runs[2] / "metadata.json").write_text(json.dumps(meta))
     with pytest.raises(ValueError, match="differs from .* in env_kwargs, hyperparams.gamma"):
         aggregate(runs)
+
+
+def test_iqm_interval_over_seeds():
+    import math
+
+    from agents.rl.evaluation.seeds import iqm, iqm_interval
+
+    vals = [0.6, 0.7, 0.8, 0.9, 0.95]
+    out = iqm_interval(vals, seed=3)
+    assert out["per_seed"] == vals and out["iqm"] == iqm(vals)
+    lo, hi = out["ci95"]
+    assert 0.6 <= lo < out["iqm"] < hi <= 0.95
+    assert iqm_interval(vals, seed=3) == out                        # seeded: the same interval
+    assert iqm_interval([0.5, 0.5, 0.5])["ci95"] == [0.5, 0.5]      # equal scores: no spread
+    assert iqm_interval([0.7])["ci95"] == [0.7, 0.7]
+    assert all(math.isnan(x) for x in iqm_interval([])["ci95"])

@@ -14,11 +14,13 @@ TINY = {"n_envs": 2, "learning_starts": 50, "batch_size": 32, "buffer_size": 500
 
 
 def _train(out, algo, env_id, steps, **kw):
+    from agents.rl.training.settings import TrainSettings
     from agents.rl.training.train import train
 
-    return train(out, steps=steps, seed=0, algo=algo, env_id=env_id, overrides=TINY,
-                 checkpoint_freq=100, eval_freq=0, eval_targets=5, progress_bar=False,
-                 tensorboard=False, **kw)
+    log = kw.pop("log", None)
+    return train(out, TrainSettings(steps=steps, seed=0, algo=algo, env_id=env_id, overrides=TINY,
+                                    checkpoint_freq=100, eval_freq=0, eval_targets=5,
+                                    progress_bar=False, tensorboard=False, **kw), log=log)
 
 
 @pytest.mark.parametrize("algo,env_id", [("sac", "MicroConveyorGoal-v1"),
@@ -110,12 +112,15 @@ def test_goal_env_with_normalised_observations_is_refused_before_training(tmp_pa
     statistics file); now it is refused before a step is taken."""
     import time
 
+    from agents.rl.training.settings import TrainSettings
+
     from agents.rl.training.train import train
 
     t0 = time.perf_counter()
     with pytest.raises(ValueError, match="normalize: MicroConveyorGoal-v1 has Dict observations"):
-        train(tmp_path / "run", steps=2048, env_id="MicroConveyorGoal-v1", algo="sac",
-              overrides={"normalize": True, "learning_starts": 100}, eval_freq=0,
-              eval_targets=0, checkpoint_freq=1024, progress_bar=False, tensorboard=False)
+        train(tmp_path / "run", TrainSettings(steps=2048, env_id="MicroConveyorGoal-v1", algo="sac",
+                                              overrides={"normalize": True, "learning_starts": 100},
+                                              eval_freq=0, eval_targets=0, checkpoint_freq=1024,
+                                              progress_bar=False, tensorboard=False))
     assert time.perf_counter() - t0 < 30
     assert not (tmp_path / "run" / "checkpoints").exists()

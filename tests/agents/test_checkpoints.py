@@ -82,27 +82,30 @@ def test_one_training_per_folder_and_the_lock_dies_with_its_owner(tmp_path):
 
 # ------------------------------------------------------------------------ resume refusals
 def test_resume_refuses_what_it_cannot_honour(tmp_path):
+    from agents.rl.training.settings import TrainSettings
     from agents.rl.training.train import train
 
     kw = dict(steps=512, seed=0, overrides=SMALL, checkpoint_freq=512, eval_freq=0,
               eval_targets=0, progress_bar=False, tensorboard=False)
     with pytest.raises(CheckpointError, match="nothing to resume .* no checkpoint in it"):
-        train(tmp_path / "empty", resume=True, **kw)
-    train(tmp_path / "a", **kw)
+        train(tmp_path / "empty", TrainSettings(resume=True, **kw))
+    train(tmp_path / "a", TrainSettings(**kw))
     with pytest.raises(CheckpointError, match="already holds a training .*--resume"):
-        train(tmp_path / "a", **kw)
+        train(tmp_path / "a", TrainSettings(**kw))
     with pytest.raises(CheckpointError, match="another config .*gamma.*--allow-config-change"):
-        train(tmp_path / "a", resume=True, **{**kw, "overrides": {**SMALL, "gamma": 0.9}})
-    meta = train(tmp_path / "a", resume=True, allow_config_change=True,
-                 **{**kw, "steps": 1024, "overrides": {**SMALL, "gamma": 0.9}})
+        train(tmp_path / "a", TrainSettings(resume=True, **{**kw, "overrides": {**SMALL,
+                                            "gamma": 0.9}}))
+    meta = train(tmp_path / "a", TrainSettings(resume=True, allow_config_change=True, **{**kw,
+                                               "steps": 1024, "overrides": {**SMALL,
+                                               "gamma": 0.9}}))
     assert meta["config_changes"][0]["at_steps"] == 512 and meta["hyperparams"]["gamma"] == 0.9
     for gen in ck.generations(tmp_path / "a"):            # only damaged checkpoints left
         (gen / "normalization.json").write_text("{")
     with pytest.raises(CheckpointError, match="none of its 2 checkpoint.s. is complete"):
-        train(tmp_path / "a", resume=True, allow_config_change=True, **kw)
+        train(tmp_path / "a", TrainSettings(resume=True, allow_config_change=True, **kw))
     (tmp_path / "old" / "checkpoint").mkdir(parents=True)     # an earlier version's layout
     with pytest.raises(CheckpointError, match="earlier version .*cannot be resumed safely"):
-        train(tmp_path / "old", resume=True, **kw)
+        train(tmp_path / "old", TrainSettings(resume=True, **kw))
 
 
 def test_resume_continues_the_whole_runs_budgets_and_schedule(tmp_path, monkeypatch):
@@ -110,16 +113,17 @@ def test_resume_continues_the_whole_runs_budgets_and_schedule(tmp_path, monkeypa
     picks the schedule up where it stopped (no sawtooth), and one with nothing left is refused
     with a message, not stopped after one rollout."""
     from agents.rl.training.algos import algo_class
+    from agents.rl.training.settings import TrainSettings
     from agents.rl.training.train import train
     BudgetPPO = algo_class("ppo")
 
     kw = dict(seed=0, overrides=SMALL, checkpoint_freq=512, eval_freq=0, eval_targets=0,
               progress_bar=False, tensorboard=False)
-    train(tmp_path / "a", steps=512, **kw)
+    train(tmp_path / "a", TrainSettings(steps=512, **kw))
     with pytest.raises(ValueError, match="already has 512 of its 512 steps"):
-        train(tmp_path / "a", steps=512, resume=True, **kw)
+        train(tmp_path / "a", TrainSettings(steps=512, resume=True, **kw))
     with pytest.raises(ValueError, match="already used .* of its --max-minutes 1e-05"):
-        train(tmp_path / "a", steps=4096, max_minutes=1e-5, resume=True, **kw)
+        train(tmp_path / "a", TrainSettings(steps=4096, max_minutes=1e-5, resume=True, **kw))
     seen = []
     orig = BudgetPPO._update_current_progress_remaining
 
@@ -129,7 +133,7 @@ def test_resume_continues_the_whole_runs_budgets_and_schedule(tmp_path, monkeypa
 
     monkeypatch.setattr(BudgetPPO, "_update_current_progress_remaining", record)
     lines = []
-    meta = train(tmp_path / "a", steps=2048, resume=True, log=lines.append, **kw)
+    meta = train(tmp_path / "a", TrainSettings(steps=2048, resume=True, **kw), log=lines.append)
     assert meta["steps"] >= 2048
     # SB3 updates the progress after each 512-step rollout: the first resumed one ends at step
     # 1024 of 2048 (0.5 remaining); a schedule restarted from the resumed step would say 0.75
@@ -143,19 +147,21 @@ def test_resume_continues_the_runs_own_seed_and_records_it(tmp_path):
     being recorded while the run goes on under its own."""
     import zipfile
 
+    from agents.rl.training.settings import TrainSettings
+
     from agents.rl.training.train import train
 
     kw = dict(overrides=SMALL, checkpoint_freq=512, eval_freq=0, eval_targets=0,
               progress_bar=False, tensorboard=False)
-    train(tmp_path / "a", steps=512, seed=3, **kw)
+    train(tmp_path / "a", TrainSettings(steps=512, seed=3, **kw))
     shutil.copytree(tmp_path / "a", tmp_path / "b")
     with pytest.raises(ValueError, match="seed 9: this run trains with seed 3"):
-        train(tmp_path / "a", steps=2048, seed=9, resume=True, **kw)
+        train(tmp_path / "a", TrainSettings(steps=2048, seed=9, resume=True, **kw))
     lines: list[str] = []
     # 2,048 steps: the last update of a run has a learning rate of 0, so a resume for one
     # rollout would leave any weights as they were
-    meta_a = train(tmp_path / "a", steps=2048, resume=True, log=lines.append, **kw)
-    meta_b = train(tmp_path / "b", steps=2048, seed=3, resume=True, **kw)
+    meta_a = train(tmp_path / "a", TrainSettings(steps=2048, resume=True, **kw), log=lines.append)
+    meta_b = train(tmp_path / "b", TrainSettings(steps=2048, seed=3, resume=True, **kw))
     assert meta_a["seed"] == meta_b["seed"] == 3
     assert any("seed 3" in line for line in lines if line.startswith("resume: from step"))
 
@@ -163,7 +169,8 @@ def test_resume_continues_the_runs_own_seed_and_records_it(tmp_path):
         with zipfile.ZipFile(run / "model.zip") as z:
             return z.read("policy.pth")
     assert weights(tmp_path / "a") == weights(tmp_path / "b")
-    assert train(tmp_path / "c", steps=512, **kw)["seed"] == 0       # a new run: seed 0
+    assert train(tmp_path / "c", TrainSettings(steps=512,
+                                               **kw))["seed"] == 0       # a new run: seed 0
 
 
 def test_a_fork_continues_a_checkpoint_under_another_seed(tmp_path):
@@ -172,23 +179,25 @@ def test_a_fork_continues_a_checkpoint_under_another_seed(tmp_path):
     resume continues the fork's seed."""
     import zipfile
 
+    from agents.rl.training.settings import TrainSettings
+
     from agents.rl.training.train import train
 
     kw = dict(overrides=SMALL, checkpoint_freq=512, eval_freq=0, eval_targets=0,
               progress_bar=False, tensorboard=False)
     with pytest.raises(ValueError, match="needs resume"):
-        train(tmp_path / "x", steps=512, fork_seed=5, **kw)
-    train(tmp_path / "a", steps=512, seed=3, **kw)
+        train(tmp_path / "x", TrainSettings(steps=512, fork_seed=5, **kw))
+    train(tmp_path / "a", TrainSettings(steps=512, seed=3, **kw))
     for name in ("f5", "f5b", "f6"):
         shutil.copytree(tmp_path / "a", tmp_path / name)
     # 2,048 steps: two updates with a learning rate above 0 (the run's last one has 0)
     lines: list[str] = []
-    metas = {name: train(tmp_path / name, steps=2048, resume=True, fork_seed=fs,
-                         log=lines.append, **kw)
+    metas = {name: train(tmp_path / name, TrainSettings(steps=2048, resume=True, fork_seed=fs, **kw),
+                                                        log=lines.append)
              for name, fs in (("f5", 5), ("f5b", 5), ("f6", 6))}
     said = [x for x in lines if x.startswith("resume: from step 512")]
     assert len(said) == 3 and "forked to seed 6 from seed 3" in said[-1]
-    plain = train(tmp_path / "a", steps=2048, resume=True, **kw)
+    plain = train(tmp_path / "a", TrainSettings(steps=2048, resume=True, **kw))
 
     def weights(run):
         with zipfile.ZipFile(run / "model.zip") as z:
@@ -197,7 +206,7 @@ def test_a_fork_continues_a_checkpoint_under_another_seed(tmp_path):
     assert len({weights(tmp_path / n) for n in ("f5", "f6", "a")}) == 3
     assert metas["f5"]["seed"] == 5 and plain["seed"] == 3 and "forks" not in plain
     assert metas["f6"]["forks"] == [{"at_steps": 512, "from_seed": 3, "seed": 6}]
-    again = train(tmp_path / "f6", steps=2560, resume=True, **kw)
+    again = train(tmp_path / "f6", TrainSettings(steps=2560, resume=True, **kw))
     assert again["seed"] == 6 and again["forks"] == metas["f6"]["forks"]
 
 
@@ -205,10 +214,11 @@ def test_a_fork_continues_a_checkpoint_under_another_seed(tmp_path):
                                  {"max_minutes": 0}, {"steps": 0}, {"steps": 1.5},
                                  {"checkpoint_freq": 0}, {"eval_freq": -1}])
 def test_invalid_budgets_are_refused(tmp_path, bad):
+    from agents.rl.training.settings import TrainSettings
     from agents.rl.training.train import train
 
     with pytest.raises(ValueError, match=next(iter(bad))):
-        train(tmp_path, **{"steps": 512, "progress_bar": False, **bad})
+        train(tmp_path, TrainSettings(**{"steps": 512, "progress_bar": False, **bad}))
     assert not tmp_path.joinpath("checkpoints").exists()
 
 

@@ -234,16 +234,16 @@ def test_policy_with_observation_history_loads_and_evaluates(tmp_path):
 
     from agents.experiments.perturb import Level, perturbation_table, policy_rollout
     from agents.rl.evaluation.evaluate import evaluate
+    from agents.rl.training.settings import TrainSettings
     from agents.rl.training.train import train
     from microconveyor_env.envs import env_config
 
     folder = tmp_path / "hist"
     kw = {"observe_history": 2, "action_noise": 0.003, "num_threads": 1}
-    train(folder, steps=512, seed=0, env_id="MicroConveyor-v1", env_kwargs=kw,
-          overrides={"n_envs": 16, "n_steps": 32, "batch_size": 256, "n_epochs": 1,
-                     "policy_kwargs": {"net_arch": {"pi": [16], "vf": [16]}}},
-          checkpoint_freq=512, eval_freq=0, eval_targets=0, progress_bar=False,
-          tensorboard=False)
+    train(folder, TrainSettings(steps=512, seed=0, env_id="MicroConveyor-v1", env_kwargs=kw,
+                                overrides={"n_envs": 16, "n_steps": 32, "batch_size": 256,
+                                "n_epochs": 1,
+                     "policy_kwargs": {"net_arch": {"pi": [16], "vf": [16]}}}, checkpoint_freq=512, eval_freq=0, eval_targets=0, progress_bar=False, tensorboard=False))
     pol = load_policy(folder)
     assert pol.config.observe_history == 2 and pol.config.action_noise == 0.0  # nominal
     assert pol.actor.obs_dim == 26

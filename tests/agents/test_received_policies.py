@@ -203,7 +203,7 @@ def test_names_that_leave_the_folder_are_refused(tmp_path):
 
 
 def test_refine_reads_no_file_through_a_link(tmp_path):
-    from agents.rl.refinement.refine import write_refined
+    from agents.rl.refinement.writer import write_refined
 
     folder = tmp_path / "p"
     shutil.copytree(shipped_path("ppo", "MicroConveyor-v1"), folder)
@@ -260,7 +260,7 @@ def test_refine_out_is_checked_before_the_refinement(tmp_path):
 
 def test_a_killed_refine_leaves_no_staging_folder_for_long(tmp_path):
     """A staging folder of a writer that died is removed by the next write into that place."""
-    from agents.rl.refinement.refine import write_refined
+    from agents.rl.refinement.writer import write_refined
 
     dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
                           capture_output=True, text=True).stdout.strip()

@@ -150,14 +150,15 @@ def test_target_mixture_must_be_the_innermost_wrapper():
 
 
 def _tiny_ppo(out, steps, **overrides):
+    from agents.rl.training.settings import TrainSettings
     from agents.rl.training.train import train
 
     tiny = {"n_envs": 8, "n_steps": 16, "batch_size": 64, "n_epochs": 2,
             "policy_kwargs": {"net_arch": {"pi": [16], "vf": [16]}, "log_std_init": -3.0},
             **overrides}
-    return train(out, steps=steps, seed=0, env_id="MicroConveyor-v1", overrides=tiny,
-                 checkpoint_freq=10**6, eval_freq=0, eval_targets=0, progress_bar=False,
-                 tensorboard=False)
+    return train(out, TrainSettings(steps=steps, seed=0, env_id="MicroConveyor-v1", overrides=tiny,
+                                    checkpoint_freq=10**6, eval_freq=0, eval_targets=0,
+                                    progress_bar=False, tensorboard=False))
 
 
 def test_obs_stats_freeze_needs_normalised_observations(tmp_path):
@@ -206,14 +207,14 @@ def test_raw_observations_train_save_resume_and_load(tmp_path):
     assert stats["norm_obs"] is False and stats["obs_rms"]["var"] == [1.0] * 6
     pol = load_policy(tmp_path)
     assert pol.normalizer is None
+    from agents.rl.training.settings import TrainSettings
     from agents.rl.training.train import train
 
-    meta = train(tmp_path, steps=512, seed=0, env_id="MicroConveyor-v1", resume=True,
-                 overrides={"n_envs": 8, "n_steps": 16, "batch_size": 64, "n_epochs": 2,
+    meta = train(tmp_path, TrainSettings(steps=512, seed=0, env_id="MicroConveyor-v1", resume=True,
+                                         overrides={"n_envs": 8, "n_steps": 16, "batch_size": 64,
+                                         "n_epochs": 2,
                             "policy_kwargs": {"net_arch": {"pi": [16], "vf": [16]},
-                                              "log_std_init": -3.0}, **raw},
-                 checkpoint_freq=10**6, eval_freq=0, eval_targets=0, progress_bar=False,
-                 tensorboard=False)
+                                              "log_std_init": -3.0}, **raw}, checkpoint_freq=10**6, eval_freq=0, eval_targets=0, progress_bar=False, tensorboard=False))
     assert meta["steps"] == 512
 
 

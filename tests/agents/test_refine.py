@@ -10,18 +10,17 @@ import pytest
 pytest.importorskip("stable_baselines3")
 
 from agents.rl.evaluation.evaluate import load_policy  # noqa: E402
-from agents.rl.refinement.refine import (
+from agents.rl.refinement.corrections import (  # noqa: E402
     NOOP,
-    Actor,
-    RefineSettings,
     correct_first_firing,
     correct_last_firing,
-    fit,
     labelled_episodes,
     play,
-    refine,
-    write_refined,
 )
+from agents.rl.refinement.fit import MeanActor, fit  # noqa: E402
+from agents.rl.refinement.refine import refine  # noqa: E402
+from agents.rl.refinement.settings import RefineSettings  # noqa: E402
+from agents.rl.refinement.writer import write_refined  # noqa: E402
 from agents.rl.artefacts.shipped import shipped_path  # noqa: E402
 
 
@@ -33,7 +32,7 @@ def test_newton_lands_the_last_firing_and_touches_nothing_else():
     pol = _shipped()
     # far targets, where the shipped policy ends 30-55 um past them (a smooth bias, measured)
     targets = np.linspace(6.0e-3, 9.0e-3, 16)
-    ep = play(pol.config, targets, actor=Actor(pol))
+    ep = play(pol.config, targets, actor=MeanActor(pol))
     assert np.all(ep.rest) and np.nanmin(np.abs(ep.error_m)) > 10e-6
     plans, keep = correct_last_firing(pol.config, targets, ep, RefineSettings(newton_iterations=4))
     assert keep.mean() >= 0.9
@@ -49,11 +48,11 @@ def test_newton_lands_the_last_firing_and_touches_nothing_else():
 def test_a_correction_that_changes_the_episode_length_is_not_kept(monkeypatch):
     """The states after a corrected firing are only valid labels if the episode still ends
     there: the final replay of episode 0 is given another length, and its correction is dropped."""
-    import agents.rl.refinement.refine as mod
+    import agents.rl.refinement.corrections as mod
 
     pol = _shipped()
     targets = np.linspace(6.0e-3, 9.0e-3, 4)
-    ep = play(pol.config, targets, actor=Actor(pol))
+    ep = play(pol.config, targets, actor=MeanActor(pol))
     settings = RefineSettings(newton_iterations=3)
     calls, real_play = [], mod.play
 
@@ -78,7 +77,7 @@ def test_the_first_firing_alone_lands_near_targets_the_policy_overshoots():
     pol = _shipped()
     cfg = pol.config
     targets = np.array([0.52e-3, 0.6e-3, 0.7e-3, 0.8e-3, 5.0e-3])
-    ep = play(cfg, targets, actor=Actor(pol))
+    ep = play(cfg, targets, actor=MeanActor(pol))
     failed = ~(ep.rest & (np.abs(ep.error_m) <= cfg.tolerance))
     assert failed[:4].all()
     plans, keep = correct_first_firing(cfg, targets, ep, RefineSettings())
@@ -94,11 +93,11 @@ def test_the_first_firing_alone_lands_near_targets_the_policy_overshoots():
 
 
 def test_a_first_firing_correction_replaces_a_last_firing_one(monkeypatch):
-    import agents.rl.refinement.refine as mod
+    import agents.rl.refinement.corrections as mod
 
     pol = _shipped()
     targets = np.array([0.6e-3, 7.5e-3])
-    ep = play(pol.config, targets, actor=Actor(pol))
+    ep = play(pol.config, targets, actor=MeanActor(pol))
     real = mod.correct_last_firing
     monkeypatch.setattr(mod, "correct_last_firing",
                         lambda *a: (real(*a)[0], np.array([True, True])))   # both "kept"
@@ -111,7 +110,7 @@ def test_labels_sit_at_the_states_of_the_corrected_episodes():
     pol = _shipped()
     cfg = pol.config
     targets = np.array([0.6e-3, 7.5e-3, 8.5e-3])
-    ep = play(cfg, targets, actor=Actor(pol))
+    ep = play(cfg, targets, actor=MeanActor(pol))
     lab, last_kept, first_kept = labelled_episodes(cfg, targets, ep, RefineSettings())
     assert first_kept.tolist() == [True, False, False] and last_kept.tolist() == [False, True, True]
     assert lab.taken[0].sum() == 1 and np.abs(lab.error_m[0]) <= 10e-6   # one firing, landed
@@ -129,7 +128,7 @@ def test_the_fit_compares_actions_as_the_env_fires_them():
     import torch
 
     pol = _shipped()
-    actor = Actor(pol)
+    actor = MeanActor(pol)
     obs = play(pol.config, np.array([2e-3, 6e-3]), actor=actor).obs[:, 0]
     raw = actor.raw(obs)
     assert (np.abs(raw) > 1).any()
@@ -161,7 +160,7 @@ def test_refine_keeps_its_best_round_and_writes_a_policy_folder(tmp_path):
     # the weights left in the policy are the kept round's: scoring them again gives its score
     from agents.rl.refinement.refine import _score
     targets = np.random.default_rng([0, 0x5EF1]).uniform(*pol.config.target_range, 64)
-    assert _score(pol.config, targets, Actor(pol)) == kept
+    assert _score(pol.config, targets, MeanActor(pol)) == kept
     after = pol.actor.sb3_state()
     moved = any(not np.array_equal(v.numpy(), after[k].numpy()) for k, v in state0.items())
     assert moved == (rep["kept_round"] > 0)
@@ -197,6 +196,7 @@ def test_refine_keeps_its_best_round_and_writes_a_policy_folder(tmp_path):
 
 def test_a_later_worse_round_is_dropped(monkeypatch):
     """Round 1 scores best, round 2 worse: the weights left are round 1's fit."""
+    import agents.rl.refinement.fit as fitting
     import agents.rl.refinement.refine as mod
 
     pol = _shipped()
@@ -206,14 +206,14 @@ def test_a_later_worse_round_is_dropped(monkeypatch):
         return {"success_rate": rate, "median_abs_error_m": median}
 
     monkeypatch.setattr(mod, "_score", fake_score)
-    after_fit, real_fit = [], mod.fit
+    after_fit, real_fit = [], fitting.fit
 
     def recording_fit(actor, *a):
         out = real_fit(actor, *a)
         after_fit.append({k: v.clone() for k, v in actor.net.state_dict().items()})
         return out
 
-    monkeypatch.setattr(mod, "fit", recording_fit)
+    monkeypatch.setattr(fitting, "fit", recording_fit)
     rep = refine(pol, RefineSettings(targets=32, rounds=2, newton_iterations=2, fit_iterations=20))
     assert rep["kept_round"] == 1 and len(after_fit) == 2
     final = pol.actor.module.state_dict()
@@ -283,7 +283,7 @@ def test_train_refine_writes_the_refined_policy_into_the_run(tmp_path, monkeypat
     the command uses refine's defaults)."""
     import functools
 
-    import agents.rl.refinement.refine as mod
+    import agents.rl.refinement.settings as mod
     from microconveyor_env.cli import main
 
     monkeypatch.setattr(mod, "RefineSettings", functools.partial(

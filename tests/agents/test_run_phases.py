@@ -191,6 +191,8 @@ def test_obs_stats_freeze_at_the_fraction_and_stay_frozen_across_a_resume(tmp_pa
     them at once); the reward statistics keep moving. Without the key they keep moving."""
     import json
 
+    from agents.rl.training.settings import TrainSettings
+
     from agents.rl.training.train import train
 
     tiny = {"n_envs": 8, "n_steps": 16, "batch_size": 64, "n_epochs": 2,
@@ -208,16 +210,16 @@ def test_obs_stats_freeze_at_the_fraction_and_stay_frozen_across_a_resume(tmp_pa
         said.clear()
         kw = dict(seed=0, env_id="MicroConveyor-v1", overrides={**tiny, **extra},
                   checkpoint_freq=128, eval_freq=512, eval_targets=2, progress_bar=False,
-                  tensorboard=False, log=said.append)
+                  tensorboard=False)
         # killed at step 512 by its evaluation (before that step's checkpoint): the two
         # newest checkpoints, 256 and 384, stay
         with pytest.raises(Stop):
-            train(out, steps=2048, on_eval=stop, **kw)
+            train(out, TrainSettings(steps=2048, **kw), on_eval=stop, log=said.append)
         gens = sorted((out / "checkpoints").iterdir())
         assert [g.name for g in gens] == ["gen-000000000256", "gen-000000000384"]
         stats = [json.loads((g / "normalization.json").read_text()) for g in gens]
         kw.pop("eval_freq")
-        train(out, steps=2048, resume=True, eval_freq=0, **kw)
+        train(out, TrainSettings(steps=2048, resume=True, eval_freq=0, **kw), log=said.append)
         return stats, json.loads((out / "normalization.json").read_text())
 
     (frozen_gens, frozen_end) = run(tmp_path / "f", freeze_obs_stats_at=0.1)
@@ -236,9 +238,10 @@ def test_obs_stats_freeze_at_the_fraction_and_stay_frozen_across_a_resume(tmp_pa
 @pytest.mark.parametrize("key", [{"exploration_restart": {"at": 0.5, "log_std": -2.0}},
                                  {"exploration_shift": {"at": 0.5, "by": -1.0}}])
 def test_exploration_restart_and_shift_are_ppo_settings(tmp_path, key):
+    from agents.rl.training.settings import TrainSettings
     from agents.rl.training.train import train
 
     with pytest.raises(ValueError, match="PPO setting"):
-        train(tmp_path, steps=64, algo="sac", env_id="MicroConveyor-v1",
-              overrides={**key, "n_envs": 2}, eval_freq=0, progress_bar=False,
-              tensorboard=False)
+        train(tmp_path, TrainSettings(steps=64, algo="sac", env_id="MicroConveyor-v1",
+                                      overrides={**key, "n_envs": 2}, eval_freq=0,
+                                      progress_bar=False, tensorboard=False))

@@ -16,11 +16,12 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from agents.rl.evaluation.evaluate_plane import (
-    PLANE_TOLERANCES,
-    plane_rollout,
-    plane_summary,
-    plane_targets,
+from agents.rl.evaluation.evaluate import (  # noqa: E402
+    TOLERANCES,
+    figures,
+    fixed_targets,
+    plane_record,
+    rollout,
 )
 from agents.rl.artefacts.policy_files import PolicyError, load_policy  # noqa: E402
 from agents.rl.artefacts.shipped import shipped_path  # noqa: E402
@@ -69,21 +70,21 @@ def assert_reproduces(key: str) -> dict:
     meta = pol.metadata
     rec = json.loads((folder / "episodes.json").read_text())[key]
     cfg = pol.config
-    targets = plane_targets(cfg, meta[key]["n_targets"], rec["seed"])
+    targets = fixed_targets(cfg, meta[key]["n_targets"], rec["seed"])
     np.testing.assert_array_equal(targets, rec["target_m"])        # pure numpy RNG: exact
-    res = plane_rollout(pol, targets, cfg)
+    res = rollout(pol, targets, cfg)
     err0, out0 = np.array(rec["error_m"]), np.array(rec["outcome"], dtype=object)
     np.testing.assert_array_equal(res["outcome"], out0)
     assert np.max(np.abs(res["error_m"] - err0)) <= EPISODE_TOL_M
     rest0 = out0 == "rest"
-    for tol in PLANE_TOLERANCES:
+    for tol in TOLERANCES:
         flips = ((res["outcome"] == "rest") & (res["error_m"] <= tol)) != (rest0 & (err0 <= tol))
         assert np.all(np.abs(err0[flips] - tol) <= EPISODE_TOL_M), (tol, err0[flips])
-    now = plane_summary(res, cfg.tolerance)
+    now = plane_record(figures(res, cfg.tolerance))
     assert abs(now["median_error_m"] - meta[key]["median_error_m"]) <= EPISODE_TOL_M
     # the metadata's summary is the summary of the recorded episodes (the record is consistent)
-    stored = plane_summary({"error_m": err0, "outcome": out0, "firings": rec["firings"]},
-                           cfg.tolerance)
+    stored = plane_record(figures({"error_m": err0, "outcome": out0, "firings": rec["firings"]},
+                                  cfg.tolerance))
     for k, v in stored.items():
         assert meta[key][k] == v, k
     return stored
@@ -108,7 +109,7 @@ def test_cli_evaluates_the_plane_policy_and_refuses_another_env():
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     pol = load_policy(shipped_path("ppo", ENV_ID))
-    res = plane_rollout(pol, plane_targets(pol.config, 3, 2026), pol.config)
+    res = rollout(pol, fixed_targets(pol.config, 3, 2026), pol.config)
     assert out["env_id"] == ENV_ID and out["n_targets"] == 3
     assert abs(out["median_abs_error_m"] - float(np.median(res["error_m"]))) <= EPISODE_TOL_M
     r = cli("--policy", str(shipped_path("ppo", ENV_ID)), "--env", "MicroConveyor-v1",

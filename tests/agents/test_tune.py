@@ -13,7 +13,11 @@ from agents.rl.artefacts import checkpoint  # noqa: E402
 from agents.rl.training import hyperparams  # noqa: E402
 from agents.rl.tuning import space as tune_space  # noqa: E402
 from agents.rl.training.parallel import train_seeds  # noqa: E402
-from agents.rl.tuning.tune import shares, summary, tune  # noqa: E402
+from agents.rl.training.settings import TrainSettings  # noqa: E402
+from agents.rl.tuning.settings import TuneSettings  # noqa: E402
+from agents.rl.tuning.study import summary  # noqa: E402
+from agents.rl.tuning.tune import tune  # noqa: E402
+from agents.rl.tuning.workers import shares  # noqa: E402
 
 ENV = "MicroConveyor-v0"   # v0 for speed: the machinery is the same on v1
 TINY = {"n_envs": 8, "n_steps": 32, "batch_size": 64, "n_epochs": 2}
@@ -22,8 +26,8 @@ BUDGET = {"eval_freq": 1024, "eval_targets": 5}
 
 def test_two_workers_share_one_sqlite_study_and_the_best_is_a_config_entry(tmp_path):
     out = tmp_path / "tune"
-    res = tune(out, n_trials=4, workers=2, env_id=ENV, trial_steps=2048,
-               fixed={**TINY, "net_width": 64}, **BUDGET)
+    res = tune(TuneSettings(out=out, n_trials=4, workers=2, env_id=ENV, trial_steps=2048,
+                            fixed={**TINY, "net_width": 64}, **BUDGET))
     assert res["storage"] == f"sqlite:///{out / 'optuna.db'}"
     assert res["states"] == {"complete": 4}
     mine: dict = {}
@@ -33,14 +37,15 @@ def test_two_workers_share_one_sqlite_study_and_the_best_is_a_config_entry(tmp_p
     assert res["workers"] == mine
 
     # another command on the same storage (another machine would do the same) adds its trial
-    again = tune(out, n_trials=1, workers=1, env_id=ENV, trial_steps=2048,
-                 fixed={**TINY, "net_width": 64}, **BUDGET)
+    again = tune(TuneSettings(out=out, n_trials=1, workers=1, env_id=ENV, trial_steps=2048,
+                              fixed={**TINY, "net_width": 64}, **BUDGET))
     assert again["trials"] == 5 and len(again["workers"]) == 3
     assert summary(again["storage"])["trials"] == 5
 
     not_comparable = "with eval_targets=5, trial_steps=2048, this command with eval_targets=6"
     with pytest.raises(ValueError, match=not_comparable):
-        tune(out, n_trials=1, env_id=ENV, trial_steps=4096, eval_freq=1024, eval_targets=6)
+        tune(TuneSettings(out=out, n_trials=1, env_id=ENV, trial_steps=4096, eval_freq=1024,
+                          eval_targets=6))
 
     best = again["best"]
     assert best["value"] == max(r["value"] for r in res["this_run"] + again["this_run"])
@@ -65,8 +70,9 @@ def test_an_evaluation_hook_stops_the_run_and_frees_the_folder(tmp_path):
         raise Prune
 
     with pytest.raises(Prune):
-        train(tmp_path / "run", steps=4096, env_id=ENV, overrides=TINY, progress_bar=False,
-              tensorboard=False, on_eval=on_eval, **BUDGET)
+        train(tmp_path / "run", TrainSettings(steps=4096, env_id=ENV, overrides=TINY,
+                                              progress_bar=False, tensorboard=False, **BUDGET),
+                                              on_eval=on_eval)
     assert seen == [1024]
     assert len((tmp_path / "run" / "evaluations.jsonl").read_text().splitlines()) == 1
     assert not (tmp_path / "run" / "metadata.json").exists()
@@ -77,7 +83,7 @@ def test_an_evaluation_hook_stops_the_run_and_frees_the_folder(tmp_path):
 def test_a_trial_below_the_median_is_pruned_at_its_periodic_evaluation(tmp_path):
     import optuna
 
-    from agents.rl.tuning.tune import _objective
+    from agents.rl.tuning.workers import _objective
 
     class Trial:  # what the objective uses of optuna.Trial; the pruner says "prune"
         number, attrs, reports = 7, {}, []
@@ -109,7 +115,7 @@ def test_a_trial_below_the_median_is_pruned_at_its_periodic_evaluation(tmp_path)
 
 def test_train_seeds_in_two_workers_aggregate_and_finished_seeds_are_reused(tmp_path):
     kw = {"env_id": ENV, "steps": 2048, "overrides": TINY, "tensorboard": False, **BUDGET}
-    res = train_seeds(tmp_path, [0, 1], workers=2, **kw)
+    res = train_seeds(tmp_path, [0, 1], TrainSettings(**kw), workers=2)
     assert [r["status"] for r in res["runs"]] == ["trained", "trained"]
     assert [r["seed"] for r in res["runs"]] == [0, 1]
     agg = res["aggregate"]
@@ -119,11 +125,11 @@ def test_train_seeds_in_two_workers_aggregate_and_finished_seeds_are_reused(tmp_
              for s in (0, 1)]
     assert seeds == [0, 1]
     # run again (a killed command, or a second machine's share): finished seeds are kept
-    res2 = train_seeds(tmp_path, [0, 1], workers=2, **kw)
+    res2 = train_seeds(tmp_path, [0, 1], TrainSettings(**kw), workers=2)
     assert [r["status"] for r in res2["runs"]] == ["done earlier", "done earlier"]
     assert res2["aggregate"]["median_abs_error_m"] == agg["median_abs_error_m"]
     with pytest.raises(ValueError, match="distinct"):
-        train_seeds(tmp_path, [0, 0], **kw)
+        train_seeds(tmp_path, [0, 0], TrainSettings(**kw))
 
 
 def test_search_space_fixed_keys_and_config_text(tmp_path):
@@ -152,7 +158,7 @@ def test_a_storage_that_cannot_be_opened_is_one_error_without_its_password(tmp_p
             "sqlite:////no/such/dir/x.db")
     for url in urls:
         with pytest.raises(ValueError) as err:
-            tune(tmp_path, n_trials=1, env_id=ENV, storage=url)
+            tune(TuneSettings(out=tmp_path, n_trials=1, env_id=ENV, storage=url))
         msg = str(err.value)
         assert msg.startswith(("the storage ", "cannot open the Optuna storage ")), msg
         assert "s3cret" not in msg

@@ -37,7 +37,7 @@ optuna = pytest.importorskip("optuna")
 psycopg = pytest.importorskip("psycopg", reason="the PostgreSQL driver (psycopg, v3) is not "
                                                  "installed: pip install 'psycopg[binary]'")
 
-from agents.rl.tuning.tune import open_storage  # noqa: E402
+from agents.rl.tuning.storage import open_storage  # noqa: E402
 
 
 def _pg_bin() -> Path | None:

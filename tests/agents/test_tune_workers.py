@@ -24,9 +24,13 @@ from support.storages import open_at_once
 pytest.importorskip("stable_baselines3")
 pytest.importorskip("optuna")
 
-from agents.rl.tuning import tune as tune_mod  # noqa: E402
+from agents.rl.tuning import storage as storage_mod  # noqa: E402
+from agents.rl.tuning import study as study_mod  # noqa: E402
 from agents.rl.training.parallel import Died, WorkerDied, run_local  # noqa: E402
-from agents.rl.tuning.tune import fail_stale, open_storage, tune  # noqa: E402
+from agents.rl.tuning.settings import TuneSettings  # noqa: E402
+from agents.rl.tuning.storage import open_storage  # noqa: E402
+from agents.rl.tuning.study import fail_stale  # noqa: E402
+from agents.rl.tuning.tune import tune  # noqa: E402
 
 pytestmark = pytest.mark.skipif(not Path("/proc/self/stat").exists(),
                                 reason="finds worker processes through /proc (Linux)")
@@ -268,13 +272,13 @@ def test_bad_settings_are_refused_before_any_storage_exists(tmp_path):
     ]
     for bad, match in refusals:
         with pytest.raises(ValueError, match=match):
-            tune(out, **{**kw, **bad})
+            tune(TuneSettings(out=out, **{**kw, **bad}))
         assert not db.exists(), bad
     (tmp_path / "file").write_text("")
     with pytest.raises(OSError):
-        tune(tmp_path / "file", **kw)
+        tune(TuneSettings(out=tmp_path / "file", **kw))
     # the corrected command makes the study (nothing recorded the bad kwargs)
-    res = tune(out, **kw)
+    res = tune(TuneSettings(out=out, **kw))
     assert res["states"] == {"complete": 1} and res["failed"] == [] and res["died"] == []
 
 
@@ -282,17 +286,17 @@ def test_a_missing_driver_names_the_package(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "psycopg", None)   # as if not installed
     monkeypatch.setitem(sys.modules, "psycopg2", None)
     with pytest.raises(ValueError) as err:
-        tune_mod.check_storage("postgresql+psycopg://tuner:s3cret@db.example/optuna")
+        storage_mod.check_storage("postgresql+psycopg://tuner:s3cret@db.example/optuna")
     assert str(err.value) == (
         "the storage postgresql+psycopg://tuner:***@db.example/optuna needs the database driver "
         "'psycopg', which is not installed: pip install 'psycopg[binary]' (the 'agents' extra "
         "has it: pip install 'microconveyor-env[agents]')")
     with pytest.raises(ValueError, match="needs the database driver 'psycopg2?', which is not "
                                          "installed: pip install (psycopg2-binary|'psycopg)"):
-        tune_mod.check_storage("postgresql://tuner@db.example/optuna")
+        storage_mod.check_storage("postgresql://tuner@db.example/optuna")
     with pytest.raises(ValueError, match="not installed: pip install pymysql"):
         monkeypatch.setitem(sys.modules, "pymysql", None)
-        tune_mod.check_storage("mysql+pymysql://tuner@db.example/optuna")
+        storage_mod.check_storage("mysql+pymysql://tuner@db.example/optuna")
 
 
 def test_commands_creating_one_sqlite_storage_at_once_all_open_it(tmp_path):
@@ -304,8 +308,8 @@ def test_trial_folders_of_another_study_are_refused(tmp_path):
     (tmp_path / "t" / "s" / "trial-0000").mkdir(parents=True)
     with pytest.raises(ValueError, match="holds trial folders that are not trials of study 's' "
                                          ".*trial-0000.*choose another --out or --study"):
-        tune(tmp_path / "t", n_trials=1, env_id=ENV, trial_steps=1024, eval_freq=1024,
-             eval_targets=5, fixed=TINY, study_name="s")
+        tune(TuneSettings(out=tmp_path / "t", n_trials=1, env_id=ENV, trial_steps=1024,
+                          eval_freq=1024, eval_targets=5, fixed=TINY, study_name="s"))
 
 
 @pytest.mark.filterwarnings("ignore:Heartbeat of storage is supposed to be used")  # ask(), here
@@ -330,7 +334,7 @@ def test_a_trial_without_heartbeat_is_failed_with_the_reason(tmp_path):
     job = {"out": str(tmp_path), "storage": url, "study_name": "s", "env_id": ENV,
            "env_kwargs": None, "conf_file": None, "trial_steps": 1024, "trial_minutes": None,
            "eval_freq": 1024, "eval_targets": 5, "eval_seed": 1, "seed": 0, "heartbeat_s": 1}
-    assert tune_mod._check_protocol(study, job) == 1
-    assert tune_mod._check_protocol(study, {**job, "heartbeat_s": None}) == 1
+    assert study_mod._check_protocol(study, job) == 1
+    assert study_mod._check_protocol(study, {**job, "heartbeat_s": None}) == 1
     with pytest.raises(ValueError, match="heartbeat every 1 s, this command asks for 5 s"):
-        tune_mod._check_protocol(study, {**job, "heartbeat_s": 5})
+        study_mod._check_protocol(study, {**job, "heartbeat_s": 5})

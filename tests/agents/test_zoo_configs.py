@@ -102,3 +102,17 @@ def test_python_m_rl_zoo3_train_runs_the_shipped_v1_entry(tmp_path):
     assert r.returncode == 0, r.stderr[-3000:]
     assert "total_timesteps | 4096" in r.stdout      # one rollout: 256 envs x 16 steps
     assert list(Path(tmp_path / "logs" / "ppo").glob("MicroConveyor-v1_*/MicroConveyor-v1.zip"))
+
+
+def test_the_plane_entry_is_the_shipped_plane_policys_recipe():
+    """configs/ppo.yml's MicroConveyor2D-v0 entry is what the shipped plane policy was trained
+    with (its metadata records the step budget as planned_timesteps, and one torch thread, which
+    `microconveyor train` always uses)."""
+    import json
+
+    from agents.rl.artefacts.shipped import shipped_path
+
+    meta = json.loads((shipped_path("ppo", "MicroConveyor2D-v0") / "metadata.json").read_text())
+    hp = json.loads(json.dumps(hyperparams.load(None, "MicroConveyor2D-v0"), default=str))
+    assert hyperparams.changed_keys(meta["hyperparams"], hp) == ["n_timesteps", "torch_threads"]
+    assert hp["n_timesteps"] == meta["planned_timesteps"] and meta["hyperparams"]["torch_threads"] == 1

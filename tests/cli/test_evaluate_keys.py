@@ -34,7 +34,7 @@ def test_evaluate_has_the_same_keys_on_the_line_and_in_the_plane(capsys):
 def test_the_stored_plane_record_maps_onto_the_contract():
     """The shipped plane policy's metadata keeps plane_summary's names (median_error_m); the
     evaluate command's names are derived from them."""
-    from agents.rl.evaluation.evaluate_plane import plane_evaluation
+    from agents.rl.evaluation.evaluate import from_plane_record as plane_evaluation
     from agents.rl.artefacts.shipped import shipped_path
 
     meta = json.loads((shipped_path("ppo", "MicroConveyor2D-v0") / "metadata.json").read_text())

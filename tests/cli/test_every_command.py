@@ -188,10 +188,12 @@ def _setup(name: str, tmp: Path) -> dict[str, str]:
     conf.write_text(TINY_CONF)
     files = {"conf": str(conf), "run": "", "pkl": ""}
     if name == "seeds":
+        from agents.rl.training.settings import TrainSettings
         from agents.rl.training.train import train
 
-        train(tmp / "run", steps=256, env_id="MicroConveyor-v0", conf_file=str(conf),
-              progress_bar=False, tensorboard=False, eval_freq=0, eval_targets=2)
+        train(tmp / "run", TrainSettings(steps=256, env_id="MicroConveyor-v0", conf_file=str(conf),
+                                         progress_bar=False, tensorboard=False, eval_freq=0,
+                                         eval_targets=2))
         files["run"] = str(tmp / "run")
     if name == "convert-stats":
         from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize

@@ -16,7 +16,7 @@ def open_at_once(url: str, n: int, tmp_path: Path, imports: str = "") -> list[st
     driver); what each printed: ``ok`` or its error."""
     go = tmp_path / f"go-{time.monotonic_ns()}"
     code = (f"import os, sys, time\nimport optuna{', ' + imports if imports else ''}\n"
-            "from agents.rl.tuning.tune import open_storage\n"
+            "from agents.rl.tuning.storage import open_storage\n"
             "optuna.storages.RDBStorage('sqlite://')\n"  # every import done: they start together
             "print('ready', flush=True)\n"
             f"while not os.path.exists({str(go)!r}): time.sleep(0.001)\n"

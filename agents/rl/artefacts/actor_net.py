@@ -181,7 +181,7 @@ def _Module(layers: list[tuple[str, Any, Any]], act_cls: Any, final_tanh: bool) 
     activation (then tanh if ``final_tanh``); parameter names from the SB3 prefixes."""
     import torch
 
-    class Actor(torch.nn.Module):
+    class ActorLayers(torch.nn.Module):
         def __init__(self) -> None:
             super().__init__()
             self.names: list[str] = []
@@ -201,7 +201,7 @@ def _Module(layers: list[tuple[str, Any, Any]], act_cls: Any, final_tanh: bool) 
             x = getattr(self, self.names[-1])(x)
             return torch.tanh(x) if final_tanh else x
 
-    return Actor()
+    return ActorLayers()
 
 
 ACTIVATION_MODULE = "torch.nn.modules.activation."

@@ -1,7 +1,7 @@
 """Observation/reward normalisation statistics as JSON data (never a pickle).
 
 SB3 saves ``VecNormalize`` with :mod:`pickle`, and unpickling a file runs whatever code the file
-names (issue 17 showed a ``vecnormalize.pkl`` calling ``os.system`` on ``evaluate``). A policy
+names (a ``vecnormalize.pkl`` can call ``os.system`` as ``evaluate`` opens it). A policy
 folder therefore holds ``normalization.json``: the running means, variances and counts, and the
 settings ``VecNormalize`` needs, written with ``repr`` floats so a training resumed from it is bit
 for bit the one that stopped. :func:`convert_pickle` turns an old ``vecnormalize.pkl`` into it,

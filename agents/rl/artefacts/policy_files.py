@@ -12,7 +12,7 @@ identify with the one the metadata names, the zip's spaces with the env's, the s
 with the observations, the files with their recorded hashes. A disagreement is one
 :class:`PolicyError` naming the file and the mismatch.
 
-A policy of the plane (``MicroConveyor2D-v0``, issue 22) is loaded the same way: its scene is a
+A policy of the plane (``MicroConveyor2D-v0``) is loaded the same way: its scene is a
 :class:`~microconveyor_env.envs.plane.config.PlaneEnvConfig` made from its env kwargs, and the
 model's shapes are checked against the plane env's spaces.
 """

@@ -1,99 +1,140 @@
-"""Evaluating a policy on a fixed, seeded set of targets with the batched env (loading a policy
-folder: :mod:`.policy_files`)."""
+"""Evaluating a policy on a fixed, seeded set of targets, one episode each on the batched env of
+its scene, the line's or the plane's (loading a policy folder: :mod:`..artefacts.policy_files`).
+
+The error of an episode is where the part ended minus the target [m]: signed on the line, the
+Euclidean distance in the plane; success is the part at rest within the tolerance of the target.
+"""
 from __future__ import annotations
 
-from typing import Protocol
+from typing import Any
 
 import numpy as np
 
 from microconveyor_env.envs import EnvConfig
+from microconveyor_env.envs.core.episodes import Actor, run_episodes
+from microconveyor_env.envs.plane.config import PlaneEnvConfig
 
 from ..artefacts.policy_files import Policy, PolicyError, load_policy
 
-
-class Actor(Protocol):
-    """Anything with ``act(observations) -> actions`` (a loaded :class:`Policy`, a wrapper)."""
-
-    def act(self, obs: np.ndarray) -> np.ndarray: ...
-
 __all__ = ["Policy", "PolicyError", "load_policy", "fixed_targets", "rollout", "summarize",
-           "evaluate", "TOLERANCES"]
+           "evaluate", "TOLERANCES", "PLANE_TARGET_SEED"]
 
-TOLERANCES = (50e-6, 100e-6, 250e-6)
+TOLERANCES = (50e-6, 100e-6, 250e-6)   # [m] success radii reported
+PLANE_TARGET_SEED = 2026   # the plane's default target seed (its shipped policy's record)
+# the plane's stored records name two figures for the Euclidean error they are
+PLANE_RECORD_NAMES = {"median_abs_error_m": "median_error_m", "p90_abs_error_m": "p90_error_m"}
 
 
-def fixed_targets(config: EnvConfig, n: int, seed: int) -> np.ndarray:
+def fixed_targets(config: EnvConfig | PlaneEnvConfig, n: int, seed: int) -> np.ndarray:
+    """``n`` targets [m] drawn with ``seed``: uniform on the line's target range ``(n,)``, or on
+    the plane's grid box ``(n, 2)`` (x then y draws of one generator)."""
+    rng = np.random.default_rng(seed)
+    if isinstance(config, PlaneEnvConfig):
+        if n < 1:
+            raise ValueError(f"n = {n!r} targets: must be >= 1")
+        (x0, x1), (y0, y1) = config.grid_box
+        return np.stack([rng.uniform(x0, x1, n), rng.uniform(y0, y1, n)], 1)
     lo, hi = config.target_range
-    return np.random.default_rng(seed).uniform(lo, hi, n)
+    return rng.uniform(lo, hi, n)
 
 
-def rollout(policy: Actor, targets: np.ndarray, config: EnvConfig, seed: int = 0,
-            record: bool = False) -> dict:
-    """One episode per target (batched, deterministic policy): final errors, outcomes, times,
-    firings (steps: fewer than the actuators when the part was delivered early or detached);
-    with ``record`` the positions after each firing. With randomisation on in ``config``
-    (docs/randomisation.md) also each episode's ``friction_factor`` and ``mass_factor``; sub-env
-    ``i`` is seeded ``seed + i``."""
+def batched_env(config: EnvConfig | PlaneEnvConfig, n: int) -> Any:
+    """The batched env of ``config``'s scene with ``n`` sub-envs, same-step autoreset."""
+    if isinstance(config, PlaneEnvConfig):
+        from microconveyor_env.envs.plane.vector import MicroConveyor2DVectorEnv
+
+        return MicroConveyor2DVectorEnv(n, config=config, autoreset_mode="SameStep")
     from microconveyor_env.envs import MicroConveyorVectorEnv
 
-    n = len(targets)
-    env = MicroConveyorVectorEnv(n, config=config, autoreset_mode="SameStep")
-    obs, _ = env.reset(seed=seed, options={"target": np.asarray(targets, float)})
-    done = np.zeros(n, bool)
-    err, outcome, t = np.full(n, np.nan), np.full(n, "", dtype=object), np.zeros(n)
-    factors = {k: np.full(n, np.nan) for k in ("friction_factor", "mass_factor")}
-    firings = np.zeros(n, dtype=int)
-    path = [env.x.copy()]
-    while not done.all():
-        obs, _, term, trunc, info = env.step(policy.act(obs))
-        src = info.get("final_info", info)
-        new = (term | trunc) & ~done
-        err[new] = src["position_error_m"][new]
-        outcome[new] = src["outcome"][new]
-        t[new] = src["sim_time_s"][new]
-        for key, val in factors.items():
-            if key in src:
-                val[new] = src[key][new]
-        firings[~done] += 1
-        done |= term | trunc
-        if record:
-            x = np.where(done & ~new, path[-1], np.where(new, np.asarray(targets) + err, env.x))
-            path.append(x)
-    out = {"targets_m": np.asarray(targets, float), "error_m": err, "outcome": outcome,
-           "time_s": t, "firings": firings}
-    if config.randomised:
-        out.update(factors)
-    if record:
+    return MicroConveyorVectorEnv(n, config=config, autoreset_mode="SameStep")
+
+
+def rollout(policy: Actor, targets: np.ndarray, config: EnvConfig | PlaneEnvConfig,
+            seed: int = 0, record: bool = False) -> dict:
+    """One episode per target (batched, deterministic policy): final errors ``error_m`` [m]
+    (module docstring), ``outcome``, ``success`` (the env's), ``time_s``, ``firings`` (fewer
+    than the actuators when the part was delivered early or detached); on the line with
+    ``record`` the positions after each firing ``path_m``. With randomisation on in ``config``
+    (docs/randomisation.md) also each episode's ``friction_factor`` and ``mass_factor``;
+    sub-env ``i`` is seeded ``seed + i``."""
+    targets = np.asarray(targets, float)
+    plane = isinstance(config, PlaneEnvConfig)
+    if plane and (targets.ndim != 2 or targets.shape[1] != 2):
+        raise ValueError(f"targets have shape {targets.shape}: must be (n, 2) [m]")
+    env = batched_env(config, len(targets))
+    path: list[np.ndarray] | None = [] if record and not plane else None
+
+    def trace(env: Any, src: dict[str, Any], new: np.ndarray, done: np.ndarray) -> None:
+        if path is not None:
+            end = targets + src["position_error_m"]
+            path.append(np.where(done & ~new, path[-1], np.where(new, end, env.x)))
+
+    try:
+        if path is not None:
+            env.reset(seed=seed, options={"target": targets})
+            path.append(env.x.copy())
+        ep = run_episodes(env, policy, seed, {"target": targets}, on_step=trace)
+    finally:
+        env.close()
+    f = ep.final
+    out = {"targets_m": targets, "error_m": f["distance_m" if plane else "position_error_m"],
+           "outcome": f["outcome"], "success": f["is_success"], "time_s": f["sim_time_s"],
+           "firings": ep.firings}
+    if isinstance(config, EnvConfig) and config.randomised:
+        out.update({k: f.get(k, np.full(len(targets), np.nan))
+                    for k in ("friction_factor", "mass_factor")})
+    if path is not None:
         out["path_m"] = np.array(path)
     return out
 
 
 def summarize(res: dict, tolerance: float) -> dict:
-    err, rest = np.abs(res["error_m"]), res["outcome"] == "rest"
-    out = {"n_targets": int(len(err)), "tolerance_m": tolerance,
+    """Success within ``tolerance`` [m] and the radii of :data:`TOLERANCES` (at rest), median
+    absolute error [m], detach rate."""
+    err, rest = np.abs(np.asarray(res["error_m"], float)), np.asarray(res["outcome"]) == "rest"
+    out = {"n_targets": int(len(err)), "tolerance_m": float(tolerance),
            "success_rate": float(np.mean(rest & (err <= tolerance))),
            "median_abs_error_m": float(np.median(err)),
-           "detach_rate": float(np.mean(res["outcome"] == "detached"))}
+           "detach_rate": float(np.mean(np.asarray(res["outcome"]) == "detached"))}
     for tol in TOLERANCES:
         out[f"success_rate_{round(tol * 1e6)}um"] = float(np.mean(rest & (err <= tol)))
     return out
 
 
+def figures(res: dict, tolerance: float) -> dict:
+    """:func:`summarize`'s figures plus the 90th percentile of the absolute error
+    ``p90_abs_error_m``, ``rest_rate`` and ``mean_firings``: those of every evaluation."""
+    err = np.abs(np.asarray(res["error_m"], float))
+    return {**summarize(res, tolerance), "p90_abs_error_m": float(np.percentile(err, 90)),
+            "rest_rate": float(np.mean(np.asarray(res["outcome"]) == "rest")),
+            "mean_firings": float(np.mean(res["firings"]))}
+
+
+def plane_record(summary: dict) -> dict:
+    """:func:`figures` under the names of the plane's stored records (``median_error_m``,
+    ``p90_error_m``)."""
+    return {PLANE_RECORD_NAMES.get(k, k): v for k, v in summary.items()}
+
+
+def from_plane_record(record: dict) -> dict:
+    """A stored plane record under the names every evaluation uses."""
+    back = {v: k for k, v in PLANE_RECORD_NAMES.items()}
+    return {back.get(k, k): v for k, v in record.items()}
+
+
 def evaluate(policy: Actor, n_targets: int = 100, seed: int = 0, tolerance: float | None = None,
-             config: EnvConfig | None = None) -> dict:
-    """Success and errors of ``policy`` on ``n_targets`` fixed targets drawn with ``seed`` from
-    the target range of ``config`` (default: the scene a loaded :class:`Policy` was trained in,
-    randomisation off; else MicroConveyor-v0's defaults); ``tolerance`` [m] of the success
-    figure (default: the config's). Its keys are those of every evaluation, the plane's
-    included (:func:`.evaluate_plane.plane_evaluation`): :func:`summarize`'s, the 90th
-    percentile of the absolute error ``p90_abs_error_m``, ``rest_rate``, ``mean_firings``, the
-    ``seed`` and the targets' ``target_range_m``."""
+             config: EnvConfig | PlaneEnvConfig | None = None) -> dict:
+    """Success and errors of ``policy`` on ``n_targets`` fixed targets drawn with ``seed``
+    (:func:`fixed_targets`) in ``config`` (default: the scene a loaded :class:`Policy` was
+    trained in, randomisation off; else MicroConveyor-v0's defaults); ``tolerance`` [m] of the
+    success figure (default: the config's). The keys of :func:`figures`, the ``seed`` and the
+    targets' ``target_range_m`` (line) or ``target_box_m`` (plane)."""
     cfg = config or getattr(policy, "config", None) or EnvConfig.from_yaml()
-    targets = fixed_targets(cfg, n_targets, seed)
-    res = rollout(policy, targets, cfg, seed=seed)
-    out = summarize(res, cfg.tolerance if tolerance is None else tolerance)
-    out.update(p90_abs_error_m=float(np.percentile(np.abs(res["error_m"]), 90)),
-               rest_rate=float(np.mean(res["outcome"] == "rest")),
-               mean_firings=float(np.mean(res["firings"])),
-               seed=seed, target_range_m=list(cfg.target_range))
+    res = rollout(policy, fixed_targets(cfg, n_targets, seed), cfg, seed=seed)
+    out = figures(res, cfg.tolerance if tolerance is None else tolerance)
+    out["seed"] = seed
+    if isinstance(cfg, PlaneEnvConfig):
+        out["target_box_m"] = [list(b) for b in cfg.grid_box]
+    else:
+        out["target_range_m"] = list(cfg.target_range)
     return out

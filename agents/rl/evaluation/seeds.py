@@ -10,6 +10,7 @@ old signature), so the same statistics come from scipy.
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -20,7 +21,26 @@ KEYS = ("success_rate_50um", "success_rate_100um", "success_rate_250um", "median
 
 
 def iqm(x: Sequence[float] | np.ndarray) -> float:
+    """Interquartile mean: the 25 % trimmed mean (``scipy.stats.trim_mean``)."""
     return float(trim_mean(np.asarray(x, float), 0.25))
+
+
+def iqm_interval(values: Sequence[float] | np.ndarray, reps: int = 2000, seed: int = 0) -> dict:
+    """:func:`iqm` of per-seed scores and its 95 % percentile-bootstrap interval over the seeds
+    (``scipy.stats.bootstrap``, ``reps`` resamples drawn with ``seed``), as rliable computes it
+    for one task: ``per_seed``, ``iqm``, ``ci95`` (one seed, or equal scores: the value itself;
+    no seed: NaN)."""
+    v = np.asarray(values, float)
+    out = {"per_seed": v.tolist(), "iqm": iqm(v) if v.size else math.nan,
+           "ci95": [math.nan, math.nan]}
+    if v.size > 1 and np.ptp(v) > 0:
+        ci = bootstrap((v,), lambda x, axis=-1: trim_mean(x, 0.25, axis=axis),
+                       n_resamples=reps, method="percentile",
+                       rng=np.random.default_rng(seed)).confidence_interval
+        out["ci95"] = [float(ci.low), float(ci.high)]
+    elif v.size:
+        out["ci95"] = [float(v[0]), float(v[0])]
+    return out
 
 
 # what must agree between runs for their seeds to be aggregated (the seed itself may differ)
@@ -52,15 +72,7 @@ def aggregate(runs: Sequence[str | Path], reps: int = 2000, seed: int = 0) -> di
     evs = [m["evaluation"] for m in metas]
     out: dict = {"runs": [str(r) for r in runs]}
     for key in KEYS:
-        vals = np.array([ev[key] for ev in evs], float)
-        if len(vals) > 1:
-            ci = bootstrap((vals,), lambda x, axis: trim_mean(x, 0.25, axis=axis),
-                           n_resamples=reps, method="percentile",
-                           rng=np.random.default_rng(seed)).confidence_interval
-            lo, hi = float(ci.low), float(ci.high)
-        else:
-            lo = hi = float(vals[0])
-        out[key] = {"per_seed": vals.tolist(), "iqm": iqm(vals), "ci95": [lo, hi]}
+        out[key] = iqm_interval([ev[key] for ev in evs], reps, seed)
     return out
 
 

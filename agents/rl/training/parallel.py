@@ -17,6 +17,7 @@ machine into one shared (or copied) folder, then ``microconveyor seeds`` aggrega
 """
 from __future__ import annotations
 
+import dataclasses
 import multiprocessing
 import os
 import pickle
@@ -28,7 +29,10 @@ from collections import deque
 from collections.abc import Callable, Sequence
 from multiprocessing.connection import Connection, wait
 from pathlib import Path
-from typing import Any, Generic, TypeVar
+from typing import TYPE_CHECKING, Any, Generic, TypeVar
+
+if TYPE_CHECKING:
+    from .settings import TrainSettings
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -248,11 +252,10 @@ def _train_seed(task: dict) -> dict:
     def log(line: str) -> None:
         print(f"seed {seed}: {line}", file=sys.stderr, flush=True)
 
-    kw = dict(task["train"])
-    kw["resume"] = bool(kw.get("resume")) and bool(checkpoint.generations(out))
+    settings = dataclasses.replace(task["train"], seed=seed, progress_bar=False,
+                                   resume=task["train"].resume and bool(checkpoint.generations(out)))
     try:
-        meta = train(out, seed=seed, progress_bar=False, log=log if task.get("verbose") else None,
-                     **kw)
+        meta = train(out, settings, log=log if task.get("verbose") else None)
     except Exception as exc:  # noqa: BLE001 - one seed's failure is reported, the others go on
         if task.get("verbose"):
             traceback.print_exc()
@@ -267,25 +270,27 @@ def _seed_died(task: dict, err: WorkerDied) -> Died[dict, dict]:
                  "error": f"{err}; --resume continues it from its last checkpoint"})
 
 
-def train_seeds(out: str | Path, seeds: Sequence[int], workers: int = 1, verbose: bool = False,
-                **train_kwargs: Any) -> dict:
+def train_seeds(out: str | Path, seeds: Sequence[int], settings: TrainSettings,
+                workers: int = 1, verbose: bool = False) -> dict:
     """Train one run per seed into ``out/seed-<seed>`` (``workers`` processes at a time), then
-    aggregate the finished runs (:func:`.seeds.aggregate`: IQM and bootstrap CI). A seed whose
+    aggregate the finished runs (:func:`..evaluation.seeds.aggregate`: IQM and bootstrap CI). A seed whose
     worker process dies is a failed row; the other seeds go on.
-    ``train_kwargs`` go to :func:`.train.train` (steps, conf_file, env_id, max_minutes, ...;
-    ``resume=True`` continues a seed's checkpoints, if it has some). Returns ``runs`` (one row
-    per seed: status, steps, wall time, final evaluation or error) and ``aggregate`` (None if no
-    run finished)."""
+    ``settings`` are every run's (:class:`.settings.TrainSettings`; the seed is each run's own,
+    the progress bar off; ``resume`` continues a seed's checkpoints, if it has some). Returns
+    ``runs`` (one row per seed: status, steps, wall time, final evaluation or error) and
+    ``aggregate`` (None if no run finished)."""
     from ..evaluation.seeds import aggregate
 
     seeds = [int(s) for s in seeds]
     if not seeds or len(set(seeds)) != len(seeds):
         raise ValueError(f"give distinct seeds, got {seeds!r}")
-    for bad in ("seed", "out", "log", "progress_bar", "on_eval"):
-        if bad in train_kwargs:
-            raise ValueError(f"{bad} is set per seed by train_seeds")
+    if settings.seed is not None:
+        raise ValueError("seed is set per seed by train_seeds")
+    from .train import recipe
+
+    recipe(settings)   # a recipe every seed would refuse is refused once, here
     earlier = {s: _finished(Path(out) / f"seed-{s}", s) for s in seeds}
-    tasks = [{"out": str(Path(out) / f"seed-{s}"), "seed": s, "train": train_kwargs,
+    tasks = [{"out": str(Path(out) / f"seed-{s}"), "seed": s, "train": settings,
               "verbose": verbose} for s in seeds if earlier[s] is None]
     trained = iter(run_local(_train_seed, tasks, workers, died=_seed_died))
     rows = [earlier[s] or next(trained) for s in seeds]

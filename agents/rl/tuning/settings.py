@@ -1,0 +1,72 @@
+"""The settings of a tuning command (:func:`.tune.tune`), validated once."""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ..training import hyperparams
+from ..training.settings import check_budgets
+
+DEFAULT_STUDY = "microconveyor-ppo"
+
+
+@dataclass(frozen=True)
+class TuneSettings:
+    """A study's trials run by one command.
+
+    ``out``: folder of the trials' run folders (``OUT/<study>/trial-N``), the default SQLite
+    storage and ``best.yml``; ``n_trials`` [-] trials this command runs over ``workers`` [-]
+    local processes; ``storage``: Optuna storage URL (None: ``$MICROCONVEYOR_TUNE_STORAGE``,
+    else ``sqlite:///OUT/optuna.db``); ``study_name``. Every trial: ``env_id`` with
+    ``env_kwargs`` (SI units), base hyperparameters from ``conf_file`` (None: the shipped
+    ``configs/ppo.yml``), ``fixed`` search-space keys, ``trial_steps`` [steps],
+    ``trial_minutes`` [min] (None: no wall budget), an evaluation every ``eval_freq`` [steps] on
+    ``eval_targets`` [-] targets of ``eval_seed`` [-], training seed ``seed`` [-]; ``prune``:
+    Optuna's median pruner on those evaluations; ``sampler_seed`` [-] of worker 0's TPE sampler
+    (worker i: + i; None: random); ``best_file``: where the best trial's config entry goes
+    (None: ``OUT/<study>/best.yml``); ``verbose``: one line per finished trial on stderr;
+    ``heartbeat_s`` [s]: a new study's heartbeat interval (None: the default; a study keeps the
+    one it was created with)."""
+
+    out: str | Path = "runs/tune"
+    n_trials: int = 20
+    workers: int = 1
+    storage: str | None = None
+    study_name: str = DEFAULT_STUDY
+    env_id: str = hyperparams.ENV_ID
+    env_kwargs: dict[str, Any] | None = None
+    conf_file: str | None = None
+    fixed: dict[str, Any] | None = None
+    trial_steps: int = 1_000_000
+    trial_minutes: float | None = None
+    eval_freq: int = 250_000
+    eval_targets: int = 100
+    eval_seed: int = 12345
+    seed: int = 0
+    prune: bool = True
+    sampler_seed: int | None = None
+    best_file: str | Path | None = None
+    verbose: bool = False
+    heartbeat_s: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.n_trials < 1 or self.workers < 1:
+            raise ValueError(f"n_trials and workers must be >= 1, got {self.n_trials!r}, "
+                             f"{self.workers!r}")
+        hb = self.heartbeat_s
+        if hb is not None and (isinstance(hb, bool) or not isinstance(hb, int) or hb < 1):
+            raise ValueError(f"heartbeat_s must be a whole number of seconds >= 1, got {hb!r}")
+        check_budgets(self.trial_steps, self.trial_minutes, 1, self.eval_freq, self.eval_targets)
+        if self.eval_targets < 1:
+            raise ValueError("eval_targets must be >= 1: the objective is the final evaluation")
+
+    def job(self, storage: str) -> dict[str, Any]:
+        """What every worker of the command needs (a plain dict, sent to the worker
+        processes), with the storage URL resolved."""
+        keep = ("study_name", "env_id", "conf_file", "trial_steps", "trial_minutes", "eval_freq",
+                "eval_targets", "eval_seed", "seed", "prune", "sampler_seed", "heartbeat_s")
+        d = dataclasses.asdict(self)
+        return {"out": str(self.out), "storage": storage, "env_kwargs": self.env_kwargs or None,
+                "fixed": dict(self.fixed or {}), **{k: d[k] for k in keep}}
