@@ -7,6 +7,7 @@ import sys
 from typing import Any
 
 from microconveyor_env.cli.base import command, count, emit
+from microconveyor_env.env_ids import DEFAULT_ENV_ID, ENV_IDS
 
 from .args import add_env_args, env_kwargs_of, minutes
 
@@ -53,7 +54,7 @@ def _train_args(p: argparse.ArgumentParser) -> None:
                    help="then refine the final PPO policy (`microconveyor refine` at its "
                         "defaults, ~3 min) into OUT/refined, evaluated on --eval-targets; "
                         "MicroConveyor-v0/v1 without randomisation")
-    add_env_args(p, default="MicroConveyor-v1", goal=True,
+    add_env_args(p, default=DEFAULT_ENV_ID, goal=True,
                  what=" to train on (its entry in the conf file gives the hyperparameters)")
 
 
@@ -65,8 +66,8 @@ def _check_refinable(args: argparse.Namespace) -> None:
 
     from ..rl.artefacts.folders import check_new_folder
 
-    if args.algo != "ppo" or args.env not in ("MicroConveyor-v0", "MicroConveyor-v1"):
-        raise ValueError("--refine refines a PPO policy of MicroConveyor-v0 or -v1; got "
+    if args.algo != "ppo" or args.env not in ENV_IDS:
+        raise ValueError(f"--refine refines a PPO policy of {' or '.join(ENV_IDS)}; got "
                          f"--algo {args.algo} --env {args.env}")
     if env_config(args.env, **env_kwargs_of(args)).randomised:
         raise ValueError("--refine corrects deterministic episodes; --env-kwargs asks for "

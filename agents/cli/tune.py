@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from microconveyor_env.cli.base import command, count, emit, plot_path
+from microconveyor_env.env_ids import DEFAULT_ENV_ID
 
 from .args import add_env_args, env_kwarg, env_kwargs_of, minutes
 from .evaluate import iqm_lines
@@ -19,7 +20,7 @@ def _budget_args(p: argparse.ArgumentParser, steps_help: str) -> None:
     p.add_argument("--eval-freq", type=count(0), default=250_000,
                    help="steps between periodic evaluations (0: none)")
     p.add_argument("--eval-targets", type=count(1), default=100, help="targets per evaluation")
-    add_env_args(p, default="MicroConveyor-v1", goal=True,
+    add_env_args(p, default=DEFAULT_ENV_ID, goal=True,
                  what=" to train on (its entry in the conf file gives the base hyperparameters)")
     p.add_argument("--steps", type=count(1), default=None, help=steps_help)
 

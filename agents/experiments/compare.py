@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import math
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -36,7 +35,7 @@ from ..mpc import mpc_rollout
 from ..mpc.harness import LOST
 from ..openloop.target import Rollouts, solve_target
 from ..rl.evaluation.evaluate import fixed_targets, load_policy, rollout
-from ..rl.evaluation.seeds import iqm
+from ..rl.evaluation.seeds import iqm_interval
 from .compare_settings import CompareSettings
 from .perturb import (Level, axes_table, perturbation_levels, plan_rollout, policy_rollout,
                       unique_levels)
@@ -114,34 +113,10 @@ def episodes_to(history_episodes: Sequence[int], history_best: Sequence[float | 
 
 
 def seed_summary(values: Sequence[float], seed: int = 0) -> dict:
-    """Per-seed scores summed up as rliable does for one task: their IQM
-    (:func:`agents.rl.evaluation.seeds.iqm`) and its 95 % percentile-bootstrap interval over
-    seeds (``scipy.stats.bootstrap`` of that IQM, 2,000 resamples, seeded)."""
-    from scipy.stats import bootstrap
-
-    v = np.asarray(values, float)
-    out = {"iqm": iqm(v), "per_seed": v.tolist(), "ci95": [math.nan] * 2}
-    if v.size > 1 and np.ptp(v) > 0:
-        ci = bootstrap((v,), _per_row(iqm), n_resamples=2000, method="percentile",
-                       rng=np.random.default_rng(seed))
-        out["ci95"] = [float(ci.confidence_interval.low), float(ci.confidence_interval.high)]
-    elif v.size:
-        out["ci95"] = [float(v[0]), float(v[0])]
-    return out
-
-
-def _per_row(stat: Callable[[np.ndarray], float]) -> Callable[..., np.ndarray]:
-    """``stat`` of every row along ``axis`` (a vectorised statistic for ``scipy.stats.bootstrap``),
-    called once per distinct row: a bootstrap over a few seeds draws the same resamples again and
-    again."""
-    def apply(x: np.ndarray, axis: int = -1) -> np.ndarray:
-        x = np.moveaxis(np.asarray(x, float), axis, -1)
-        rows, inverse = np.unique(x.reshape(-1, x.shape[-1]), axis=0, return_inverse=True)
-        values = np.array([stat(r) for r in rows])
-        return values[inverse.ravel()].reshape(x.shape[:-1])
-
-    return apply
-
+    """Per-seed scores summed up as rliable does for one task: their IQM and its 95 %
+    percentile-bootstrap interval over seeds, 2,000 resamples drawn with ``seed``
+    (:func:`agents.rl.evaluation.seeds.iqm_interval`)."""
+    return iqm_interval(values, 2000, seed)
 
 def _reusing(run: Callable, cfg: EnvConfig, targets: np.ndarray, seed: int,
              result: dict) -> Callable:

@@ -24,7 +24,7 @@ from microconveyor_env.envs import EnvConfig, MicroConveyorVectorEnv, PartState
 from microconveyor_env.envs.core.actions import constants as action_constants, decode
 from microconveyor_env.envs.core.episodes import PlanActor, run_episodes
 
-from .search import SearchResult, minimize
+from .search import TARGET_BUDGET, SearchResult, minimize
 
 MISS = 1.0  # m: base cost of an episode that does not end at rest (detached, max_time, ...)
 
@@ -154,7 +154,7 @@ class TargetResult:
         return d
 
 
-def solve_target(target_m: float, method: str = "de", budget: int = 2000, seed: int = 0,
+def solve_target(target_m: float, method: str = "de", budget: int = TARGET_BUDGET, seed: int = 0,
                  config: EnvConfig | None = None, rollouts: Rollouts | None = None,
                  episode_seed: int = 0, start: PartState | None = None,
                  **search_kw: Any) -> TargetResult:

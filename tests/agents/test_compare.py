@@ -4,7 +4,6 @@ import json
 import subprocess
 import sys
 
-import numpy as np
 import pytest
 
 pytest.importorskip("stable_baselines3")
@@ -107,11 +106,6 @@ def test_seed_summary_and_episodes_to_tolerance():
     assert res["ci95"][0] < res["iqm"] < res["ci95"][1]
     assert seed_summary(values, seed=0) == res               # seeded
     assert seed_summary([0.4, 0.4])["ci95"] == [0.4, 0.4]    # no spread: a zero-width interval
-    from agents.experiments.compare import _per_row
-
-    x = np.random.default_rng(0).integers(0, 3, (50, 4)) / 2   # many repeated rows
-    assert _per_row(iqm)(x).tolist() == [iqm(r) for r in x]
-    assert _per_row(iqm)(x.T, axis=0).tolist() == [iqm(r) for r in x]
     assert episodes_to([10, 20, 30], [None, 60e-6, 40e-6], 50e-6) == 30
     assert episodes_to([10, 20], [None, 1e-3], 50e-6) is None
 

@@ -25,7 +25,9 @@ from typing import Any
 
 import yaml
 
-ENV_ID = "MicroConveyor-v1"  # what `train` trains on unless told (v0: --env MicroConveyor-v0)
+from microconveyor_env.env_ids import DEFAULT_ENV_ID
+
+ENV_ID = DEFAULT_ENV_ID  # what `train` trains on unless told
 # keys only this package's trainer reads (rl-zoo3 would pass them to the algorithm)
 PACKAGE_KEYS = ("exploration_restart", "exploration_shift", "freeze_obs_stats_at")
 # the section of a config file holding them, per env id (rl-zoo3 reads only its --env's entry)
