@@ -81,8 +81,7 @@ def answer_table(data: dict) -> str:
                  f"episode per target; under noise: {n_s} noise seeds per target "
                  f"({n_t * n_s} episodes per cell). Median absolute final error, in brackets the "
                  f"share at rest within ±{tol * 1e6:.0f} µm; compute: wall time on the machine "
-                 f"of docs/results.md. Measured {data['provenance']['recorded_utc'][:10]}"
-                 f" with `{data['provenance']['command']}` (docs/results.md).")
+                 f"of docs/results.md. Reproduce: `{data['provenance']['command']}`.")
     return "\n".join(lines)
 
 
