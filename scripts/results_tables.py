@@ -8,6 +8,11 @@ A generated table sits between two markers, ``<!-- results:NAME -->`` and
 * ``noise``: that table's noise level in action units and as frequency, stroke and delay jitter;
 * ``shipped``: every shipped policy's recorded evaluations, from its ``metadata.json``
   (``scripts/record_shipped_evaluations.py`` records them);
+* ``compare``: the comparison of every method on MicroConveyor-v1 under perturbation, from
+  ``docs/figures/compare_v1_mpc_ppo.json`` (``microconveyor compare --mpc-prior shipped``);
+* ``plane``: the shipped plane policy against DE, from ``docs/figures/plane_v0_errors.json``;
+* ``threads``: SB3's SAC with torch's default threads and with one, from
+  ``docs/figures/sac_threads.json`` (``scripts/sac_threads.py``);
 * ``seeds``: training seeds' final checkpoints, IQM and bootstrap interval, from the
   ``microconveyor seeds --json`` outputs stored in ``docs/figures/*seeds.json``.
 
@@ -163,6 +168,76 @@ def seeds_table() -> str:
     return "\n".join(lines)
 
 
+COMPARE_NAMES = {"ppo": "the shipped `ppo`", "ppo_randomised": "the shipped `ppo_randomised`",
+                 "mpc": "MPC (re-plans after every firing)", "mpc_ppo": "MPC seeded by `ppo`",
+                 "mpc_robust": "robust adaptive MPC seeded by `ppo`", "random": "random actions",
+                 "fixed_schedule": "a fixed schedule (950 Hz, 200 µm, no delay)",
+                 "de": "DE per target (open loop)", "cmaes": "CMA-ES per target (open loop)"}
+
+
+def compare_table(data: dict, level: tuple[float, float] = (3e-3, 0.05)) -> str:
+    """Rows of a stored ``microconveyor compare --json``: nominal success and error, success at
+    one perturbation ``level`` (σ, r) of the ``combined`` axis, compute per target."""
+    tol = data["tolerance_m"]
+    lines = [f"| method | nominal: within ±{tol * 1e6:.0f} µm [95 % Wilson] | median \\|error\\| | "
+             f"σ = {level[0]:g}, r = {100 * level[1]:g} %: within ±{tol * 1e6:.0f} µm (detached) "
+             "| compute per target |", "|---|---|---|---|---|"]
+    for row in data["rows"]:
+        name = row["method"]
+        key = f"{name}_{row['budget']}_plan" if "budget" in row else name
+        pert = [x for x in data["perturbation"].get(key, {}).get("combined", [])
+                if (x["action_noise"], x["spread"]) == level]
+        n = row["n_targets"]
+        lo, hi = wilson(round(row["success_rate"] * n), n)
+        label = COMPARE_NAMES.get(name, name) + (f", {row['budget']:,} episodes"
+                                                 if "budget" in row else "")
+        at = (f"{100 * pert[0]['success_rate']:.0f} % ({100 * pert[0]['detach_rate']:.0f} %)"
+              if pert else "–")
+        med = row.get("median_abs_error_m")
+        lines.append(f"| {label} | {100 * row['success_rate']:.0f} % [{100 * lo:.0f}, {100 * hi:.0f}] "
+                     f"| {_um(med) if med is not None else '–'} | {at} | "
+                     f"{_ms(row['wall_s_per_target'])} |")
+    lines.append("")
+    lines.append(f"{data['env_id']}, {len(data['targets_m'])} targets drawn with seed "
+                 f"{data['seed']} over the env's range; r: friction and mass factors uniform in "
+                 "[1 − r, 1 + r] per episode; one episode per target and level.")
+    return "\n".join(lines)
+
+
+def plane_table(data: dict) -> str:
+    import numpy as np
+
+    tol = data["tolerance_m"]
+    lines = ["| method | within ±50 µm (Euclidean) | median error | compute per target |",
+             "|---|---|---|---|"]
+    ppo = data["ppo"]
+    lines.append(f"| the shipped `ppo` | {100 * ppo['success_rate_50um']:.0f} % | "
+                 f"{_um(ppo['median_error_m'])} | ~{ppo['mean_firings']:.0f} forward passes |")
+    for budget, de in data["de"].items():
+        err = np.asarray(de["error_m"], float)
+        lines.append(f"| DE per target, {int(budget):,} episodes | "
+                     f"{100 * float(np.mean(err <= tol)):.0f} % | {_um(float(np.median(err)))} | "
+                     f"{int(budget):,} simulated episodes |")
+    t = data["targets"]
+    lines.append("")
+    lines.append(f"MicroConveyor2D-v0, {t['n']} targets (seed {t['seed']}) on the grid's "
+                 f"2 × 2 mm box, success at rest within ±{tol * 1e6:.0f} µm; "
+                 f"`{data['command']}` (stored in `docs/figures/plane_v0_errors.json`).")
+    return "\n".join(lines)
+
+
+def threads_table(data: dict) -> str:
+    lines = ["| torch threads | steps per second (each repeat) |", "|---|---|"]
+    for k, v in data["steps_per_s"].items():
+        lines.append(f"| {k} | {' / '.join(f'{x:.0f}' for x in v)} |")
+    lines.append("")
+    lines.append(f"{data['algo']} on {data['env_id']}, {data['steps']:,} steps per run, the "
+                 f"settings alternated in one process: one thread is {data['speedup_1_thread']:.1f}× "
+                 f"as fast. `{data['provenance']['command']}` "
+                 "(stored in `docs/figures/sac_threads.json`).")
+    return "\n".join(lines)
+
+
 def generators() -> dict:
     """Region name -> a function returning its text."""
     def load(name: str) -> dict:
@@ -171,7 +246,10 @@ def generators() -> dict:
     return {"answer": lambda: answer_table(load("answer_table.json")),
             "noise": lambda: noise_table(load("answer_table.json")),
             "shipped": shipped_table,
-            "seeds": seeds_table}
+            "seeds": seeds_table,
+            "compare": lambda: compare_table(load("compare_v1_mpc_ppo.json")),
+            "plane": lambda: plane_table(load("plane_v0_errors.json")),
+            "threads": lambda: threads_table(load("sac_threads.json"))}
 
 
 def render(text: str, gens: dict, cache: dict) -> str:

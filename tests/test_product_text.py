@@ -86,7 +86,7 @@ def _allowed() -> set[str]:
 
 
 def test_the_patterns_catch_history():
-    text = ("met issue 20's bar in the evening session of another engineer on 2026-11-24, "
+    text = ("met the bar of issue 20 in the evening session of another engineer on 2026-11-24, "
             "see #21; a link [x](agents.md#1-the-problem) and &#8212; are not history")
     hits = findings({"page x.md": text})["page x.md"]
     assert len(hits) == 6, hits   # issue 20, #21, the bar, session, engineer, the date
