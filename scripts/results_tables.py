@@ -229,7 +229,7 @@ def plane_table(data: dict) -> str:
 def threads_table(data: dict) -> str:
     lines = ["| torch threads | steps per second (each repeat) |", "|---|---|"]
     for k, v in data["steps_per_s"].items():
-        lines.append(f"| {k} | {' / '.join(f'{x:.0f}' for x in v)} |")
+        lines.append(f"| {k} | {' / '.join(f'{x:.1f}' for x in v)} |")
     lines.append("")
     lines.append(f"{data['algo']} on {data['env_id']}, {data['steps']:,} steps per run, the "
                  f"settings alternated in one process: one thread is {data['speedup_1_thread']:.1f}× "
