@@ -79,8 +79,8 @@ class Stretch:
 
     ``zone_length``: length of the active zone centred on the firing actuator [m] (None: the
     wavelength); outside it the surface under the part is unstrained. ``max_strain``,
-    ``n_sigma``: the strain range [0, max_strain] [-] and the number of sigma nodes of the
-    tables (:mod:`.stretch`)."""
+    ``n_sigma``: the strain range, from 0 to ``max_strain`` (dimensionless), and the number of
+    sigma nodes of the tables (:mod:`.stretch`)."""
 
     zone_length: float | None = None
     max_strain: float = 0.4

@@ -1,0 +1,290 @@
+"""The tables of README.md and docs/ that repeat a stored result, generated from that result.
+
+A generated table sits between two markers, ``<!-- results:NAME -->`` and
+``<!-- /results:NAME -->``; this script rewrites what is between them from the stored JSON:
+
+* ``answer``: the answer table (target distance → method → error, nominal and under execution
+  noise) from ``docs/figures/answer_table.json`` (``scripts/answer_table.py`` measures it);
+* ``noise``: that table's noise level in action units and as frequency, stroke and delay jitter;
+* ``shipped``: every shipped policy's recorded evaluations, from its ``metadata.json``
+  (``scripts/record_shipped_evaluations.py`` records them);
+* ``compare``: the comparison of every method on MicroConveyor-v1 under perturbation, from
+  ``docs/figures/compare_v1_mpc_ppo.json`` (``microconveyor compare --mpc-prior shipped``);
+* ``plane``: the shipped plane policy against DE, from ``docs/figures/plane_v0_errors.json``;
+* ``threads``: SB3's SAC with torch's default threads and with one, from
+  ``docs/figures/sac_threads.json`` (``scripts/sac_threads.py``);
+* ``seeds``: training seeds' final checkpoints, IQM and bootstrap interval, from the
+  ``microconveyor seeds --json`` outputs stored in ``docs/figures/*seeds.json``.
+
+::
+
+    python scripts/results_tables.py            # rewrite the regions in place
+    python scripts/results_tables.py --check    # exit 1, naming each region that differs
+
+``tests/test_results_tables.py`` fails when a region differs from what this script writes.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "docs" / "figures"   # every stored result JSON lives beside its figures
+POLICIES = ROOT / "agents" / "policies"
+PAGES = (ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")))
+REGION = re.compile(r"(<!-- results:(?P<name>[\w-]+) -->\n)(?P<body>.*?)(<!-- /results:(?P=name) -->)",
+                    re.S)
+METHOD_NAMES = {"ppo_refined": "the shipped policy `ppo_refined`",
+                "mpc_ppo_refined": "MPC seeded by `ppo_refined`",
+                "de": "DE per target, 1,000 episodes (open loop)"}
+EVALUATIONS = {"evaluation": "monitored", "evaluation_fresh": "fresh",
+               "evaluation_nominal": "nominal (randomisation off)"}
+
+
+def _um(x_m: float) -> str:
+    v = x_m * 1e6
+    return f"{v:.1f} µm" if v < 100 else f"{v:,.0f} µm"
+
+
+def _ms(x_s: float) -> str:
+    return f"{x_s * 1e3:.1f} ms" if x_s < 1 else f"{x_s:.1f} s"
+
+
+def wilson(k: int, n: int) -> tuple[float, float]:
+    """95 % Wilson score interval of k successes in n trials."""
+    from agents.experiments.perturb import wilson as _wilson
+
+    lo, hi = _wilson(k, n)
+    return lo, hi
+
+
+def _cell(episodes: list[dict], tol: float) -> str:
+    import numpy as np
+
+    err = np.abs([e["error_m"] for e in episodes])
+    ok = sum(bool(e["outcome"] == "rest" and abs(e["error_m"]) <= tol) for e in episodes)
+    return f"{_um(float(np.median(err)))} ({100 * ok / len(episodes):.0f} %)"
+
+
+def answer_table(data: dict) -> str:
+    tol = data["tolerance_m"]
+    n_t, n_s = data["targets_per_distance"], data["noise_seeds"]
+    sigma = data["noise"]["sigma_action_units"]
+    lines = [f"| target | method | nominal: median \\|error\\| (within ±{tol * 1e6:.0f} µm) | "
+             f"under noise σ = {sigma:g} | compute per target |", "|---|---|---|---|---|"]
+    for d in data["distances_m"]:
+        for name, m in data["methods"].items():
+            def near(rows: list[dict], d: float = d) -> list[dict]:
+                return [r for r in rows if abs(r["target_m"] - d) <= 0.2e-3]
+            lines.append(f"| {d * 1e3:g} mm | {METHOD_NAMES[name]} | {_cell(near(m['nominal']), tol)} | "
+                         f"{_cell(near(m['noise']), tol)} | {_ms(m['wall_s_per_target'])} |")
+    lines.append("")
+    lines.append(f"{data['env_id']}; per distance d, {n_t} targets over d ± 0.1 mm; nominal: one "
+                 f"episode per target; under noise: {n_s} noise seeds per target "
+                 f"({n_t * n_s} episodes per cell). Median absolute final error, in brackets the "
+                 f"share at rest within ±{tol * 1e6:.0f} µm; compute: wall time on the machine "
+                 f"of docs/results.md. Reproduce: `{data['provenance']['command']}`.")
+    return "\n".join(lines)
+
+
+def noise_table(data: dict) -> str:
+    n = data["noise"]
+    return "\n".join([
+        "| σ [action units] | frequency (1 σ) | stroke (1 σ) | delay (1 σ) |",
+        "|---|---|---|---|",
+        f"| {n['sigma_action_units']:g} | {100 * n['frequency_relative']:.2f} % "
+        f"({n['frequency_at_1khz_hz']:.1f} Hz at 1 kHz) | {n['stroke_m'] * 1e6:.2f} µm | "
+        f"{n['delay_s'] * 1e6:.0f} µs |"])
+
+
+def shipped_rows() -> list[dict]:
+    """Every recorded evaluation of every shipped policy: env id, name, which evaluation, the
+    evaluation dict and the metadata."""
+    rows = []
+    for meta_path in sorted(POLICIES.glob("*/*/metadata.json")):
+        meta = json.loads(meta_path.read_text())
+        for key in EVALUATIONS:
+            ev = meta.get(key)
+            if ev:
+                rows.append({"env_id": meta_path.parent.parent.name,
+                             "name": meta_path.parent.name, "key": key, "evaluation": ev,
+                             "metadata": meta})
+    return rows
+
+
+def shipped_table() -> str:
+    lines = ["| env id | policy | evaluation | targets (seed) | within ±50 µm [95 % Wilson] | "
+             "median \\|error\\| | trained |", "|---|---|---|---|---|---|---|"]
+    for r in shipped_rows():
+        ev, meta = r["evaluation"], r["metadata"]
+        n, rate = ev["n_targets"], ev["success_rate_50um"]
+        lo, hi = wilson(round(rate * n), n)
+        med = ev.get("median_abs_error_m", ev.get("median_error_m"))
+        config = ("under its training randomisation" if ev.get("config") == "trained"
+                  else EVALUATIONS[r["key"]])
+        trained = f"{meta['steps'] / 1e6:.1f} M steps, {meta['wall_time_s'] / 60:.1f} min"
+        lines.append(f"| {r['env_id']} | `{r['name']}` | {config} | {n:,} ({ev['seed']}) | "
+                     f"{100 * rate:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}] | {_um(med)} | "
+                     f"{trained} |")
+    lines.append("")
+    lines.append("Recorded by `python scripts/record_shipped_evaluations.py` (the plane's: "
+                 "`python scripts/ship_plane_policy.py`) into each policy's `metadata.json`; "
+                 "reproduce one with `microconveyor evaluate --env ID --policy "
+                 "agents/policies/ID/NAME --targets N --seed S`.")
+    return "\n".join(lines)
+
+
+# stored `microconveyor seeds` outputs: file -> (env id, recipe, how the seeds were trained)
+SEED_RUNS = {
+    "ppo_seeds.json": ("MicroConveyor-v0", "PPO, `configs/ppo.yml`", "14.5-min wall budget"),
+    "ppo_v1_seeds.json": ("MicroConveyor-v1", "PPO, `configs/ppo.yml`", "6.0 M steps"),
+    "ppo_v1_ten_seeds.json": ("MicroConveyor-v1", "PPO, `configs/ppo.yml`",
+                              "6.0 M steps, another CPU (AVX-512)"),
+    "ppo_v1_refined_ten_seeds.json": ("MicroConveyor-v1", "PPO + `refine`",
+                                      "6.0 M steps, then `refine`, another CPU (AVX-512)"),
+    "ppo_v1_10M_seeds.json": ("MicroConveyor-v1", "PPO, `configs/ppo.yml`",
+                              "10.0 M steps, another CPU (AVX-512)"),
+}
+
+
+def seeds_table() -> str:
+    lines = ["| env id | recipe | trained | seeds | within ±50 µm per seed | IQM [95 % bootstrap] "
+             "| median \\|error\\| IQM |", "|---|---|---|---|---|---|---|"]
+    for name, (env_id, recipe, how) in SEED_RUNS.items():
+        d = json.loads((RESULTS / name).read_text())
+        s, med = d["success_rate_50um"], d["median_abs_error_m"]
+        per = " / ".join(f"{100 * v:.0f}" for v in s["per_seed"])
+        lines.append(f"| {env_id} | {recipe} | {how} | {len(s['per_seed'])} | {per} % | "
+                     f"{100 * s['iqm']:.1f} % [{100 * s['ci95'][0]:.1f}, {100 * s['ci95'][1]:.1f}] | "
+                     f"{_um(med['iqm'])} |")
+    lines.append("")
+    lines.append("Final checkpoints, each on the 100 targets `train` monitors (target seed 12345, "
+                 "tolerance ±50 µm); IQM = 25 %-trimmed mean over seeds, 95 % percentile "
+                 "bootstrap over seeds (`microconveyor seeds RUN ... --json`, stored in "
+                 "`docs/figures/<file>`: " + ", ".join(f"`{n}`" for n in SEED_RUNS) + ").")
+    return "\n".join(lines)
+
+
+COMPARE_NAMES = {"ppo": "the shipped `ppo`", "ppo_randomised": "the shipped `ppo_randomised`",
+                 "mpc": "MPC (re-plans after every firing)", "mpc_ppo": "MPC seeded by `ppo`",
+                 "mpc_robust": "robust adaptive MPC seeded by `ppo`", "random": "random actions",
+                 "fixed_schedule": "a fixed schedule (950 Hz, 200 µm, no delay)",
+                 "de": "DE per target (open loop)", "cmaes": "CMA-ES per target (open loop)"}
+
+
+def compare_table(data: dict, level: tuple[float, float] = (3e-3, 0.05)) -> str:
+    """Rows of a stored ``microconveyor compare --json``: nominal success and error, success at
+    one perturbation ``level`` (σ, r) of the ``combined`` axis, compute per target."""
+    tol = data["tolerance_m"]
+    lines = [f"| method | nominal: within ±{tol * 1e6:.0f} µm [95 % Wilson] | median \\|error\\| | "
+             f"σ = {level[0]:g}, r = {100 * level[1]:g} %: within ±{tol * 1e6:.0f} µm (detached) "
+             "| compute per target |", "|---|---|---|---|---|"]
+    for row in data["rows"]:
+        name = row["method"]
+        key = f"{name}_{row['budget']}_plan" if "budget" in row else name
+        pert = [x for x in data["perturbation"].get(key, {}).get("combined", [])
+                if (x["action_noise"], x["spread"]) == level]
+        n = row["n_targets"]
+        lo, hi = wilson(round(row["success_rate"] * n), n)
+        label = COMPARE_NAMES.get(name, name) + (f", {row['budget']:,} episodes"
+                                                 if "budget" in row else "")
+        at = (f"{100 * pert[0]['success_rate']:.0f} % ({100 * pert[0]['detach_rate']:.0f} %)"
+              if pert else "–")
+        med = row.get("median_abs_error_m")
+        lines.append(f"| {label} | {100 * row['success_rate']:.0f} % [{100 * lo:.0f}, {100 * hi:.0f}] "
+                     f"| {_um(med) if med is not None else '–'} | {at} | "
+                     f"{_ms(row['wall_s_per_target'])} |")
+    lines.append("")
+    lines.append(f"{data['env_id']}, {len(data['targets_m'])} targets drawn with seed "
+                 f"{data['seed']} over the env's range; r: friction and mass factors uniform in "
+                 "[1 − r, 1 + r] per episode; one episode per target and level.")
+    return "\n".join(lines)
+
+
+def plane_table(data: dict) -> str:
+    import numpy as np
+
+    tol = data["tolerance_m"]
+    lines = ["| method | within ±50 µm (Euclidean) | median error | compute per target |",
+             "|---|---|---|---|"]
+    ppo = data["ppo"]
+    lines.append(f"| the shipped `ppo` | {100 * ppo['success_rate_50um']:.0f} % | "
+                 f"{_um(ppo['median_error_m'])} | ~{ppo['mean_firings']:.0f} forward passes |")
+    for budget, de in data["de"].items():
+        err = np.asarray(de["error_m"], float)
+        lines.append(f"| DE per target, {int(budget):,} episodes | "
+                     f"{100 * float(np.mean(err <= tol)):.0f} % | {_um(float(np.median(err)))} | "
+                     f"{int(budget):,} simulated episodes |")
+    t = data["targets"]
+    lines.append("")
+    lines.append(f"MicroConveyor2D-v0, {t['n']} targets (seed {t['seed']}) on the grid's "
+                 f"2 × 2 mm box, success at rest within ±{tol * 1e6:.0f} µm; "
+                 f"`{data['command']}` (stored in `docs/figures/plane_v0_errors.json`).")
+    return "\n".join(lines)
+
+
+def threads_table(data: dict) -> str:
+    lines = ["| torch threads | steps per second (each repeat) |", "|---|---|"]
+    for k, v in data["steps_per_s"].items():
+        lines.append(f"| {k} | {' / '.join(f'{x:.1f}' for x in v)} |")
+    lines.append("")
+    lines.append(f"{data['algo']} on {data['env_id']}, {data['steps']:,} steps per run, the "
+                 f"settings alternated in one process: one thread is {data['speedup_1_thread']:.1f}× "
+                 f"as fast. `{data['provenance']['command']}` "
+                 "(stored in `docs/figures/sac_threads.json`).")
+    return "\n".join(lines)
+
+
+def generators() -> dict:
+    """Region name -> a function returning its text."""
+    def load(name: str) -> dict:
+        return json.loads((RESULTS / name).read_text())
+
+    return {"answer": lambda: answer_table(load("answer_table.json")),
+            "noise": lambda: noise_table(load("answer_table.json")),
+            "shipped": shipped_table,
+            "seeds": seeds_table,
+            "compare": lambda: compare_table(load("compare_v1_mpc_ppo.json")),
+            "plane": lambda: plane_table(load("plane_v0_errors.json")),
+            "threads": lambda: threads_table(load("sac_threads.json"))}
+
+
+def render(text: str, gens: dict, cache: dict) -> str:
+    """``text`` with every region rewritten (an unknown region name is an error)."""
+    def sub(m: re.Match) -> str:
+        name = m["name"]
+        if name not in gens:
+            raise KeyError(f"no generator for region {name!r}; known: {sorted(gens)}")
+        if name not in cache:
+            cache[name] = gens[name]()
+        return f"{m.group(1)}{cache[name]}\n{m.group(4)}"
+
+    return REGION.sub(sub, text)
+
+
+def regions(text: str) -> list[str]:
+    return [m["name"] for m in REGION.finditer(text)]
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--check", action="store_true", help="write nothing; exit 1 if a region differs")
+    args = ap.parse_args(argv)
+    gens, cache, stale = generators(), {}, []
+    for page in PAGES:
+        text = page.read_text()
+        new = render(text, gens, cache)
+        if new != text:
+            stale.append(f"{page.relative_to(ROOT)}: {', '.join(regions(text))}")
+            if not args.check:
+                page.write_text(new)
+    for s in stale:
+        print(("differs: " if args.check else "rewrote: ") + s, file=sys.stderr)
+    return 1 if (args.check and stale) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
