@@ -8,7 +8,7 @@ counterparts of :mod:`.events`, whose root finders (Illinois, secant) and consta
 The loops of the Illinois and golden-section searches are written out here as in :mod:`.events`
 rather than shared: a compiled search taking the searched function as an argument gives the
 same numbers bit for bit, but numba then refuses to cache every kernel that calls it ("uses
-dynamic globals"), so each process would compile the kernels afresh (tried 2026-11-25).
+dynamic globals"), so each process would compile the kernels afresh.
 """
 from __future__ import annotations
 
