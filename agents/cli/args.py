@@ -99,18 +99,16 @@ class _EnvPreset(argparse.Action):
 
 
 def add_env_args(p: argparse.ArgumentParser, default: str | None = DEFAULT_ENV_ID,
-                 what: str = "", default_text: str | None = None, goal: bool = False,
-                 extra_ids: tuple[str, ...] = ()) -> None:
-    """``--env ID`` (a registered version; with ``goal`` also the goal-conditioned variants;
-    ``extra_ids`` also these, e.g. the plane's), ``--env-kwargs KEY:VALUE ...`` (its overrides,
+                 what: str = "", default_text: str | None = None) -> None:
+    """``--env ID`` (any registered id: a command that cannot use one refuses it in one line
+    when it runs), ``--env-kwargs KEY:VALUE ...`` (its overrides,
     as ``gym.make(ID, **kwargs)``; repeated, the lists add up) and ``--preset NAME`` (the env's
     surface: ``--env-kwargs preset:NAME``); ``default_text`` says what a ``None`` default
     means."""
     from microconveyor_env.cli.base import PRESET_HELP, preset_name
-    from microconveyor_env.envs import ENV_IDS
-    from microconveyor_env.envs.versions import ALL_ENV_IDS
+    from microconveyor_env.env_ids import ALL_ENV_IDS
 
-    p.add_argument("--env", choices=(ALL_ENV_IDS if goal else ENV_IDS) + tuple(extra_ids),
+    p.add_argument("--env", choices=ALL_ENV_IDS,
                    default=default,
                    help=f"env id{what} (default: {default or default_text})")
     p.add_argument("--env-kwargs", type=env_kwarg, nargs="+", action="extend", default=None,

@@ -113,7 +113,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
                         "episodes-to-tolerance (and with --full grid) charts go beside it as "
                         "STEM_compute, STEM_perturbation, STEM_ecdf (STEM_grid), the result as "
                         "STEM.json")
-    add_env_args(p, default=DEFAULT_ENV_ID, goal=True,
+    add_env_args(p, default=DEFAULT_ENV_ID,
                  what=" (a version of the conveyor line; the policies must have been trained on "
                       "its scene)")
 

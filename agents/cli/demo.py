@@ -6,7 +6,6 @@ import argparse
 import sys
 
 from microconveyor_env.cli.base import command, emit
-from microconveyor_env.env_ids import PLANE_ENV_IDS
 
 from .args import add_env_args, env_config_of, env_kwargs_of, floats, line_env
 
@@ -24,7 +23,7 @@ def _demo_args(p: argparse.ArgumentParser) -> None:
                    help="the target [m] of the policy's episode written as carry.gif to --out "
                         "(default: 0.9 x the top of the env's target range, 9 mm on "
                         "MicroConveyor-v1; 0: no GIF)")
-    add_env_args(p, goal=True, extra_ids=PLANE_ENV_IDS,
+    add_env_args(p,
                  what=" of the episode and the policy (its surface, --preset included, also "
                       "for the contact, firing and sweep charts)")
 

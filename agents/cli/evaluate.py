@@ -16,7 +16,7 @@ def _evaluate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the fixed target set")
     p.add_argument("--tolerance", type=float, default=None,
                    help="success tolerance [m] (default: the env's, 50 um)")
-    add_env_args(p, default=None, default_text="the policy's own, from its metadata", goal=True,
+    add_env_args(p, default=None, default_text="the policy's own, from its metadata",
                  what=": refused if it differs from the scene the policy was trained in "
                       "(randomisation aside); the plane's targets lie on its grid's box and its "
                       "errors are Euclidean")

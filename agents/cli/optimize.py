@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from microconveyor_env.cli.base import command, companion, count, emit, plot_path
-from microconveyor_env.env_ids import DEFAULT_ENV_ID, PLANE_ENV_IDS
+from microconveyor_env.env_ids import DEFAULT_ENV_ID
 
 from ..openloop.search import TARGET_BUDGET
 from .args import add_env_args, env_config_of, env_kwargs_of, line_env
@@ -38,7 +38,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    help="dissertation: also replay Table 4.3's schedule under one-at-a-time model "
                         "changes and re-run the DE under each, for 10 seeds from --seed (~30 s "
                         "at the default budget)")
-    add_env_args(p, default=None, default_text=DEFAULT_ENV_ID, goal=True, extra_ids=PLANE_ENV_IDS,
+    add_env_args(p, default=None, default_text=DEFAULT_ENV_ID,
                  what=" of --problem target (the dissertation problem is its own model)")
 
 

@@ -6,7 +6,7 @@ import sys
 from typing import Any
 
 from microconveyor_env.cli.base import command, count, emit
-from microconveyor_env.env_ids import DEFAULT_ENV_ID, PLANE_ENV_IDS
+from microconveyor_env.env_ids import DEFAULT_ENV_ID
 
 from .args import add_env_args, env_config_of, env_kwargs_of, level, line_env
 from .compare import mpc_budgets
@@ -38,7 +38,7 @@ def _place_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--spread", type=level, default=0.0, metavar="R",
                    help="model error: friction and mass factors drawn in [1-r, 1+r] for the "
                         "placement (default 0); the planners plan on the nominal model")
-    add_env_args(p, goal=True, extra_ids=PLANE_ENV_IDS,
+    add_env_args(p,
                  what=" (the line's: v0, v1 or the goal variant, which has v1's scene)")
 
 

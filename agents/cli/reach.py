@@ -6,7 +6,6 @@ import sys
 from typing import Any
 
 from microconveyor_env.cli.base import command, count, emit, plot_path
-from microconveyor_env.env_ids import PLANE_ENV_IDS
 
 from .args import add_env_args, env_config_of, env_kwargs_of, floats, line_env
 
@@ -22,7 +21,7 @@ def _reach_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--noisy", type=count(1), default=200, help="noisy rollouts per answer")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--plot", type=plot_path, default=None, help="write the reach chart here")
-    add_env_args(p, goal=True, extra_ids=PLANE_ENV_IDS,
+    add_env_args(p,
                  what=" whose scene is studied (its target_range is ignored: --targets)")
 
 

@@ -54,7 +54,7 @@ def _train_args(p: argparse.ArgumentParser) -> None:
                    help="then refine the final PPO policy (`microconveyor refine` at its "
                         "defaults, ~3 min) into OUT/refined, evaluated on --eval-targets; "
                         "MicroConveyor-v0/v1 without randomisation")
-    add_env_args(p, default=DEFAULT_ENV_ID, goal=True,
+    add_env_args(p, default=DEFAULT_ENV_ID,
                  what=" to train on (its entry in the conf file gives the hyperparameters)")
 
 

@@ -20,7 +20,7 @@ def _budget_args(p: argparse.ArgumentParser, steps_help: str) -> None:
     p.add_argument("--eval-freq", type=count(0), default=250_000,
                    help="steps between periodic evaluations (0: none)")
     p.add_argument("--eval-targets", type=count(1), default=100, help="targets per evaluation")
-    add_env_args(p, default=DEFAULT_ENV_ID, goal=True,
+    add_env_args(p, default=DEFAULT_ENV_ID,
                  what=" to train on (its entry in the conf file gives the base hyperparameters)")
     p.add_argument("--steps", type=count(1), default=None, help=steps_help)
 

@@ -27,7 +27,7 @@ def _video_args(p: argparse.ArgumentParser) -> None:
                         "the default policy shipped for --env); without it, the fixed schedule "
                         "of --freq/--stroke/--delay")
     schedule_args(p)
-    add_env_args(p, default=None, goal=True, extra_ids=PLANE_ENV_IDS,
+    add_env_args(p, default=None,
                  default_text=f"the policy's env; without a policy {DEFAULT_ENV_ID}",
                  what=" (with --policy: must be the policy's scene; MicroConveyor2D-v0: a "
                       "policy only, one frame per firing)")

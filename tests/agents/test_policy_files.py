@@ -290,3 +290,17 @@ def test_a_rows_action_does_not_depend_on_its_batch(env_id):
     assert pol.act(obs[:0]).shape == (0, 3)
     with pytest.raises(ValueError, match="batch of observations"):
         pol.act(obs[0])
+
+
+def test_a_model_that_trained_past_its_budget_is_data():
+    """SB3 stores 1 - steps done / steps asked as the progress left: below -1 when a run's last
+    rollout overshoots a small budget (256 steps asked, 4,096 done: -15). Such a model is one
+    ``train`` writes, so it loads; a value SB3 never writes (above 1, or not a number) does not."""
+    from pathlib import Path
+
+    from agents.rl.artefacts.model_zip import ModelFileError, check_data
+
+    check_data(Path("model.zip"), {"_current_progress_remaining": 1.0 - 4096 / 256})
+    for bad in (1.5, "x", float("nan")):
+        with pytest.raises(ModelFileError, match="_current_progress_remaining"):
+            check_data(Path("model.zip"), {"_current_progress_remaining": bad})

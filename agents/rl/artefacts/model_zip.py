@@ -111,7 +111,7 @@ DATA_KEYS: dict[str, Callable[[Any], bool]] = {
     "verbose": _int_in(0, 2), "seed": _int_in(-(2**63), 2**63 - 1, none=True),
     "num_timesteps": COUNT, "_total_timesteps": COUNT, "_num_timesteps_at_start": COUNT,
     "_episode_num": COUNT, "_n_updates": COUNT, "_stats_window_size": _int_in(1, 10**6),
-    "start_time": _num_in(0.0, 1e30), "_current_progress_remaining": _num_in(-1.0, 2.0),
+    "start_time": _num_in(0.0, 1e30), "_current_progress_remaining": _num_in(-1e13, 1.0),
     "tensorboard_log": _text, "use_sde": _flag, "sde_sample_freq": _int_in(-1, 10**9),
     "n_envs": _int_in(1, 1024), "n_steps": _int_in(1, 10**6), "batch_size": _int_in(1, 10**7),
     "n_epochs": _int_in(1, 10**4), "gamma": _num_in(0.0, 1.0), "gae_lambda": _num_in(0.0, 1.0),
