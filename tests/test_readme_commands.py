@@ -47,7 +47,13 @@ def test_every_readme_command_has_a_test():
     assert sorted(set(LINES)) == sorted(SHORTER), "README commands and this test disagree"
 
 
-@pytest.mark.parametrize("line", [line for line in LINES if line not in CHAINED])
+# compare (~30 s even with tiny budgets) runs with the slow tests; tests/agents/test_compare.py
+# covers its code in the default suite
+SLOW = {"microconveyor compare --mpc-prior shipped --plot out/c.png"}
+
+
+@pytest.mark.parametrize("line", [pytest.param(line, marks=pytest.mark.slow) if line in SLOW
+                                  else line for line in LINES if line not in CHAINED])
 def test_readme_command_runs(line, tmp_path):
     _run(line, tmp_path)
 

@@ -161,6 +161,7 @@ def _workers_end_with_parent(code: str, what: str, settle_s: float = 0.0) -> Non
 
 
 # ----------------------------------------------------------------------------- tune
+@pytest.mark.slow   # ~32 s; the default suite kills a train-seeds worker the same way
 def test_a_killed_tune_worker_fails_only_its_trial(tmp_path):
     """tune --workers 2 --trials 4: one worker killed mid-trial. Its trial is failed with the
     reason at once, a new worker runs the rest of its share, the other worker's trials
