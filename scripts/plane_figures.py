@@ -1,4 +1,4 @@
-"""The plane's figure (issue 22, README "In the plane"): final Euclidean error of the shipped PPO of
+"""The plane's figure (docs/results.md, "Positioning in the plane"): final Euclidean error of the shipped PPO of
 MicroConveyor2D-v0 and of differential evolution per target (open loop) on the same 100 targets.
 
     python3 scripts/plane_figures.py [--de DIR]
@@ -7,8 +7,9 @@ Writes docs/figures/plane_v0_errors.png (ECDF of the final error, um on a log ax
 success radius marked) and docs/figures/plane_v0_errors.json (every error plotted, the summaries
 and where they came from). The PPO's errors are its recorded evaluation
 (agents/policies/MicroConveyor2D-v0/ppo/episodes.json). DE's come from ``DIR/de{2000,10000,20000}
-.json`` (``scripts/plane_agents.py de --budget B --json ...``) when ``--de`` is given, and
-otherwise from the JSON written before, which keeps them (DE's runs take minutes per budget).
+.json`` (one JSON per budget: ``{"wall_s": ..., "rows": [{"target_m": ..., "error_m": ...}, ...]}``) when ``--de`` is
+given, and otherwise from the JSON written before, which keeps them (DE's runs take minutes per
+budget).
 """
 from __future__ import annotations
 
@@ -31,8 +32,8 @@ BUDGETS = (2000, 10000, 20000)
 TOL = 50e-6  # [m] the env's success radius
 XMIN_UM = 1e-2  # [um] left edge of the axis; the curves start there at the fraction below it
 DE_NOTE = ("DE: agents/openloop/search.py minimize('de') per target over the episode's 8 x 5 "
-           "actions played open loop on the deterministic nominal model (scripts/plane_agents.py "
-           "de), seed = target index; error_m is the best plan's Euclidean error at rest [m]. "
+           "actions played open loop on the deterministic nominal model, "
+           "seed = target index; error_m is the best plan's Euclidean error at rest [m]. "
            "wall_s measured on the shared 2-core machine under load (2,000 episodes ran under "
            "heavier load than 10,000), one core.")
 
@@ -57,7 +58,7 @@ def summary(err: np.ndarray) -> dict:
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--de", default=None, help="folder of plane_agents.py's de*.json")
+    p.add_argument("--de", default=None, help="folder of DE runs' de<budget>.json (default: the stored JSON's)")
     args = p.parse_args()
     folder = shipped_path("ppo", "MicroConveyor2D-v0")
     meta = json.loads((folder / "metadata.json").read_text())
