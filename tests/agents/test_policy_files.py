@@ -304,3 +304,32 @@ def test_a_model_that_trained_past_its_budget_is_data():
     for bad in (1.5, "x", float("nan")):
         with pytest.raises(ModelFileError, match="_current_progress_remaining"):
             check_data(Path("model.zip"), {"_current_progress_remaining": bad})
+
+
+def test_rl_zoo3_layout_loads_after_convert_stats(tmp_path):
+    """rl-zoo3 saves ``RUN/ENV.zip`` and ``RUN/ENV/vecnormalize.pkl``; ``convert-stats`` on that
+    pickle writes ``RUN/ENV/normalization.json``, which is where loading the zip then finds it
+    (the pickle beside it is never opened)."""
+    import shutil
+
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    from microconveyor_env.envs import MicroConveyorEnv
+
+    run = tmp_path / "ppo" / "MicroConveyor-v0_1"
+    (run / "MicroConveyor-v0").mkdir(parents=True)
+    shutil.copy(shipped_path("ppo", "MicroConveyor-v0") / "model.zip", run / "MicroConveyor-v0.zip")
+    vn = VecNormalize(DummyVecEnv([MicroConveyorEnv]), gamma=0.95)
+    vn.reset()
+    vn.obs_rms.mean[:] = 0.25
+    pkl = run / "MicroConveyor-v0" / "vecnormalize.pkl"
+    vn.save(str(pkl))
+    with pytest.raises(PolicyError, match="is a pickle.*convert-stats"):
+        load_policy(run / "MicroConveyor-v0.zip")
+    r = _cli("convert-stats", str(pkl), "--json")
+    assert r.returncode == 0, r.stderr
+    pol = load_policy(run / "MicroConveyor-v0.zip")
+    assert pol.normalizer is not None
+    r = _cli("evaluate", "--policy", str(run / "MicroConveyor-v0.zip"), "--env",
+             "MicroConveyor-v0", "--targets", "2", "--json")
+    assert r.returncode == 0, r.stderr

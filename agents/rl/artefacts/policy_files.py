@@ -126,12 +126,14 @@ def _spaces(config: AnyConfig, env_id: str) -> tuple[Any, Any]:
 
 def _normalizer(folder: Path, model_file: Path, meta: dict[str, Any],
                 obs_shape: tuple[int, ...]) -> ObsNormalizer | None:
-    path = folder / NORMALIZATION
-    if path.is_file():
-        try:
-            return normalization.obs_normalizer(normalization.read(path, obs_shape))
-        except NormalizationError as exc:
-            raise PolicyError(str(exc)) from None
+    # beside the model, or where convert-stats writes it on rl-zoo3's layout (beside its
+    # vecnormalize.pkl, in the folder named after the model zip)
+    for path in (folder / NORMALIZATION, folder / model_file.stem / NORMALIZATION):
+        if path.is_file():
+            try:
+                return normalization.obs_normalizer(normalization.read(path, obs_shape))
+            except NormalizationError as exc:
+                raise PolicyError(str(exc)) from None
     for pkl in (folder / normalization.LEGACY_PICKLE,
                 folder / model_file.stem / normalization.LEGACY_PICKLE):  # rl-zoo3's layout
         if pkl.is_file():
