@@ -16,7 +16,9 @@ class Registration:
     """One registered env id: what ``gym.make`` builds and what the rest of the package needs
     to know of it.
 
-    ``geometry``: ``"line"`` (:class:`~.envs.config.EnvConfig`) or ``"plane"``
+    ``geometry``: ``"line"`` (:class:`~.envs.line.config.EnvConfig`: the next actuator fires),
+    ``"positioner"`` (:class:`~.envs.positioner.config.PositionerConfig`: a line on which any
+    actuator fires, each firing run to rest) or ``"plane"``
     (:class:`~.envs.plane.config.PlaneEnvConfig`); ``config``: the config class
     (``module:Class``) whose ``from_yaml(None, **kwargs)`` makes the env's config;
     ``entry_point`` / ``vector_entry_point``: the single and batched envs (None: Gymnasium's
@@ -41,6 +43,7 @@ class Registration:
 
 MAX_ACTUATORS = 1000  # an episode has at most this many steps (one firing per actuator)
 PLANE_MAX_FIRINGS = 1000  # spec.max_episode_steps: the most firings a 2-D config allows
+POSITIONER_MAX_FIRINGS = 1000  # spec.max_episode_steps: the most firings a positioner allows
 _ENVS = "microconveyor_env.envs"
 # how an env runs, not what it simulates: may differ between training and evaluation
 RUNTIME_FIELDS = frozenset({"num_threads", "max_steps"})
@@ -67,6 +70,11 @@ REGISTRY: dict[str, Registration] = {r.env_id: r for r in (
                  f"{_ENVS}.plane.env:MicroConveyor2DEnv",
                  f"{_ENVS}.plane.vector:MicroConveyor2DVectorEnv",
                  "MicroConveyor2D-v0", False, PLANE_MAX_FIRINGS, NOT_SCENE),
+    Registration("MicroPositioner-v0", "positioner",
+                 f"{_ENVS}.positioner.config:PositionerConfig",
+                 f"{_ENVS}.positioner.env:MicroPositionerEnv",
+                 f"{_ENVS}.positioner.vector:MicroPositionerVectorEnv",
+                 "MicroPositioner-v0", False, POSITIONER_MAX_FIRINGS, NOT_SCENE),
 )}
 DEFAULT_ENV_ID = "MicroConveyor-v1"   # what every command and function uses unless told
 FIRST_ENV_ID = "MicroConveyor-v0"     # what a policy whose metadata names no env id was trained on
@@ -78,6 +86,7 @@ LATEST = ENV_IDS[-1]
 # interface variants: the scene and defaults of their base version, another observation
 GOAL_ENV_IDS = {i: r.base for i, r in REGISTRY.items() if r.base != i}   # Dict observation
 PLANE_ENV_IDS = tuple(i for i, r in REGISTRY.items() if r.geometry == "plane")
+POSITIONER_ENV_IDS = tuple(i for i, r in REGISTRY.items() if r.geometry == "positioner")
 ENTRY_POINTS = {i: r.entry_point for i, r in REGISTRY.items()}
 
 

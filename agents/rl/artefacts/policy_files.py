@@ -111,16 +111,13 @@ def _metadata(folder: Path) -> dict[str, Any]:
 
 
 def _spaces(config: AnyConfig, env_id: str) -> tuple[Any, Any]:
-    if isinstance(config, PlaneEnvConfig):
-        from microconveyor_env.envs.plane.env import MicroConveyor2DEnv
+    """The spaces of ``env_id``'s single env (its registered entry point) on ``config``."""
+    import importlib
 
-        plane = MicroConveyor2DEnv(config=config)
-        return plane.observation_space, plane.action_space
-    from microconveyor_env.envs import MicroConveyorEnv
-    from microconveyor_env.envs.line.goal import MicroConveyorGoalEnv
-    from microconveyor_env.envs.versions import GOAL_ENV_IDS
+    from microconveyor_env.env_ids import ENTRY_POINTS
 
-    env = (MicroConveyorGoalEnv if env_id in GOAL_ENV_IDS else MicroConveyorEnv)(config=config)
+    module, name = ENTRY_POINTS[env_id].split(":")
+    env = getattr(importlib.import_module(module), name)(config=config)
     return env.observation_space, env.action_space
 
 

@@ -40,13 +40,9 @@ def fixed_targets(config: EnvConfig | PlaneEnvConfig, n: int, seed: int) -> np.n
 
 def batched_env(config: EnvConfig | PlaneEnvConfig, n: int) -> Any:
     """The batched env of ``config``'s scene with ``n`` sub-envs, same-step autoreset."""
-    if isinstance(config, PlaneEnvConfig):
-        from microconveyor_env.envs.plane.vector import MicroConveyor2DVectorEnv
+    from microconveyor_env.envs.versions import vector_class_of
 
-        return MicroConveyor2DVectorEnv(n, config=config, autoreset_mode="SameStep")
-    from microconveyor_env.envs import MicroConveyorVectorEnv
-
-    return MicroConveyorVectorEnv(n, config=config, autoreset_mode="SameStep")
+    return vector_class_of(config)(n, config=config, autoreset_mode="SameStep")
 
 
 def rollout(policy: Actor, targets: np.ndarray, config: EnvConfig | PlaneEnvConfig,

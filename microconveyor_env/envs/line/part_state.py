@@ -53,8 +53,8 @@ from ..core.part_state import (
 )
 from .config import MAX_TARGET, EnvConfig
 
-__all__ = ["NOISE_BOUND", "PartState", "StateBounds", "check_state", "reset_state",
-           "state_bounds"]
+__all__ = ["NOISE_BOUND", "PartState", "StateBounds", "check_perturbation", "check_state",
+           "reset_state", "state_bounds"]
 # standard normals beyond it are never drawn (numpy's ziggurat on 53-bit uniforms cannot return
 # |z| >= 12.23; P(|z| > 13) = 1.2e-38)
 NOISE_BOUND = 13.0
@@ -123,7 +123,15 @@ def check_state(state: PartState | dict, config: EnvConfig) -> PartState:
     t = check_time(s.time_s, config)
     target = within("target_m", s.target_m, -MAX_TARGET, MAX_TARGET, "mm", 1e3,
                     "where the observation can show it")
-    ff, mf, noise = s.friction_factor, s.mass_factor, s.noise
+    ff, mf, noise = check_perturbation(s.friction_factor, s.mass_factor, s.noise, config, n)
+    return PartState(x, v, t, fired, target, ff, mf, noise, s.env_id, s.scene)
+
+
+def check_perturbation(ff: object, mf: object, noise: object, config: EnvConfig,
+                       rows: int) -> tuple[float | None, float | None, tuple | None]:
+    """A saved state's randomisation fields checked against ``config``: the friction and mass
+    factors (None or inside the config's ranges) and the execution noise (None, or ``(rows, 3)``
+    standard normals, only where the config has noise). Returns them as floats and tuples."""
     for name, val, (lo, hi) in (("friction_factor", ff, config.friction_factor_range),
                                 ("mass_factor", mf, config.mass_factor_range)):
         if val is not None:
@@ -136,8 +144,8 @@ def check_state(state: PartState | dict, config: EnvConfig) -> PartState:
             arr = np.asarray(noise, dtype=float)
         except (TypeError, ValueError):
             arr = np.full(1, np.nan)
-        if arr.shape != (n, 3):
-            raise ValueError(f"part state noise must be ({n}, 3) numbers, got shape "
+        if arr.shape != (rows, 3):
+            raise ValueError(f"part state noise must be ({rows}, 3) numbers, got shape "
                              f"{arr.shape}")
         bad = np.argwhere(~(np.abs(arr) <= NOISE_BOUND))  # NaN too
         if len(bad):
@@ -145,6 +153,4 @@ def check_state(state: PartState | dict, config: EnvConfig) -> PartState:
             within(f"noise[{i}][{j}]", arr[i, j], -NOISE_BOUND, NOISE_BOUND, "", 1.0,
                    "standard normal draws")
         noise = tuple(map(tuple, arr.tolist()))
-    return PartState(x, v, t, fired, target,
-                     None if ff is None else float(ff), None if mf is None else float(mf),
-                     noise, s.env_id, s.scene)
+    return (None if ff is None else float(ff)), (None if mf is None else float(mf)), noise

@@ -63,7 +63,8 @@ def draw(cfg: EnvConfig, rngs: tuple[np.random.Generator, np.random.Generator],
          noise_row: np.ndarray | None) -> tuple[float, float]:
     """Draw one episode's (friction factor, mass factor) and execution noise of one part: fill its
     row of the per-part constants ``P_row`` (``base_P`` with the factors applied) and, when
-    ``action_noise`` > 0, its ``(n_actuators, 3)`` standard normals ``noise_row`` (else None)."""
+    ``action_noise`` > 0, its ``(firings, 3)`` standard normals ``noise_row`` (else None), one row
+    per firing an episode can have (``cfg.episode_limit``: the line's ``n_actuators``)."""
     u_f, u_m = rngs[FACTORS].random(2)
     (f_lo, f_hi), (m_lo, m_hi) = cfg.friction_factor_range, cfg.mass_factor_range
     ff = f_lo + (f_hi - f_lo) * float(u_f)
@@ -71,7 +72,7 @@ def draw(cfg: EnvConfig, rngs: tuple[np.random.Generator, np.random.Generator],
     apply_factors(base_P, P_row, ff, mf)
     if cfg.action_noise > 0.0:
         assert noise_row is not None
-        noise_row[:] = rngs[NOISE].standard_normal((cfg.n_actuators, 3))
+        noise_row[:] = rngs[NOISE].standard_normal((cfg.episode_limit[0], 3))
     return ff, mf
 
 

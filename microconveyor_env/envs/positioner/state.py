@@ -1,0 +1,140 @@
+"""N parts of MicroPositioner-v0: the state and the step that its single env (N = 1) and its
+batched env share (as the line's :mod:`..line.state`, on the container every scene shares,
+:class:`~..core.parts.PartsBase`).
+
+Resets draw the start and target as the line does (:func:`..line.task.initial_state`) and, with
+randomisation on, each part's factors and noise from streams derived from its generator
+(:mod:`..line.randomisation`: one noise row per firing, ``max_firings`` rows), so the single env
+seeded ``s + i`` and sub-env ``i`` of the batched env seeded ``s`` draw the same.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ...physics import dynamics_kernel as kernel
+from ..core import actions
+from ..core.parts import PartsBase, for_part
+from ..line import randomisation
+from ..line.common import check_target, make_simulator
+from ..line.step import NO_NOISE, NO_RECORD, Constants
+from ..versions import scene_of
+from . import task
+from .config import PositionerConfig
+from .part_state import PositionerState, check_positioner_state
+from .step import Outputs, Parts, observe_all, step_parallel, step_serial
+
+__all__ = ["PositionerParts"]
+
+
+class PositionerParts(PartsBase):
+    """``n`` parts on one :class:`~.config.PositionerConfig`: their state, per-episode
+    randomisation and step (``parts``, ``consts``, ``action``, ``task``, ``out``: :mod:`.step`).
+    ``friction_factor`` / ``mass_factor``: each part's factors this episode (1 while
+    randomisation is off). Pickles (the compiled calls are rebuilt after loading)."""
+
+    components = ("aim", "frequency", "stroke")
+
+    def __init__(self, config: PositionerConfig, n: int, num_threads: int | None = 1) -> None:
+        self.config = config
+        self.n = n
+        self.sim = make_simulator(config)
+        self.positions: np.ndarray = np.asarray(config.actuator_positions, dtype=np.float64)
+        self.action = actions.constants(config, config.action_noise)
+        self.task = task.constants(config)
+        z = np.zeros
+        self.parts = Parts(x=z(n), t=z(n), fired=z(n, dtype=np.int64), target=z(n),
+                           last_step=z(n), last_f=z(n), last_h=z(n), last_off=z(n))
+        tu, tq, tqu = self.sim.tables
+        self.consts = Constants(
+            dt=float(self.sim.dt), min_steps=int(self.sim.min_steps), positions=self.positions,
+            P=np.tile(self.sim.params, (n, 1)),
+            noise=(z((n, config.max_firings, 3)) if config.action_noise > 0 else NO_NOISE),
+            tu=tu, tq=tq, tqu=tqu, rec=NO_RECORD)
+        self.out = Outputs(reward=z(n), outcome=z(n, dtype=np.int64),
+                           success=z(n, dtype=np.bool_), actuator=np.full(n, -1, np.int64),
+                           frequency=z(n), stroke=z(n),
+                           obs=z((n, task.OBS_DIM), dtype=np.float32),
+                           kernel=z((n, kernel.N_OUT)))
+        self.obs = self.out.obs
+        self.obs_dim: int = task.OBS_DIM
+        self.obs_bound: float = task.OBS_BOUND
+        self.randomised: bool = config.randomised
+        self.friction_factor: np.ndarray = np.ones(n)
+        self.mass_factor: np.ndarray = np.ones(n)
+        self._streams: list[Any] = [None] * n
+        self._stream_src: list[np.random.Generator | None] = [None] * n
+        self._start(n, num_threads)
+
+    def compiled(self) -> tuple[Any, Any, Any, tuple[Any, ...]]:
+        return step_serial, step_parallel, observe_all, (self.parts, self.task, self.out.obs)
+
+    def observe(self) -> np.ndarray:
+        """Every part's observation, into (and returned as) ``obs``: copy to keep it."""
+        self._observe()
+        return self.obs
+
+    # ------------------------------------------------------------------ reset
+    def check_targets(self, given: Any, batched: bool) -> list[float]:
+        """Every part's target [m] (:func:`..line.common.check_target`): ``batched``, one for
+        every part or a sequence of ``n``."""
+        if not batched:
+            return [check_target(given)]
+        try:
+            tv = np.broadcast_to(np.asarray(given, dtype=float), (self.n,))
+        except (TypeError, ValueError):
+            raise ValueError(f"options['target'] = {given!r} is invalid: give one target [m] "
+                             f"or {self.n}, one per env") from None
+        return [for_part(i, check_target, t) for i, t in enumerate(tv)]
+
+    def check_state(self, state: Any) -> PositionerState:
+        return check_positioner_state(state, self.config)
+
+    def reset_part(self, i: int, rng: np.random.Generator, target: float | None = None,
+                   state: PositionerState | None = None) -> None:
+        """Start part ``i``'s next episode: start and target from ``rng`` (``target`` overrides
+        the drawn one), its randomisation from the streams derived from ``rng``; then
+        ``state``, if given, in place of all that (its randomisation fields left None keep this
+        episode's draws)."""
+        x0, tgt = task.initial_state(self.config, rng, target)
+        if self.randomised:
+            streams = self._streams[i]
+            if streams is None or self._stream_src[i] is not rng:
+                streams = self._streams[i] = randomisation.streams(rng)
+                self._stream_src[i] = rng
+            noise = self.consts.noise
+            self.friction_factor[i], self.mass_factor[i] = randomisation.draw(
+                self.config, streams, self.sim.params, self.consts.P[i],
+                noise[i] if noise.size else None)
+        p = self.parts
+        p.x[i], p.t[i], p.fired[i], p.target[i] = x0, 0.0, 0, tgt
+        p.last_step[i] = p.last_f[i] = p.last_h[i] = p.last_off[i] = 0.0
+        if state is not None:
+            self._set_state(i, state)
+
+    def get_state(self, i: int, env_id: str | None = None) -> PositionerState:
+        p = self.parts
+        ff = mf = None
+        noise = None
+        if self.randomised:
+            ff, mf = float(self.friction_factor[i]), float(self.mass_factor[i])
+            if self.consts.noise.size:
+                noise = tuple(map(tuple, self.consts.noise[i].tolist()))
+        return PositionerState(float(p.x[i]), float(p.t[i]), int(p.fired[i]),
+                               float(p.target[i]), float(p.last_step[i]), float(p.last_f[i]),
+                               float(p.last_h[i]), float(p.last_off[i]), ff, mf, noise, env_id,
+                               scene_of(self.config))
+
+    def _set_state(self, i: int, s: PositionerState) -> None:
+        p = self.parts
+        p.x[i], p.t[i], p.fired[i], p.target[i] = s.position_m, s.time_s, s.fired, s.target_m
+        p.last_step[i], p.last_f[i] = s.last_step_m, s.last_frequency
+        p.last_h[i], p.last_off[i] = s.last_stroke, s.last_offset_m
+        if s.friction_factor is not None or s.mass_factor is not None:
+            ff = self.friction_factor[i] if s.friction_factor is None else s.friction_factor
+            mf = self.mass_factor[i] if s.mass_factor is None else s.mass_factor
+            self.friction_factor[i], self.mass_factor[i] = ff, mf
+            randomisation.apply_factors(self.sim.params, self.consts.P[i], ff, mf)
+        if s.noise is not None:
+            self.consts.noise[i] = np.asarray(s.noise)
