@@ -12,7 +12,7 @@ imports the package itself. Each env card's version history says what changed.
 """
 from __future__ import annotations
 
-__version__ = "0.2.0"
+__version__ = "0.3.0"
 
 # the light module only: the envs themselves load when one is made
 from .env_ids import DEFAULT_ENV_ID, FIRST_ENV_ID, register_all  # noqa: E402, F401
