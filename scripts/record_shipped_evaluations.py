@@ -5,6 +5,11 @@ Run from the repository root after a change that moves the dynamics (the tests c
 evaluation with these records within tolerances derived in tests/test_shipped_policies.py)::
 
     python scripts/record_shipped_evaluations.py [ENV_ID/NAME ...]   (default: all shipped)
+    python scripts/record_shipped_evaluations.py --ship RUN ENV_ID/NAME   # ship a training run
+
+``--ship``: copies the run folder's ``model.zip``, ``normalization.json`` and ``metadata.json``
+(loaded first as a user loads them: data only, hashes verified) into
+``agents/policies/ENV_ID/NAME`` and records its evaluations (:data:`NEW_RECORDS`).
 
 Also records the sha256 of ``model.zip`` and ``normalization.json`` in the metadata (the loader
 refuses a folder whose files do not match) and the folder format.
@@ -25,6 +30,13 @@ from agents.rl.artefacts.shipped import provenance, shipped_path
 EVALUATIONS = {"ppo": {"evaluation": "nominal", "evaluation_fresh": "nominal"},
                "ppo_refined": {"evaluation": "nominal", "evaluation_fresh": "nominal"},
                "ppo_randomised": {"evaluation": "trained", "evaluation_nominal": "nominal"}}
+# what a newly shipped policy records: key -> (targets, target seed, env config); seed 12345
+# is the set training monitors, seed 1 a held-out one
+NEW_RECORDS = {"evaluation": (100, 12345, "trained"),
+               "evaluation_nominal": (100, 12345, "nominal"),
+               "evaluation_fresh": (1000, 1, "trained")}
+# per (env id, name), where it differs from EVALUATIONS
+POLICY_EVALUATIONS = {("MicroPositioner-v0", "ppo"): {k: v[2] for k, v in NEW_RECORDS.items()}}
 EPISODES = "episodes.json"
 
 
@@ -36,7 +48,7 @@ def record(env_id: str, name: str) -> None:
     meta_path.write_text(json.dumps(meta, indent=2) + "\n")
     pol = load_policy(folder)
     episodes = {}
-    for key, which in EVALUATIONS[name].items():
+    for key, which in POLICY_EVALUATIONS.get((env_id, name), EVALUATIONS[name]).items():
         old = meta[key]
         # "trained": the scene and randomisation it was trained under; "nominal": randomisation off
         cfg = policy_scene(meta) if which == "trained" else pol.config
@@ -57,9 +69,35 @@ def record(env_id: str, name: str) -> None:
     meta_path.write_text(json.dumps(meta, indent=2) + "\n")
 
 
+def ship(run: str, env_id: str, name: str) -> None:
+    """Copy the policy of the training run folder ``run`` to ``agents/policies/env_id/name``,
+    with the records to make (:data:`NEW_RECORDS`) named in its metadata."""
+    import shutil
+    from pathlib import Path
+
+    from agents.rl.artefacts.checkpoint import META
+
+    pol = load_policy(run)   # a complete, consistent policy folder, loaded as data
+    if pol.metadata.get("env_id") != env_id:
+        raise SystemExit(f"{run} holds a policy of {pol.metadata.get('env_id')!r}, not {env_id}")
+    folder = shipped_path(name, env_id)
+    folder.mkdir(parents=True, exist_ok=True)
+    for f in (MODEL, NORMALIZATION, META):
+        shutil.copyfile(Path(run) / f, folder / f)
+    meta = json.loads((folder / META).read_text())
+    for key, (n, seed, _) in NEW_RECORDS.items():
+        meta[key] = {"n_targets": n, "seed": seed}
+    (folder / META).write_text(json.dumps(meta, indent=2) + "\n")
+
+
 if __name__ == "__main__":
     from agents.rl.artefacts.shipped import shipped_policies
 
+    if sys.argv[1:2] == ["--ship"]:
+        run, item = sys.argv[2], sys.argv[3]
+        ship(run, *item.split("/"))
+        record(*item.split("/"))
+        raise SystemExit(0)
     wanted = sys.argv[1:] or [f"{e}/{n}" for e, names in shipped_policies().items()
                               for n in names]
     for item in wanted:
