@@ -126,7 +126,9 @@ def test_observation_holds_the_last_firing() -> None:
     assert obs[4] == pytest.approx(GENTLE[1]) and obs[5] == pytest.approx(GENTLE[2])
     assert obs[3] == pytest.approx((env.x - x0) / task.STEP_SCALE, rel=1e-5)
     assert st.last_step_m == pytest.approx(env.x - x0)
-    assert obs[0] == pytest.approx((env.x - 6e-3) / task.COARSE_SCALE, rel=1e-5)
+    err = env.x - 6e-3
+    assert obs[0] == pytest.approx(err / task.COARSE_SCALE, rel=1e-5)
+    assert obs[1] == pytest.approx(np.sign(err) * np.log1p(abs(err) / 10e-6), rel=1e-5)
 
 
 @pytest.mark.parametrize("kw", [{}, PERTURBED])

@@ -46,7 +46,7 @@ class MicroPositionerEnv(SingleEnv):
     | index | observation | scaling |
     |---|---|---|
     | 0 | position error x − target | / 2 mm |
-    | 1 | position error x − target, fine | / 0.1 mm (clipped at ±1 mm) |
+    | 1 | position error, log scale: sign(e) ln(1 + abs(e) / 10 µm) | – (1.8 at 50 µm, 4.6 at 1 mm) |
     | 2 | nearest actuator's position − x | / spacing |
     | 3 | the last firing's displacement | / 1 mm |
     | 4 | the last firing's frequency as commanded | action units |
@@ -58,7 +58,9 @@ class MicroPositionerEnv(SingleEnv):
     | 10 | target | / 10 mm |
     | 11 | position x | / 10 mm |
 
-    The part is at rest between steps, so there is no velocity. Entries 3–7 are the last
+    Entry 1 resolves the last tens of micrometres as well as the millimetres (a linear scale
+    that shows 10 mm shows 50 µm as 0.5 % of its range, and observation normalisation would
+    shrink it further). The part is at rest between steps, so there is no velocity. Entries 3–7 are the last
     firing as commanded with what it did (execution noise is not in them: a controller cannot
     know it): one observed transition of the dynamics, from which a controller can tell this
     episode's friction and mass (hidden, with randomisation on) without a memory of its own.

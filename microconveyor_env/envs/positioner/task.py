@@ -37,7 +37,8 @@ __all__ = ["COARSE_SCALE", "FINE_SCALE", "OBS_BOUND", "OBS_DIM", "PositionerTask
 OBS_DIM = 12
 OBS_BOUND = 10.0        # observations are clipped to [-OBS_BOUND, OBS_BOUND]
 COARSE_SCALE = 2e-3     # m: the position error seen over +-20 mm
-FINE_SCALE = 0.1e-3     # m: the position error seen finely over +-1 mm
+FINE_SCALE = 10e-6      # m: sign(e) log(1 + |e| / FINE_SCALE), fine near the target and
+                        # never clipped (7.6 at 20 mm)
 STEP_SCALE = 1e-3       # m: the last displacement
 ARRAY_SCALE = 10e-3     # m: position and target along the array
 
@@ -86,7 +87,8 @@ def observe_part(x, t, fired, target, last_step, last_f, last_h, last_off, TC, r
     s = TC.spacing
     err = x - target
     has = 1.0 if fired > 0 else 0.0
-    vals = (err / COARSE_SCALE, err / FINE_SCALE, (nearest(x, TC) * s - x) / s,
+    fine = math.copysign(math.log1p(abs(err) / FINE_SCALE), err)
+    vals = (err / COARSE_SCALE, fine, (nearest(x, TC) * s - x) / s,
             last_step / STEP_SCALE, last_f, last_h, last_off / s, has,
             fired / TC.max_firings, t / TC.max_time, target / ARRAY_SCALE, x / ARRAY_SCALE)
     for j in range(OBS_DIM):
