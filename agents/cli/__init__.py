@@ -8,4 +8,4 @@ policy).
 Loaded through the ``microconveyor_env.commands`` entry point (pyproject.toml): importing this
 package registers the commands with :func:`microconveyor_env.cli.base.command`.
 """
-from . import compare, demo, evaluate, optimize, place, reach, rl, tune, video  # noqa: F401 - importing registers the commands
+from . import compare, demo, evaluate, imitate, optimize, place, reach, rl, tune, video  # noqa: F401 - importing registers the commands

@@ -1,0 +1,1 @@
+"""Learning a policy from a planner: DAgger with a model-based expert (:mod:`.dagger`)."""
