@@ -13,7 +13,7 @@ from .args import add_env_args, env_kwargs_of
 def _imitate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="runs/dagger", help="policy folder to write")
     p.add_argument("--seed", type=count(0, 2**31 - 1), default=0, help="training seed")
-    p.add_argument("--rounds", type=count(1, 1000), default=8,
+    p.add_argument("--rounds", type=count(1, 1000), default=10,
                    help="DAgger rounds (round 0: the expert acts; later: the policy)")
     p.add_argument("--episodes", type=count(1, 100000), default=256,
                    help="episodes per round, played at once on the batched env")

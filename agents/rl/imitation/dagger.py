@@ -49,12 +49,15 @@ class DaggerSettings:
     :data:`TRAIN_KWARGS`); ``seed`` [-]; ``rounds`` [-] (round 0: the expert acts);
     ``episodes`` [-] per round; ``net_arch`` [-] hidden layer widths; ``epochs`` [-] passes
     over the whole data set after each round; ``batch_size`` [-]; ``learning_rate`` [-] (Adam);
-    ``frequencies``, ``strokes`` [-]: the expert's candidate grid."""
+    ``frequencies``, ``strokes`` [-], ``margin`` [-], ``slack_m`` [m]: the expert's candidate
+    grid, its margin from detachment and how much farther a gentler firing may land
+    (:class:`~.expert.BatchExpert`); ``lr_decay`` [-]: the learning rate is multiplied by it
+    after every round."""
 
     env_id: str = ENV_ID
     env_kwargs: dict[str, Any] = field(default_factory=lambda: dict(TRAIN_KWARGS))
     seed: int = 0
-    rounds: int = 8
+    rounds: int = 10
     episodes: int = 256
     net_arch: tuple[int, ...] = (256, 256)
     epochs: int = 30
@@ -62,18 +65,26 @@ class DaggerSettings:
     learning_rate: float = 1e-3
     frequencies: int = 41
     strokes: int = 6
+    margin: int = 2
+    slack_m: float = 5e-6
+    lr_decay: float = 0.7
 
     def __post_init__(self) -> None:
         check_env_id(self.env_id)
         for name, least in (("seed", 0), ("rounds", 1), ("episodes", 1), ("epochs", 1),
-                            ("batch_size", 1), ("frequencies", 2), ("strokes", 2)):
+                            ("batch_size", 1), ("frequencies", 2), ("strokes", 2),
+                            ("margin", 0)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < least:
                 raise ValueError(f"{name} = {v!r} is invalid: must be an integer >= {least}")
         if not self.net_arch or any(not isinstance(w, int) or w < 1 for w in self.net_arch):
             raise ValueError(f"net_arch = {self.net_arch!r} is invalid: positive widths")
-        if not (isinstance(self.learning_rate, float) and 0.0 < self.learning_rate < 1.0):
-            raise ValueError(f"learning_rate = {self.learning_rate!r} is invalid: in (0, 1)")
+        for name in ("learning_rate", "lr_decay"):
+            v = getattr(self, name)
+            if not (isinstance(v, float) and 0.0 < v <= 1.0) or v == 1.0 and name != "lr_decay":
+                raise ValueError(f"{name} = {v!r} is invalid: must be in (0, 1)")
+        if not (isinstance(self.slack_m, float) and 0.0 <= self.slack_m < 1e-3):
+            raise ValueError(f"slack_m = {self.slack_m!r} is invalid: must be in [0, 1e-3) m")
 
     def config(self) -> PositionerConfig:
         cfg = scene_config(self.env_id, **self.env_kwargs)
@@ -198,7 +209,7 @@ def dagger(out: str | Path, s: DaggerSettings | None = None, progress: Any = pri
     torch.set_num_threads(1)
     t0 = time.perf_counter()
     venv = MicroPositionerVectorEnv(s.episodes, config=dataclasses.replace(cfg, num_threads=1))
-    expert = BatchExpert(cfg, s.frequencies, s.strokes)
+    expert = BatchExpert(cfg, s.frequencies, s.strokes, s.margin, s.slack_m)
     student = Student(s, cfg)
     X = np.zeros((0, venv.single_observation_space.shape[0]), np.float32)
     Y = np.zeros((0, 3), np.float32)
@@ -211,6 +222,8 @@ def dagger(out: str | Path, s: DaggerSettings | None = None, progress: Any = pri
         if r == 0:
             student.set_stats(X)   # the observation statistics of the expert's own states
         loss = student.fit(X, Y)
+        for group in student.opt.param_groups:
+            group["lr"] *= s.lr_decay
         fig.update(round=r, acting="expert" if r == 0 else "policy", samples=int(len(X)),
                    loss=loss, wall_time_s=time.perf_counter() - t0)
         rounds.append(fig)
@@ -224,8 +237,10 @@ def dagger(out: str | Path, s: DaggerSettings | None = None, progress: Any = pri
             "env_kwargs": env_kwargs, "seed": s.seed, "steps": int(steps),
             "wall_time_s": wall, "hyperparams": {**dataclasses.asdict(s), "env_kwargs":
                                                   env_kwargs},
-            "expert": {"kind": "one-step model-based, nominal model",
-                       "frequencies": s.frequencies, "strokes": s.strokes, "margin": 1},
+            "expert": {"kind": "one-step model-based, nominal model, the gentlest firing within "
+                               "the slack of the nearest",
+                       "frequencies": s.frequencies, "strokes": s.strokes,
+                       "margin": s.margin, "slack_m": s.slack_m},
             "rounds": rounds, "machine": {"cpu_count": os.cpu_count(),
                                           "processor": platform.processor()},
             "note": "A policy network trained by DAgger to imitate the one-step model-based "
