@@ -1,5 +1,5 @@
 """The ``microconveyor imitate`` command: train a policy by DAgger from the model-based expert
-(:mod:`agents.rl.imitation.dagger`) on MicroPositioner-v0."""
+(:mod:`agents.imitation.dagger`) on MicroPositioner-v0."""
 from __future__ import annotations
 
 import argparse
@@ -27,7 +27,7 @@ def _imitate_args(p: argparse.ArgumentParser) -> None:
                     "randomisation; written as a policy folder that loads as data",
          _imitate_args)
 def cmd_imitate(args: argparse.Namespace) -> None:
-    from ..rl.imitation.dagger import TRAIN_KWARGS, DaggerSettings, dagger
+    from ..imitation.dagger import TRAIN_KWARGS, DaggerSettings, dagger
 
     kwargs = {**TRAIN_KWARGS, **env_kwargs_of(args)}
     s = DaggerSettings(env_id=args.env, env_kwargs=kwargs, seed=args.seed, rounds=args.rounds,

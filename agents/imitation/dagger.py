@@ -1,5 +1,5 @@
 """DAgger on MicroPositioner-v0: a policy network that imitates the one-step model-based expert
-(:mod:`.expert`) on the states the policy itself visits, saved as a policy folder that loads as
+(:mod:`agents.mpc.positioner_batch`) on the states the policy itself visits, saved as a policy folder that loads as
 data like every trained policy.
 
 Each round plays ``episodes`` episodes at once on the batched env with the training's
@@ -14,7 +14,7 @@ The network is SB3 PPO's actor (``MlpPolicy``, tanh, ``net_arch``), trained in p
 model with observation normalisation (VecNormalize's formula, statistics of the data set,
 frozen), so the result is an ordinary PPO policy folder: ``model.zip``, ``normalization.json``
 and ``metadata.json`` (``trained_by: "dagger"``, the expert, every round's figures), which
-``evaluate``, ``compare`` and ``video`` load as data (:mod:`..artefacts.policy_files`). It acts in
+``evaluate``, ``compare`` and ``video`` load as data (:mod:`agents.rl.artefacts.policy_files`). It acts in
 one forward pass; the expert needs ~10^3 model firings per decision.
 """
 from __future__ import annotations
@@ -34,7 +34,7 @@ from microconveyor_env.envs.positioner.config import PositionerConfig
 from microconveyor_env.envs.positioner.vector import MicroPositionerVectorEnv
 from microconveyor_env.envs.versions import check_env_id, scene_config
 
-from .expert import BatchExpert
+from ..mpc.positioner_batch import BatchExpert
 
 ENV_ID = "MicroPositioner-v0"
 # the training's per-episode randomisation: the level the policy is meant to hold
@@ -51,7 +51,7 @@ class DaggerSettings:
     over the whole data set after each round; ``batch_size`` [-]; ``learning_rate`` [-] (Adam);
     ``frequencies``, ``strokes`` [-], ``margin`` [-], ``slack_m`` [m]: the expert's candidate
     grid, its margin from detachment and how much farther a gentler firing may land
-    (:class:`~.expert.BatchExpert`); ``lr_decay`` [-]: the learning rate is multiplied by it
+    (:class:`~agents.mpc.positioner_batch.BatchExpert`); ``lr_decay`` [-]: the learning rate is multiplied by it
     after every round."""
 
     env_id: str = ENV_ID
@@ -189,8 +189,8 @@ class Student:
         return np.clip(a, -1.0, 1.0)
 
     def save(self, out: Path, meta: dict[str, Any]) -> None:
-        from ..artefacts import normalization
-        from ..artefacts.checkpoint import META, MODEL, NORMALIZATION, sha256
+        from ..rl.artefacts import normalization
+        from ..rl.artefacts.checkpoint import META, MODEL, NORMALIZATION, sha256
 
         out.mkdir(parents=True, exist_ok=True)
         self.model.save(out / MODEL)

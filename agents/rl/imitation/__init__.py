@@ -1,1 +1,0 @@
-"""Learning a policy from a planner: DAgger with a model-based expert (:mod:`.dagger`)."""
