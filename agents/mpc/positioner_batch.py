@@ -21,6 +21,7 @@ import dataclasses
 import numpy as np
 
 from microconveyor_env.envs.line.config import FACTOR_BOUNDS
+from microconveyor_env.envs.line.randomisation import apply_factors
 from microconveyor_env.envs.positioner.config import PositionerConfig
 from microconveyor_env.envs.positioner.state import PositionerParts
 from microconveyor_env.physics import dynamics_kernel as kernel
@@ -46,6 +47,7 @@ class BatchExpert:
         self.slack = slack
         self.per_part = AIMS * frequencies * strokes
         self._parts: dict[int, PositionerParts] = {}
+        self._factored: dict[int, bool] = {}   # a container whose rows hold other factors
         self.positions = np.asarray(config.actuator_positions)
 
     def _container(self, n: int) -> PositionerParts:
@@ -66,17 +68,26 @@ class BatchExpert:
         a[..., 2] = self.ha[None, None, None, :]
         return a
 
-    def act(self, x: np.ndarray, t: np.ndarray, target: np.ndarray) -> tuple[np.ndarray,
-                                                                               np.ndarray]:
+    def act(self, x: np.ndarray, t: np.ndarray, target: np.ndarray,
+            factors: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """For parts resting at ``x`` [m] at time ``t`` [s] with ``target`` [m]: the expert's
         actions ``(M, 3)`` and whether each has one (False: no allowed firing brings the part
-        closer)."""
+        closer). ``factors`` ``(M, 2)``: each part's friction and mass factors [-] for the
+        model (a controller that knows them: a reference, never a method); None: nominal."""
         m = len(x)
         acts = self.candidates(np.asarray(x, float))
         flat = acts.reshape(-1, 3)
         c = self._container(len(flat))
         p = c.parts
         rep = self.per_part
+        if factors is not None or self._factored.get(len(flat)):
+            fac = np.ones((m, 2)) if factors is None else np.asarray(factors, float)
+            base = c.sim.params
+            for i in range(m):
+                rows = c.consts.P[i * rep:(i + 1) * rep]
+                apply_factors(base, rows[0], fac[i, 0], fac[i, 1])
+                rows[1:] = rows[0]
+            self._factored[len(flat)] = factors is not None
         p.x[:] = np.repeat(x, rep)
         p.t[:] = np.repeat(t, rep)
         p.target[:] = np.repeat(target, rep)
