@@ -14,7 +14,11 @@ A generated table sits between two markers, ``<!-- results:NAME -->`` and
 * ``threads``: SB3's SAC with torch's default threads and with one, from
   ``docs/figures/sac_threads.json`` (``scripts/sac_threads.py``);
 * ``seeds``: training seeds' final checkpoints, IQM and bootstrap interval, from the
-  ``microconveyor seeds --json`` outputs stored in ``docs/figures/*seeds.json``.
+  ``microconveyor seeds --json`` outputs stored in ``docs/figures/*seeds.json``;
+* ``positioner_sizing``: MicroPositioner-v0's spacing study, from
+  ``docs/figures/positioner_sizing.json`` (``scripts/positioner_sizing.py``);
+* ``positioner_seeds``: its policies per training seed and their IQM, from
+  ``docs/figures/positioner_seeds.json`` (``scripts/positioner_policies.py``).
 
 ::
 
@@ -238,6 +242,60 @@ def threads_table(data: dict) -> str:
     return "\n".join(lines)
 
 
+def positioner_sizing_table(data: dict) -> str:
+    """The positioner's spacing study (``scripts/positioner_sizing.py``)."""
+    lines = ["| spacing | actuators | nominal | σ = 3e-3, r = 5 %, model knows the factors | "
+             "σ = 3e-3, r = 5 %, nominal model |", "|---|---|---|---|---|"]
+    by: dict = {}
+    for r in data["rows"]:
+        by.setdefault((r["spacing_m"], r["n_actuators"]), {})[r["case"]] = r
+    for (sp, n), cases in by.items():
+        cells = [f"{100 * c['success_rate']:.0f} % ({_um(c['median_abs_error_m'])}, "
+                 f"{c['mean_firings']:.1f} firings)" for c in cases.values()]
+        lines.append(f"| {sp * 1e3:.2f} mm | {n} | " + " | ".join(cells) + " |")
+    lines.append("")
+    lines.append(f"Share of {data['targets']} targets (uniform over 0.5–10 mm, seed "
+                 f"{data['target_seed']}) at rest within ±50 µm after at most 24 firings of the "
+                 "one-step model-based controller, in brackets the median error and the mean "
+                 f"firings; the array spans 0–{data['span_m'] * 1e3:g} mm. `{data['command']}` "
+                 f"({data['date']}, stored in `docs/figures/positioner_sizing.json`).")
+    return "\n".join(lines)
+
+
+def positioner_seeds_table(data: dict) -> str:
+    """Positioner policies of several training seeds (``scripts/positioner_policies.py``)."""
+    lines = ["| seed | trained | σ = 3e-3, r = 5 %: within ±50 µm | within ±10 µm | median "
+             "\\|error\\| | detached | nominal: within ±50 µm | median \\|error\\| | "
+             "detached |", "|---|---|---|---|---|---|---|---|---|"]
+    for r in data["runs"]:
+        p, q = r["perturbed"], r["nominal"]
+        lines.append(f"| {r['seed']} | {r['trained_by']}, {r['train_wall_time_s'] / 60:.1f} min | "
+                     f"{100 * p['success_rate_50um']:.1f} % | {100 * p['success_rate_10um']:.1f} % "
+                     f"| {_um(p['median_abs_error_m'])} | {100 * p['detach_rate']:.1f} % | "
+                     f"{100 * q['success_rate_50um']:.1f} % | {_um(q['median_abs_error_m'])} | "
+                     f"{100 * q['detach_rate']:.1f} % |")
+    iq = data["iqm"]
+
+    def ci(c: str, m: str, scale: float = 100.0, fmt: str = "{:.1f} %") -> str:
+        d = iq[c][m]
+        return (fmt.format(scale * d["iqm"]) + " [" + fmt.format(scale * d["ci95"][0]) + ", "
+                + fmt.format(scale * d["ci95"][1]) + "]")
+
+    um = "{:.1f} µm"
+    lines.append(f"| IQM [95 % bootstrap] | | {ci('perturbed', 'success_rate_50um')} | "
+                 f"{ci('perturbed', 'success_rate_10um')} | "
+                 f"{ci('perturbed', 'median_abs_error_m', 1e6, um)} | "
+                 f"{ci('perturbed', 'detach_rate')} | {ci('nominal', 'success_rate_50um')} | "
+                 f"{ci('nominal', 'median_abs_error_m', 1e6, um)} | "
+                 f"{ci('nominal', 'detach_rate')} |")
+    lines.append("")
+    lines.append(f"Final policies, {data['n_targets']:,} held-out targets (uniform over 0.5–10 "
+                 f"mm, seed {data['target_seed']}), one episode each; IQM over seeds with its "
+                 f"95 % percentile bootstrap interval. `{data['command']}` ({data['date']}, "
+                 "stored in `docs/figures/positioner_seeds.json`).")
+    return "\n".join(lines)
+
+
 def generators() -> dict:
     """Region name -> a function returning its text."""
     def load(name: str) -> dict:
@@ -249,7 +307,9 @@ def generators() -> dict:
             "seeds": seeds_table,
             "compare": lambda: compare_table(load("compare_v1_mpc_ppo.json")),
             "plane": lambda: plane_table(load("plane_v0_errors.json")),
-            "threads": lambda: threads_table(load("sac_threads.json"))}
+            "threads": lambda: threads_table(load("sac_threads.json")),
+            "positioner_sizing": lambda: positioner_sizing_table(load("positioner_sizing.json")),
+            "positioner_seeds": lambda: positioner_seeds_table(load("positioner_seeds.json"))}
 
 
 def render(text: str, gens: dict, cache: dict) -> str:
