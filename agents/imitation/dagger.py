@@ -49,8 +49,9 @@ class DaggerSettings:
     :data:`TRAIN_KWARGS`); ``seed`` [-]; ``rounds`` [-] (round 0: the expert acts);
     ``episodes`` [-] per round; ``net_arch`` [-] hidden layer widths; ``epochs`` [-] passes
     over the whole data set after each round; ``batch_size`` [-]; ``learning_rate`` [-] (Adam);
-    ``frequencies``, ``strokes`` [-], ``margin`` [-], ``slack_m`` [m]: the expert's candidate
-    grid, its margin from detachment and how much farther a gentler firing may land
+    ``frequencies``, ``strokes`` [-], ``margin`` [-], ``slack_m`` [m], ``heavier`` [-]: the
+    expert's candidate grid, its margins from detachment (grid cells; a part that much heavier)
+    and how much farther a gentler firing may land
     (:class:`~agents.mpc.positioner_batch.BatchExpert`); ``lr_decay`` [-]: the learning rate is multiplied by it
     after every round."""
 
@@ -67,6 +68,7 @@ class DaggerSettings:
     strokes: int = 6
     margin: int = 2
     slack_m: float = 5e-6
+    heavier: float = 0.1
     lr_decay: float = 0.7
 
     def __post_init__(self) -> None:
@@ -83,6 +85,8 @@ class DaggerSettings:
             v = getattr(self, name)
             if not (isinstance(v, float) and 0.0 < v <= 1.0) or v == 1.0 and name != "lr_decay":
                 raise ValueError(f"{name} = {v!r} is invalid: must be in (0, 1)")
+        if not (isinstance(self.heavier, float) and 0.0 <= self.heavier <= 1.0):
+            raise ValueError(f"heavier = {self.heavier!r} is invalid: must be in [0, 1]")
         if not (isinstance(self.slack_m, float) and 0.0 <= self.slack_m < 1e-3):
             raise ValueError(f"slack_m = {self.slack_m!r} is invalid: must be in [0, 1e-3) m")
 
@@ -209,7 +213,7 @@ def dagger(out: str | Path, s: DaggerSettings | None = None, progress: Any = pri
     torch.set_num_threads(1)
     t0 = time.perf_counter()
     venv = MicroPositionerVectorEnv(s.episodes, config=dataclasses.replace(cfg, num_threads=1))
-    expert = BatchExpert(cfg, s.frequencies, s.strokes, s.margin, s.slack_m)
+    expert = BatchExpert(cfg, s.frequencies, s.strokes, s.margin, s.slack_m, s.heavier)
     student = Student(s, cfg)
     X = np.zeros((0, venv.single_observation_space.shape[0]), np.float32)
     Y = np.zeros((0, 3), np.float32)
@@ -240,7 +244,7 @@ def dagger(out: str | Path, s: DaggerSettings | None = None, progress: Any = pri
             "expert": {"kind": "one-step model-based, nominal model, the gentlest firing within "
                                "the slack of the nearest",
                        "frequencies": s.frequencies, "strokes": s.strokes,
-                       "margin": s.margin, "slack_m": s.slack_m},
+                       "margin": s.margin, "slack_m": s.slack_m, "heavier": s.heavier},
             "rounds": rounds, "machine": {"cpu_count": os.cpu_count(),
                                           "processor": platform.processor()},
             "note": "A policy network trained by DAgger to imitate the one-step model-based "

@@ -7,7 +7,10 @@ The model is the env's own compiled step on a part container of the positioner
 written directly (one compiled call fires every candidate of every part), with the nominal
 friction and mass: the expert knows nothing of an episode's hidden factors or noise. A candidate
 that detaches, or whose neighbour in frequency or stroke does, is refused (a margin from
-detachment for the execution noise); one that does not bring the part closer is refused too.
+detachment for the execution noise); with ``heavier`` δ > 0 so is one that detaches on the
+model of a part 1 + δ times heavier (the mass alone sets when the surface outruns the part's
+pull-off, so an unknown mass is what turns a firing near the edge into a detachment); one that
+does not bring the part closer is refused too.
 Of the candidates predicted to rest within ``slack`` of the best one, the gentlest fires (the
 lowest frequency, then the shortest stroke): it lands as near, accelerates the part least (the
 furthest from detachment) and makes the expert's answer change smoothly with the state, which a
@@ -34,10 +37,12 @@ class BatchExpert:
     """The expert of ``config``'s scene (its randomisation is the real env's; the model is
     nominal). ``frequencies`` and ``strokes`` [-]: candidates evenly over each action's
     [-1, 1]; ``margin`` [-]: grid cells around a detaching candidate refused too; ``slack``
-    [m]: how much farther than the best a gentler candidate may rest (module docstring)."""
+    [m]: how much farther than the best a gentler candidate may rest; ``heavier`` δ [-]: a
+    candidate that detaches on the model with a part 1 + δ times heavier is refused too (module
+    docstring)."""
 
     def __init__(self, config: PositionerConfig, frequencies: int = 41, strokes: int = 6,
-                 margin: int = 1, slack: float = 5e-6) -> None:
+                 margin: int = 1, slack: float = 5e-6, heavier: float = 0.0) -> None:
         self.config = dataclasses.replace(config, action_noise=0.0, num_threads=1,
                                           friction_factor_range=FACTOR_BOUNDS,
                                           mass_factor_range=FACTOR_BOUNDS)
@@ -45,6 +50,7 @@ class BatchExpert:
         self.ha = np.linspace(-1.0, 1.0, strokes)
         self.margin = margin
         self.slack = slack
+        self.heavier = heavier
         self.per_part = AIMS * frequencies * strokes
         self._parts: dict[int, PositionerParts] = {}
         self._factored: dict[int, bool] = {}   # a container whose rows hold other factors
@@ -92,10 +98,25 @@ class BatchExpert:
         p.t[:] = np.repeat(t, rep)
         p.target[:] = np.repeat(target, rep)
         p.fired[:] = 0
+        shape = (m, AIMS, len(self.fa), len(self.ha))
+        bad = np.zeros(shape, bool)
+        if self.heavier > 0.0:   # first the heavier part: its rests are not the prediction
+            base = c.consts.P.copy()
+            fac = np.ones((m, 2)) if factors is None else np.asarray(factors, float)
+            for i in range(m):
+                apply_factors(c.sim.params, c.consts.P[i * rep], fac[i, 0],
+                              fac[i, 1] * (1.0 + self.heavier))
+                c.consts.P[i * rep + 1:(i + 1) * rep] = c.consts.P[i * rep]
+            c.step(flat)
+            code = c.out.outcome.reshape(shape)
+            bad |= ~((code == kernel.MOVING) | (code == kernel.REST))
+            c.consts.P[:] = base
+            p.x[:] = np.repeat(x, rep)
+            p.t[:] = np.repeat(t, rep)
+            p.fired[:] = 0
         c.step(flat)
-        code = c.out.outcome.reshape(m, AIMS, len(self.fa), len(self.ha))
-        rest = (code == kernel.MOVING) | (code == kernel.REST)
-        bad = ~rest
+        code = c.out.outcome.reshape(shape)
+        bad |= ~((code == kernel.MOVING) | (code == kernel.REST))
         k = self.margin
         grown = bad.copy()
         for d in range(1, k + 1):
