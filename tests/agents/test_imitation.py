@@ -69,3 +69,16 @@ def test_short_dagger_run_writes_a_policy_that_loads_as_data(tmp_path) -> None:
     cfg = pol.config
     res = rollout(pol, fixed_targets(cfg, 3, 0), cfg)
     assert len(res["error_m"]) == 3
+
+
+def test_expert_keeps_away_from_what_detaches_a_heavier_part() -> None:
+    """A far target asks for the strongest firing that does not detach; checked on a part 30 %
+    heavier, the expert fires no faster (and the firing it picks does not detach that part)."""
+    cfg = PositionerConfig.from_yaml(None)
+    x, t, target = np.array([-0.1e-3]), np.zeros(1), np.array([9.5e-3])
+    bold, _ = BatchExpert(cfg, frequencies=21, strokes=3).act(x, t, target)
+    careful, ok = BatchExpert(cfg, frequencies=21, strokes=3, heavier=0.3).act(x, t, target)
+    assert ok[0] and careful[0, 1] < bold[0, 1]
+    heavy = MicroPositionerEnv(mass_factor_range=(1.3, 1.3))
+    heavy.reset(options={"state": PositionerState(float(x[0]), 0.0, 0, float(target[0]))})
+    assert heavy.step(careful[0])[4]["outcome"] != "detached"
