@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from microconveyor_env.env_ids import REGISTRY
 from microconveyor_env.envs import EnvConfig, env_config
 from microconveyor_env.envs.core.actions import encode_actions
 
@@ -142,12 +143,16 @@ def crossover(train_wall_s: float, ppo_wall_s: float, other_wall_s: float) -> fl
 
 
 def compare(settings: CompareSettings | None = None) -> dict:
-    """Run the comparison ``settings`` describe (default: :class:`CompareSettings`'s defaults).
-    Returns a JSON-able dict (``rows``, ``tolerance``, ``perturbation``, ``seeds``, ...; SI
+    """Run the comparison ``settings`` describe (default: :class:`CompareSettings`'s defaults;
+    on a positioner id: :func:`.compare_positioner.compare_positioner`). Returns a JSON-able dict (``rows``, ``tolerance``, ``perturbation``, ``seeds``, ...; SI
     units)."""
     from ..rl.artefacts.shipped import require_shipped, shipped_path
 
     s = settings or CompareSettings()
+    if REGISTRY[s.env_id].geometry == "positioner":
+        from .compare_positioner import compare_positioner
+
+        return compare_positioner(s)
     cfg = s.config or env_config(s.env_id)
     targets = fixed_targets(cfg, s.n_targets, s.seed)
     ppo = load_policy(s.policy or require_shipped(s.env_id, "ppo"), cfg)
