@@ -9,8 +9,10 @@ reset to that state) with a grid of candidate firings: every actuator the aim ca
 nearest few, each aimed at exactly), ``frequencies`` frequencies and ``strokes`` strokes across
 their action ranges. A candidate whose model part detaches (or runs out of time) is refused, and
 so are its ``margin`` neighbours in frequency and stroke: a margin from detachment for the
-execution noise and the model's error. Of the rest, the one whose predicted rest is nearest the
-target fires on the real env. The controller stops when no candidate is predicted to bring the
+execution noise; the nearest few are fired again on the model with its friction and mass
+``check_factor`` higher and lower, and one that detaches there is passed over: a margin for the
+model's error (the mass sets detachment on its own, not only through the friction ratio below).
+Of the rest, the one whose predicted rest is nearest the target fires on the real env. The controller stops when no candidate is predicted to bring the
 part closer (the part is at rest where it is).
 
 The model (``model=``):
@@ -68,7 +70,10 @@ class PositionerMPCSettings:
     candidate whose model part detaches that are refused too; ``factor_range`` R [-] and
     ``factor_points`` [-]: the identified friction factor's grid over [1 − R, 1 + R];
     ``prior_width`` [-]: the fit's prior standard deviation of that factor around 1;
-    ``residual_m`` [m]: the rest residual that weighs as much as one prior width."""
+    ``residual_m`` [m]: the rest residual that weighs as much as one prior width;
+    ``check_factor`` δ [-] and ``check_best`` [-]: the nearest ``check_best`` candidates are
+    fired again with the model's friction and mass factors times 1 ± δ (four corners), and one
+    that detaches under any is passed over (0: no check), a margin for the model's error."""
 
     model: str = "identified"
     frequencies: int = 41
@@ -78,18 +83,23 @@ class PositionerMPCSettings:
     factor_points: int = 61
     prior_width: float = 0.1
     residual_m: float = 2e-6
+    check_factor: float = 0.1
+    check_best: int = 16
 
     def __post_init__(self) -> None:
         if self.model not in MODELS:
             raise ValueError(f"model = {self.model!r} is invalid: must be one of {MODELS}")
         for name, least in (("frequencies", 2), ("strokes", 2), ("margin", 0),
-                            ("factor_points", 3)):
+                            ("factor_points", 3), ("check_best", 1)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < least:
                 raise ValueError(f"{name} = {v!r} is invalid: must be an integer >= {least}")
-        if not 0.0 < self.factor_range <= 0.9:
-            raise ValueError(f"factor_range = {self.factor_range!r} is invalid: must be in "
-                             "(0, 0.9]")
+        for name in ("factor_range", "check_factor"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and 0.0 <= v <= 0.9) or (
+                    name == "factor_range" and v == 0.0):
+                raise ValueError(f"{name} = {v!r} is invalid: must be in "
+                                 f"{'(0' if name == 'factor_range' else '[0'}, 0.9]")
         for name in ("prior_width", "residual_m"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and 0.0 < v < math.inf):
@@ -257,13 +267,29 @@ class PositionerMPC:
 
     def choose(self, state: PositionerState) -> np.ndarray | None:
         """The firing (action ``(3,)`` float32) whose predicted rest from ``state`` is nearest
-        its target, or None when no allowed candidate is predicted to bring the part closer."""
+        its target, or None when no allowed candidate is predicted to bring the part closer.
+            With ``check_factor`` δ > 0, the ``check_best`` nearest are fired again on the model
+        with its friction and mass factors each times 1 − δ or 1 + δ (the four corners), and
+        the nearest that rests under all four is chosen (the nearest of all if none does)."""
+        s = self.settings
         acts, x, allowed = self.predict(state)
-        err = np.where(allowed, np.abs(x - state.target_m), np.inf)
-        i = np.unravel_index(int(np.argmin(err)), err.shape)
-        if not err[i] < abs(state.position_m - state.target_m) - MIN_GAIN:
+        err = np.where(allowed, np.abs(x - state.target_m), np.inf).ravel()
+        gain = err < abs(state.position_m - state.target_m) - MIN_GAIN
+        order = np.argsort(err, kind="stable")[:s.check_best]
+        order = order[gain[order]]
+        if not order.size:
             return None
-        return acts[i]
+        flat = acts.reshape(-1, 3)
+        if s.check_factor > 0.0:
+            f, m = self.factors
+            d = s.check_factor
+            corners = [(f * a, m * b) for a in (1.0 - d, 1.0 + d) for b in (1.0 - d, 1.0 + d)]
+            states = [with_factors(state, a, b) for a, b in corners for _ in order]
+            _, ok = self.model.rests(states, np.tile(flat[order], (len(corners), 1)))
+            every = ok.reshape(len(corners), order.size).all(axis=0)
+            if every.any():
+                return flat[order[int(np.argmax(every))]]
+        return flat[order[0]]
 
     def run(self, env: MicroPositionerEnv, target_m: float, seed: int) -> MPCEpisode:
         """Control one episode of ``env`` (reset with ``seed`` towards ``target_m`` [m]) to its
