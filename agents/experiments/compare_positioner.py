@@ -32,7 +32,7 @@ from microconveyor_env.envs.versions import scene_config
 from ..mpc.positioner import PositionerMPCRollout, PositionerMPCSettings
 from ..openloop.positioner import PlanRollouts, nominal_rollouts, plans_rollout, solve_plan
 from ..rl.evaluation.evaluate import fixed_targets, load_policy, rollout
-from .compare import TOLERANCES, _closed_loop, _reusing, _rows, episodes_to
+from .compare_rows import TOLERANCES, closed_loop_row, episodes_to, result_row, reusing
 from .compare_settings import CompareSettings
 from .perturb import axes_table, perturbation_levels, policy_rollout, unique_levels
 
@@ -50,13 +50,13 @@ def _mpc_row(name: str, model: str, cfg: Any, targets: np.ndarray, seed: int,
     extra: dict[str, Any] = {}
     if name in REFERENCE:
         extra["reference"] = REFERENCE[name]
-    row = _rows(name, res, targets, cfg.tolerance,
-                wall_s_per_target=(time.perf_counter() - t0) / len(targets),
-                episodes_per_target=float(np.mean(res["episodes"])),
-                planning_wall_s_per_target=float(np.mean(res["wall_time_s"])),
-                mean_firings=float(np.mean(res["firings"])),
-                settings=dataclasses.asdict(run.settings), **extra)
-    runners[name] = _reusing(run, cfg, targets, seed, res)
+    row = result_row(name, res, targets, cfg.tolerance,
+                     wall_s_per_target=(time.perf_counter() - t0) / len(targets),
+                     episodes_per_target=float(np.mean(res["episodes"])),
+                     planning_wall_s_per_target=float(np.mean(res["wall_time_s"])),
+                     mean_firings=float(np.mean(res["firings"])),
+                     settings=dataclasses.asdict(run.settings), **extra)
+    runners[name] = reusing(run, cfg, targets, seed, res)
     return row
 
 
@@ -76,9 +76,9 @@ def _plan_row(method: str, budget: int, cfg: Any, targets: np.ndarray, seed: int
         if progress:
             progress()
     res = {"error_m": err, "outcome": outcome, "time_s": t}
-    row = _rows(method, res, targets, cfg.tolerance, budget=int(budget), plan_firings=firings,
-                wall_s_per_target=wall / len(targets), episodes_per_target=eps / len(targets),
-                episodes_to_tolerance=reach)
+    row = result_row(method, res, targets, cfg.tolerance, budget=int(budget),
+                     plan_firings=firings, wall_s_per_target=wall / len(targets),
+                     episodes_per_target=eps / len(targets), episodes_to_tolerance=reach)
     return row, np.array(plans)
 
 
@@ -113,7 +113,7 @@ def compare_positioner(settings: CompareSettings) -> dict:
         ppo = load_policy(path, cfg)
         rollout(ppo, targets[:1], cfg, seed=seed)   # warm-up: nothing below times a first call
         meta = ppo.metadata
-        rows.append(_closed_loop("ppo", ppo, targets, cfg, seed,
+        rows.append(closed_loop_row("ppo", ppo, targets, cfg, seed,
                                  train_wall_s=float(meta.get("wall_time_s", np.nan)),
                                  train_steps=int(meta.get("steps", 0))))
         runners["ppo"] = policy_rollout(ppo)
