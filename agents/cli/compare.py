@@ -131,6 +131,7 @@ def settings_of(args: Any) -> CompareSettings:
     (``--quick`` fills what is not given; explicit options win); ValueError for an env id the
     comparison does not run on, before anything else is read."""
     from ..experiments.compare_settings import MPC_SETTINGS, CompareSettings, check_env_id
+    from ..experiments.compare_settings import CompareSettings as Defaults
     from ..mpc import MPCSettings
 
     check_env_id(args.env)
@@ -153,8 +154,8 @@ def settings_of(args: Any) -> CompareSettings:
         mpc_prior=_prior(args.mpc_prior, args.env), mpc_workers=args.workers,
         noise_ladder=args.noise, spread_ladder=args.spread, diagonal=args.diagonal,
         full_grid=args.full, perturb_repeats=args.repeats, plan_firings=args.plan_firings,
-        **({} if args.mpc_models is None else
-           {"mpc_models": [m.strip() for m in args.mpc_models.split(",") if m.strip()]}))
+        mpc_models=(Defaults.mpc_models if args.mpc_models is None else
+                    [m.strip() for m in args.mpc_models.split(",") if m.strip()]))
 
 
 def run(args: Any) -> None:

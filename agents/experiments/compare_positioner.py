@@ -23,10 +23,11 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
+from microconveyor_env.envs.positioner.config import PositionerConfig
 from microconveyor_env.envs.versions import scene_config
 
 from ..mpc.positioner import PositionerMPCRollout, PositionerMPCSettings
@@ -120,7 +121,7 @@ def compare_positioner(settings: CompareSettings) -> dict:
     for model in (m for m in s.mpc_models if f"mpc_{m}" not in REFERENCE):
         rows.append(_mpc_row(f"mpc_{model}", model, cfg, targets, seed, runners, s.progress))
     plans: dict[str, np.ndarray] = {}
-    roll = nominal_rollouts(cfg)
+    roll = nominal_rollouts(cast(PositionerConfig, cfg))
     bar = tqdm(total=len(s.methods) * len(s.budgets) * len(targets), desc="open-loop plans",
                unit="target", disable=not s.progress)
     for method in s.methods:
