@@ -86,7 +86,9 @@ def add_args(p: argparse.ArgumentParser) -> None:
                         "robust MPC")
     p.add_argument("--workers", type=count(1, 64), default=Defaults.mpc_workers,
                    help="processes for the MPC's episodes (results do not depend on it)")
-    p.add_argument("--policy", default=None, help="PPO policy folder (default: the shipped one)")
+    p.add_argument("--policy", default=None,
+                   help="PPO policy folder (default: the shipped one; on the positioner none if "
+                        "none is shipped, '' to skip)")
     p.add_argument("--randomised-policy", default=None,
                    help="PPO trained with randomisation (default: the shipped one; '' to skip)")
     p.add_argument("--policy-seeds", nargs="+", default=(), metavar="DIR",
@@ -99,7 +101,13 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--diagonal", type=pairs, default=list(DIAGONAL), metavar="SIGMA:R,...",
                    help="noise and model error together (default "
                         + ",".join(f"{a:g}:{b:g}" for a, b in DIAGONAL) + ")")
-    p.add_argument("--full", action="store_true",
+    p.add_argument("--mpc-models", default=None, metavar="MODELS",
+                   help="positioner: the one-step model-based controller's models, one row each "
+                        "(comma list of identified, nominal, oracle; default all three; oracle "
+                        "knows each episode's hidden friction and mass: a reference row)")
+    p.add_argument("--plan-firings", type=count(1, 24), default=Defaults.plan_firings,
+                   help="positioner: firings of each open-loop DE / CMA-ES plan")
+    p.add_argument("--full", "--full-grid", action="store_true",
                    help="also every (σ, r) combination of the two axes (the full grid; ~20 "
                         "levels: long)")
     p.add_argument("--quick", action="store_true",
@@ -114,8 +122,8 @@ def add_args(p: argparse.ArgumentParser) -> None:
                         "STEM_compute, STEM_perturbation, STEM_ecdf (STEM_grid), the result as "
                         "STEM.json")
     add_env_args(p, default=DEFAULT_ENV_ID,
-                 what=" (a version of the conveyor line; the policies must have been trained on "
-                      "its scene)")
+                 what=" (a version of the conveyor line, or the positioner; the policies must "
+                      "have been trained on its scene)")
 
 
 def settings_of(args: Any) -> CompareSettings:
@@ -123,6 +131,7 @@ def settings_of(args: Any) -> CompareSettings:
     (``--quick`` fills what is not given; explicit options win); ValueError for an env id the
     comparison does not run on, before anything else is read."""
     from ..experiments.compare_settings import MPC_SETTINGS, CompareSettings, check_env_id
+    from ..experiments.compare_settings import CompareSettings as Defaults
     from ..mpc import MPCSettings
 
     check_env_id(args.env)
@@ -137,14 +146,16 @@ def settings_of(args: Any) -> CompareSettings:
     given = {"n_targets": args.targets or quick.get("targets"),
              "budgets": args.budgets or quick.get("budgets")}   # else the settings' defaults
     return CompareSettings(
-        env_id=args.env, config=env_config_of(args, args.env), seed=args.seed,
+        env_id=args.env, config=_config(args), seed=args.seed,
         methods=[m.strip() for m in args.methods.split(",") if m.strip()],
         **{k: v for k, v in given.items() if v is not None}, policy=args.policy, randomised_policy=args.randomised_policy,
         policy_seeds=args.policy_seeds, amortise_over=args.amortise_over,
         mpc=mpc, robust_mpc=_robust(args.robust_mpc, args.seed),
         mpc_prior=_prior(args.mpc_prior, args.env), mpc_workers=args.workers,
         noise_ladder=args.noise, spread_ladder=args.spread, diagonal=args.diagonal,
-        full_grid=args.full, perturb_repeats=args.repeats)
+        full_grid=args.full, perturb_repeats=args.repeats, plan_firings=args.plan_firings,
+        mpc_models=(Defaults.mpc_models if args.mpc_models is None else
+                    [m.strip() for m in args.mpc_models.split(",") if m.strip()]))
 
 
 def run(args: Any) -> None:
@@ -172,6 +183,17 @@ def run(args: Any) -> None:
         raise ValueError(f"an MPC worker process died {res['mpc_worker_deaths']} time(s): its "
                          f"episodes ran again in processes of their own ({lost} lost when that "
                          "process died too, counted as failures above)")
+
+
+def _config(args: Any) -> Any:
+    """The config of ``--env`` with ``--env-kwargs``: the line's EnvConfig, or the scene's own
+    config (the positioner's)."""
+    from microconveyor_env.env_ids import REGISTRY
+    from microconveyor_env.envs.versions import scene_config
+
+    if REGISTRY[args.env].geometry == "line":
+        return env_config_of(args, args.env)
+    return scene_config(args.env, **env_kwargs_of(args))
 
 
 def _robust(budgets: tuple[int, int] | None, seed: int) -> Any:

@@ -28,22 +28,23 @@ from typing import Any
 
 import numpy as np
 
+from microconveyor_env.env_ids import REGISTRY
 from microconveyor_env.envs import EnvConfig, env_config
 from microconveyor_env.envs.core.actions import encode_actions
 
 from ..mpc import mpc_rollout
-from ..mpc.harness import LOST
 from ..openloop.target import Rollouts, solve_target
 from ..rl.evaluation.evaluate import fixed_targets, load_policy, rollout
 from ..rl.evaluation.seeds import iqm_interval
+from .compare_rows import TOLERANCES, closed_loop_row, episodes_to, result_row, reusing
 from .compare_settings import CompareSettings
 from .perturb import (Level, axes_table, perturbation_levels, plan_rollout, policy_rollout,
                       unique_levels)
 
 # the fixed schedule: every actuator at the single-firing optimum of the reference scene
 FIXED_SCHEDULE = {"frequency_hz": 950.0, "stroke_m": 200e-6, "delay_s": 0.0}
-# success against tolerance is read off the final errors at these tolerances [m]
-TOLERANCES = tuple(float(t) for t in np.geomspace(1e-8, 1e-3, 51))
+
+
 class _RandomPolicy:
     """Uniform random actions in the box (seeded)."""
 
@@ -52,32 +53,6 @@ class _RandomPolicy:
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         return self.rng.uniform(-1.0, 1.0, (len(obs), 3)).astype(np.float32)
-
-
-def _rows(name: str, res: dict, targets: np.ndarray, tol: float, **extra: Any) -> dict:
-    err = np.asarray(res["error_m"], float)
-    outcome = np.asarray(res["outcome"])
-    rest = outcome == "rest"
-    ok = rest & (np.abs(err) <= tol)
-    t = np.asarray(res["time_s"], float)
-    lost = outcome == LOST   # MPC episodes whose worker process died (failures)
-    if lost.any():
-        extra["lost_episodes"] = int(lost.sum())
-    return {"method": name, "n_targets": int(len(targets)), "success_rate": float(ok.mean()),
-            "median_abs_error_m": float(np.median(np.abs(err[~lost]))) if (~lost).any()
-            else None,
-            "detach_rate": float(np.mean(np.asarray(res["outcome"]) == "detached")),
-            "median_travel_time_s": float(np.median(t[rest])) if rest.any() else None,
-            "abs_error_m": np.abs(err).tolist(), "rest": rest.tolist(), **extra}
-
-
-def _closed_loop(name: str, policy: Any, targets: np.ndarray, cfg: EnvConfig, seed: int,
-                 **extra: Any) -> dict:
-    t0 = time.perf_counter()
-    res = rollout(policy, targets, cfg, seed=seed)
-    wall = time.perf_counter() - t0
-    return _rows(name, res, targets, cfg.tolerance, wall_s_per_target=wall / len(targets),
-                 episodes_per_target=1, **extra)
 
 
 def _open_loop(method: str, budget: int, targets: np.ndarray, cfg: EnvConfig, seed: int,
@@ -96,20 +71,10 @@ def _open_loop(method: str, budget: int, targets: np.ndarray, cfg: EnvConfig, se
         if progress:
             progress()
     res = {"error_m": err, "outcome": outcome, "time_s": t}
-    row = _rows(method, res, targets, cfg.tolerance, budget=int(budget),
-                wall_s_per_target=wall / len(targets), episodes_per_target=eps / len(targets),
-                episodes_to_tolerance=reach)
+    row = result_row(method, res, targets, cfg.tolerance, budget=int(budget),
+                     wall_s_per_target=wall / len(targets),
+                     episodes_per_target=eps / len(targets), episodes_to_tolerance=reach)
     return row, np.array(plans)
-
-
-def episodes_to(history_episodes: Sequence[int], history_best: Sequence[float | None],
-                tolerance: float) -> int | None:
-    """The episodes a search had used when its best part at rest first came within
-    ``tolerance`` [m]; None if it never did."""
-    for e, best in zip(history_episodes, history_best, strict=True):
-        if best is not None and best <= tolerance:
-            return int(e)
-    return None
 
 
 def seed_summary(values: Sequence[float], seed: int = 0) -> dict:
@@ -117,21 +82,6 @@ def seed_summary(values: Sequence[float], seed: int = 0) -> dict:
     percentile-bootstrap interval over seeds, 2,000 resamples drawn with ``seed``
     (:func:`agents.rl.evaluation.seeds.iqm_interval`)."""
     return iqm_interval(values, 2000, seed)
-
-def _reusing(run: Callable, cfg: EnvConfig, targets: np.ndarray, seed: int,
-             result: dict) -> Callable:
-    """``run``, except that the unperturbed level's call (``cfg`` without randomisation, these
-    targets, ``seed``: the episodes the table's row already played) returns ``result``: an
-    expensive method (MPC) is not played twice on the same episodes."""
-    base = Level().config(cfg)
-
-    def wrapped(config: EnvConfig, tg: np.ndarray, s: int) -> dict:
-        if s == seed and config == base and np.array_equal(tg, targets):
-            return result
-        return run(config, tg, s)
-
-    return wrapped
-
 
 def crossover(train_wall_s: float, ppo_wall_s: float, other_wall_s: float) -> float | None:
     """Targets N above which training once (``train_wall_s``) plus ``N`` deployments
@@ -142,12 +92,16 @@ def crossover(train_wall_s: float, ppo_wall_s: float, other_wall_s: float) -> fl
 
 
 def compare(settings: CompareSettings | None = None) -> dict:
-    """Run the comparison ``settings`` describe (default: :class:`CompareSettings`'s defaults).
-    Returns a JSON-able dict (``rows``, ``tolerance``, ``perturbation``, ``seeds``, ...; SI
+    """Run the comparison ``settings`` describe (default: :class:`CompareSettings`'s defaults;
+    on a positioner id: :func:`.compare_positioner.compare_positioner`). Returns a JSON-able dict (``rows``, ``tolerance``, ``perturbation``, ``seeds``, ...; SI
     units)."""
     from ..rl.artefacts.shipped import require_shipped, shipped_path
 
     s = settings or CompareSettings()
+    if REGISTRY[s.env_id].geometry == "positioner":
+        from .compare_positioner import compare_positioner
+
+        return compare_positioner(s)
     cfg = s.config or env_config(s.env_id)
     targets = fixed_targets(cfg, s.n_targets, s.seed)
     ppo = load_policy(s.policy or require_shipped(s.env_id, "ppo"), cfg)
@@ -173,27 +127,28 @@ def _compare(stack: contextlib.ExitStack, s: CompareSettings, cfg: EnvConfig,
     rollout(ppo, targets[:1], cfg, seed=seed)
     for method in s.methods:
         solve_target(float(targets[0]), method, 40, seed, rollouts=Rollouts(cfg))
-    rows = [_closed_loop("ppo", ppo, targets, cfg, seed, train_wall_s=train_wall,
+    rows = [closed_loop_row("ppo", ppo, targets, cfg, seed, train_wall_s=train_wall,
                          train_steps=train_steps)]
     robust = None
     if rand_path is not None:
         robust = load_policy(rand_path, cfg)
-        rows.append(_closed_loop("ppo_randomised", robust, targets, cfg, seed,
+        rows.append(closed_loop_row("ppo_randomised", robust, targets, cfg, seed,
                                  train_wall_s=float(robust.metadata.get("wall_time_s", np.nan)),
                                  train_steps=int(robust.metadata.get("steps", 0))))
     runners: dict[str, Callable] = {"ppo": policy_rollout(ppo)}
     if robust is not None:
         runners["ppo_randomised"] = policy_rollout(robust)
     mpc_runs = _mpc_rows(stack, s, cfg, targets, rows, runners)
-    rows.append(_closed_loop("random", _RandomPolicy(seed), targets, cfg, seed))
+    rows.append(closed_loop_row("random", _RandomPolicy(seed), targets, cfg, seed))
     fixed = encode_actions(FIXED_SCHEDULE["frequency_hz"], FIXED_SCHEDULE["stroke_m"],
                            FIXED_SCHEDULE["delay_s"], cfg)
     fixed_plan = np.broadcast_to(fixed, (cfg.n_actuators, 3)).copy()
     t0 = time.perf_counter()
     res = plan_rollout(fixed_plan)(cfg, targets, seed)
-    rows.append(_rows("fixed_schedule", res, targets, cfg.tolerance, episodes_per_target=1,
-                      wall_s_per_target=(time.perf_counter() - t0) / len(targets),
-                      schedule=FIXED_SCHEDULE))
+    rows.append(result_row("fixed_schedule", res, targets, cfg.tolerance,
+                           episodes_per_target=1,
+                           wall_s_per_target=(time.perf_counter() - t0) / len(targets),
+                           schedule=FIXED_SCHEDULE))
     plans: dict[str, np.ndarray] = {}
     bar = tqdm(total=len(s.methods) * len(s.budgets) * len(targets), desc="open-loop searches",
                unit="target", disable=not s.progress)
@@ -258,13 +213,13 @@ def _mpc_rows(stack: contextlib.ExitStack, s: CompareSettings, cfg: EnvConfig,
                   file=sys.stderr, flush=True)
         t0 = time.perf_counter()
         res = run_mpc(cfg, targets, s.seed)
-        rows.append(_rows(name, res, targets, cfg.tolerance,
-                          wall_s_per_target=(time.perf_counter() - t0) / len(targets),
-                          episodes_per_target=float(np.mean(res["episodes"])),
-                          planning_wall_s_per_target=float(np.mean(res["wall_time_s"])),
-                          workers=s.mpc_workers, settings=dataclasses.asdict(settings),
-                          prior=seeded))
-        runners[name] = _reusing(run_mpc, cfg, targets, s.seed, res)
+        rows.append(result_row(name, res, targets, cfg.tolerance,
+                               wall_s_per_target=(time.perf_counter() - t0) / len(targets),
+                               episodes_per_target=float(np.mean(res["episodes"])),
+                               planning_wall_s_per_target=float(np.mean(res["wall_time_s"])),
+                               workers=s.mpc_workers, settings=dataclasses.asdict(settings),
+                               prior=seeded))
+        runners[name] = reusing(run_mpc, cfg, targets, s.seed, res)
     return mpc_runs
 
 

@@ -3,8 +3,10 @@ settings object validated once when it is made, its defaults, and the env ids it
 
 The comparison runs on the conveyor line's scene versions (``MicroConveyor-v0``,
 ``MicroConveyor-v1``): its open-loop methods search a plan of the line's firings per target and
-its MPC re-plans them from the line's part state. :func:`check_env_id` refuses the other
-registered ids with the reason (the plane; the goal-conditioned interface of a line version).
+its MPC re-plans them from the line's part state; and on the positioner (``MicroPositioner-v0``,
+:mod:`.compare_positioner`): plans of a few firings and the one-step model-based controller.
+:func:`check_env_id` refuses the other registered ids with the reason (the plane; the
+goal-conditioned interface of a line version).
 """
 from __future__ import annotations
 
@@ -18,8 +20,10 @@ from typing import Any
 from microconveyor_env.env_ids import DEFAULT_ENV_ID, REGISTRY
 from microconveyor_env.envs import EnvConfig
 from microconveyor_env.envs.line.config import FACTOR_BOUNDS, MAX_ACTION_NOISE
+from microconveyor_env.envs.versions import config_class
 
 from ..mpc import MPCSettings
+from ..mpc.positioner import MODELS as POSITIONER_MODELS
 from ..openloop.search import METHODS
 from .perturb import DIAGONAL, NOISE_LADDER, SPREAD_LADDER
 
@@ -36,18 +40,22 @@ MIN_BUDGET = 10      # episodes: the smallest open-loop budget per target
 MAX_SPREAD = 1.0 - FACTOR_BOUNDS[0]   # r [-]: friction and mass factors stay in the env's bounds
 
 
+GEOMETRIES = ("line", "positioner")   # the scenes the comparison has runners for
+
+
 def check_env_id(env_id: str) -> str:
-    """``env_id`` if the comparison runs on it (a scene version of the conveyor line); otherwise
-    ValueError saying why not, in one sentence."""
-    lines = [i for i, r in REGISTRY.items() if r.geometry == "line" and r.base == i]
+    """``env_id`` if the comparison runs on it (a scene version of the conveyor line, or the
+    positioner); otherwise ValueError saying why not, in one sentence."""
+    runs = [i for i, r in REGISTRY.items() if r.geometry in GEOMETRIES and r.base == i]
     reg = REGISTRY.get(env_id)
     if reg is None:
         raise ValueError(f"env id {env_id!r} is not registered: compare runs on "
-                         f"{', '.join(lines)}")
-    if reg.geometry != "line":
-        raise ValueError(f"compare runs on the conveyor line ({', '.join(lines)}): its DE and "
-                         f"CMA-ES plans per target and its MPC search the line's firings on the "
-                         f"line's model, and none is defined for {env_id} (the {reg.geometry}); "
+                         f"{', '.join(runs)}")
+    if reg.geometry not in GEOMETRIES:
+        raise ValueError(f"compare runs on the conveyor line and the positioner "
+                         f"({', '.join(runs)}): its DE and CMA-ES plans per target and its "
+                         f"model-based controllers search those scenes' firings on their "
+                         f"models, and none is defined for {env_id} (the {reg.geometry}); "
                          f"evaluate a policy there with `microconveyor evaluate --env {env_id}`")
     if reg.base != env_id:
         raise ValueError(f"{env_id} is {reg.base}'s scene with a goal-conditioned (Dict) "
@@ -94,6 +102,13 @@ class CompareSettings:
     results do not depend on them); ``mpc_prior``, a policy folder whose plan on the model seeds
     the searches (adds the method ``mpc_ppo`` with ``mpc``'s settings and seeds ``mpc_robust``).
 
+    On the positioner (:mod:`.compare_positioner`): ``policy`` (None: the shipped ``ppo`` if
+    there is one, else no PPO row; ``""``: none); ``mpc_models``, the one-step controller's
+    models, one row each (``"identified"``, ``"nominal"``, and ``"oracle"``, the reference that
+    knows each episode's hidden factors: :mod:`agents.mpc.positioner`); ``plan_firings`` [-],
+    the firings of each open-loop plan. ``mpc``, ``robust_mpc``, ``mpc_prior``,
+    ``mpc_workers``, ``randomised_policy`` and ``policy_seeds`` are the line's.
+
     The perturbation axes (:func:`.perturb.perturbation_levels`): ``noise_ladder``, execution
     noise σ [action units, <= 1]; ``spread_ladder``, model error r [-] (friction and mass factors
     uniform in [1 − r, 1 + r], r <= :data:`MAX_SPREAD`); ``diagonal``, (σ, r) pairs of both together;
@@ -122,12 +137,14 @@ class CompareSettings:
     full_grid: bool = False
     perturb_repeats: int = 1
     progress: bool = True
+    mpc_models: Sequence[str] = ("identified", "nominal", "oracle")
+    plan_firings: int = 5
 
     def __post_init__(self) -> None:
         check_env_id(self.env_id)
-        if self.config is not None and not isinstance(self.config, EnvConfig):
-            raise ValueError(f"config must be an EnvConfig of the line, got "
-                             f"{type(self.config).__name__}")
+        if self.config is not None and not isinstance(self.config, config_class(self.env_id)):
+            raise ValueError(f"config must be a {config_class(self.env_id).__name__} of "
+                             f"{self.env_id}, got {type(self.config).__name__}")
         _count("n_targets", self.n_targets, 1)
         _count("seed", self.seed, 0)
         methods = tuple(self.methods)
@@ -140,6 +157,11 @@ class CompareSettings:
         _count("amortise_over", self.amortise_over, 1)
         _count("mpc_workers", self.mpc_workers, 1)
         _count("perturb_repeats", self.perturb_repeats, 1)
+        _count("plan_firings", self.plan_firings, 1)
+        models = tuple(self.mpc_models)
+        if not set(models) <= set(POSITIONER_MODELS) or len(set(models)) < len(models):
+            raise ValueError(f"mpc_models = {list(models)!r} is invalid: any of "
+                             f"{', '.join(POSITIONER_MODELS)}, each once")
         for name in ("mpc", "robust_mpc"):
             value = getattr(self, name)
             if value is not None and not isinstance(value, MPCSettings):
@@ -152,7 +174,7 @@ class CompareSettings:
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
         normalised = {
-            "methods": methods, "budgets": budgets, "diagonal": diagonal,
+            "methods": methods, "budgets": budgets, "diagonal": diagonal, "mpc_models": models,
             "noise_ladder": _levels("noise_ladder", self.noise_ladder, MAX_ACTION_NOISE),
             "spread_ladder": _levels("spread_ladder", self.spread_ladder, MAX_SPREAD),
             "policy": _path(self.policy), "randomised_policy": _path(self.randomised_policy),

@@ -9,6 +9,8 @@ from pathlib import Path
 
 def summary_table(result: dict) -> str:
     """The comparison as a plain-text table (one line per method and budget)."""
+    if "plan_firings" in result:
+        return positioner_table(result)
     head = (f"{'method':<16}{'budget':>7}{'success':>9}{'median |err|':>14}{'travel':>9}"
             f"{'wall/target':>13}{'episodes':>10}{'crossover N':>13}")
     lines = [head, "-" * len(head)]
@@ -85,3 +87,51 @@ def _grid_text(pert: dict) -> str:
         for x in sig:
             out.append(f"{f'  σ={x:g}':<18}" + "".join(f"{100 * val[(x, r)]:>9.0f}" for r in rr))
     return "\n".join(out)
+
+
+def _wilson_text(row: dict) -> str:
+    from .perturb import wilson
+
+    if "success_ci95" in row:
+        lo, hi = row["success_ci95"]
+    else:
+        n = row["n_targets"]
+        lo, hi = wilson(round(row["success_rate"] * n), n)
+    return f"{100 * row['success_rate']:.0f}% [{100 * lo:.0f},{100 * hi:.0f}]"
+
+
+def positioner_table(result: dict) -> str:
+    """The positioner's comparison (:mod:`.compare_positioner`) as text: one line per method
+    (success with its 95 % Wilson interval, median |error|, detach rate, compute per target),
+    then per method and perturbation level success, median |error| and detach rate; the
+    reference row is named as such."""
+    refs = result.get("reference_methods", {})
+    head = (f"{'method':<22}{'budget':>7}{'success [95% CI]':>19}{'median |err|':>14}"
+            f"{'detached':>10}{'compute/target':>16}{'model firings':>15}")
+    lines = [head, "-" * len(head)]
+    for r in result["rows"]:
+        ep = r.get("episodes_per_target")
+        lines.append(
+            f"{r['method']:<22}{r.get('budget', ''):>7}{_wilson_text(r):>19}"
+            f"{1e6 * r['median_abs_error_m']:>11.1f} µm{100 * r['detach_rate']:>9.0f}%"
+            f"{1e3 * r['wall_s_per_target']:>13.1f} ms"
+            f"{'' if ep is None or 'budget' in r else f'{ep:.0f}':>15}")
+    for r in result["rows"]:
+        if r["method"] in refs:
+            lines.append(f"{r['method']}: {refs[r['method']]}")
+        if "budget" in r:
+            lines.append(f"{r['method']} {r['budget']}: plans of {r['plan_firings']} firings, "
+                         f"{r['episodes_per_target']:.0f} model episodes per target")
+    lines.append("")
+    pert = result["perturbation"]
+    for axis in next(iter(pert.values()), {}):
+        lines.append(f"under perturbation, {axis} (success [95% CI], median |err| µm, "
+                     "detached %):")
+        for method, tables in pert.items():
+            name = method + (" (reference)" if method in refs else "")
+            lines.append(f"  {name}")
+            for row in tables[axis]:
+                lines.append(f"    {_level_name(row):<18}{_wilson_text(row):>16}"
+                             f"{1e6 * row['median_abs_error_m']:>10.1f}"
+                             f"{100 * row['detach_rate']:>8.0f}")
+    return "\n".join(lines)

@@ -6,6 +6,9 @@ state after every firing.
 * :mod:`.identification`: the episode's friction and mass factors fitted from observed firings;
 * :mod:`.harness`: many episodes on worker processes (:func:`mpc_rollout`), worker deaths and
   reruns.
+* :mod:`.positioner`: MicroPositioner-v0's one-step model-based controller (every reachable
+  actuator, frequency and stroke tried on the model before each firing), with the nominal, an
+  identified or the true model.
 """
 from .control import MPC, MPCEpisode, MPCSettings, observed
 from .harness import MPCRollout, mpc_rollout

@@ -15,13 +15,17 @@ LABELS = {"ppo": "PPO (shipped)", "ppo_randomised": "PPO trained with randomisat
           "mpc_ppo": "MPC seeded by the PPO's plan",
           "mpc_robust": "robust adaptive MPC (noisy copies, identifies friction)",
           "random": "random policy", "fixed_schedule": "fixed schedule (950 Hz, 200 µm)",
-          "de": "DE (open loop)", "cmaes": "CMA-ES (open loop)"}
+          "de": "DE (open loop)", "cmaes": "CMA-ES (open loop)",
+          "mpc_identified": "model-based, friction identified online",
+          "mpc_nominal": "model-based, nominal model",
+          "mpc_oracle": "reference (knows the hidden factors): model-based, true factors"}
 COLORS = {"ppo": "C0", "ppo_randomised": "C4", "mpc": "C3", "mpc_ppo": "C8", "mpc_robust": "C9", "random": "C7", "fixed_schedule": "C5",
-          "de": "C1", "cmaes": "C2"}
+          "de": "C1", "cmaes": "C2", "mpc_identified": "C3", "mpc_nominal": "C6",
+          "mpc_oracle": "k"}
 # one marker shape per method, so points that coincide (e.g. several methods at 0 %) stay
 # distinguishable
 MARKERS = {"ppo": "s", "ppo_randomised": "P", "mpc": "*", "mpc_ppo": "p", "mpc_robust": "h", "random": "X", "fixed_schedule": "^",
-           "de": "o", "cmaes": "D"}
+           "de": "o", "cmaes": "D", "mpc_identified": "*", "mpc_nominal": "v", "mpc_oracle": "x"}
 
 
 def _label(key: str) -> str:

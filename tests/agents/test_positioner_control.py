@@ -1,0 +1,122 @@
+"""MicroPositioner-v0's model-based controller and open-loop plans: a chosen firing lands where
+the model says, the identified friction is the one the firings were made with, a plan search
+returns a plan of the asked shape, and compare on the positioner writes every row and chart."""
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from agents.mpc.positioner import (FrictionFit, Model, PositionerMPC, PositionerMPCSettings,
+                                   candidate_actions, observed)
+from agents.openloop.positioner import nominal_rollouts, plans_rollout, solve_plan
+from microconveyor_env.envs.positioner.env import MicroPositionerEnv
+from microconveyor_env.envs.versions import scene_config
+
+ENV = "MicroPositioner-v0"
+
+
+def test_candidates_aim_at_every_reachable_actuator_exactly():
+    cfg = scene_config(ENV)
+    acts, n = candidate_actions(2.05e-3, cfg, 3, 2)
+    assert acts.shape == (n * 3 * 2, 3) and acts.dtype == np.float32
+    aims = np.unique(acts[:, 0])
+    picked = np.floor((2.05e-3 + aims * cfg.pick_reach) / cfg.spacing + 0.5)
+    # 1.5-2.5 mm: the actuators nearest an aim point within 0.5 mm of the part
+    assert list(picked) == [6, 7, 8, 9, 10]
+    inner = np.abs(aims) < 1   # those within reach are aimed at exactly
+    assert np.allclose(picked[inner] * cfg.spacing,
+                       2.05e-3 + aims[inner].astype(float) * cfg.pick_reach, atol=1e-9)
+
+
+def test_the_chosen_firing_lands_near_the_target_on_the_nominal_model():
+    cfg = scene_config(ENV)
+    env = MicroPositionerEnv(config=cfg)
+    env.reset(seed=0, options={"target": 1.2e-3})
+    ctl = PositionerMPC(cfg, PositionerMPCSettings(model="nominal"))
+    state = observed(env.get_state())
+    acts, x, allowed = ctl.predict(state)
+    action = ctl.choose(state)
+    assert action is not None and action.shape == (3,)
+    i = np.flatnonzero((acts.reshape(-1, 3) == action).all(axis=1))[0]
+    assert allowed.ravel()[i]
+    _, _, term, _, info = env.step(action)
+    assert env.x == pytest.approx(x.ravel()[i], abs=1e-12)   # the model is the env's scene
+    assert abs(env.x - 1.2e-3) <= cfg.tolerance and term and info["is_success"]
+
+
+def test_the_identified_friction_is_the_one_the_firings_were_made_with():
+    true = 1.07
+    real = scene_config(ENV, friction_factor_range=(true, true))
+    env = MicroPositionerEnv(config=real)
+    env.reset(seed=0, options={"target": 9e-3})
+    settings = PositionerMPCSettings(model="identified")
+    fit = FrictionFit(Model(scene_config(ENV)), settings)
+    chooser = PositionerMPC(scene_config(ENV), PositionerMPCSettings(model="nominal"))
+    for _ in range(2):
+        before = observed(env.get_state())
+        assert before.friction_factor is None   # the controller never sees the factor
+        action = chooser.choose(before)
+        env.step(action)
+        fit.add((before, action, env.x))
+    assert fit.estimate() == pytest.approx(true, abs=0.005)
+    fit.reset()
+    assert fit.estimate() == 1.0
+
+
+def test_a_plan_search_returns_a_plan_of_the_asked_shape():
+    cfg = scene_config(ENV)
+    roll = nominal_rollouts(cfg)
+    for method in ("de", "cmaes"):
+        r = solve_plan(3e-3, method, 40, 0, roll, firings=4)
+        assert r.plan.shape == (4, 3) and np.all(np.abs(r.plan) <= 1)
+        assert 0 < r.episodes <= 40 and r.outcome in ("rest", "detached")
+        assert r.error_m == pytest.approx(
+            plans_rollout(r.plan[None])(cfg, np.array([3e-3]), 0)["error_m"][0], abs=1e-12)
+
+
+def test_settings_refuse_an_unknown_model():
+    with pytest.raises(ValueError, match="model"):
+        PositionerMPCSettings(model="exact")
+
+
+def test_compare_on_the_positioner_writes_every_row_and_the_chart(tmp_path):
+    pytest.importorskip("cma")
+    out = tmp_path / "cmp"
+    r = subprocess.run([sys.executable, "-m", "microconveyor_env.cli", "compare", "--env", ENV,
+                        "--targets", "2", "--budgets", "20", "--noise", "0", "--spread", "0",
+                        "--diagonal", "3e-3:0.05", "--plan-firings", "3", "--plot",
+                        str(out / "c.png"), "--json"],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    res = json.loads(r.stdout)
+    names = [row["method"] for row in res["rows"]]
+    assert names[-5:] == ["mpc_identified", "mpc_nominal", "de", "cmaes", "mpc_oracle"]
+    assert res["rows"][-1]["reference"] == "reference (knows the hidden factors)"
+    for row in res["rows"]:
+        assert row["n_targets"] == 2 and 0 <= row["success_rate"] <= 1
+        assert row["wall_s_per_target"] > 0 and 0 <= row["detach_rate"] <= 1
+    pert = res["perturbation"]
+    assert {"mpc_identified", "mpc_nominal", "mpc_oracle", "de_20_plan",
+            "cmaes_20_plan"} <= set(pert)
+    for tables in pert.values():
+        assert [(lv["action_noise"], lv["spread"]) for lv in tables["combined"]] == [
+            (0.0, 0.0), (3e-3, 0.05)]
+        assert all(len(lv["success_ci95"]) == 2 for lv in tables["combined"])
+    for name in ("c.png", "c_perturbation.png", "c_compute.png", "c.json"):
+        assert (out / name).stat().st_size > 1000
+
+
+@pytest.mark.slow
+def test_compare_on_the_positioner_runs_the_full_grid():
+    pytest.importorskip("cma")
+    from agents.experiments.compare import compare
+    from agents.experiments.compare_settings import CompareSettings
+
+    res = compare(CompareSettings(env_id=ENV, n_targets=2, budgets=(20,), full_grid=True,
+                                  noise_ladder=(0.0, 3e-3), spread_ladder=(0.0, 0.05),
+                                  diagonal=((3e-3, 0.05),), plan_firings=3, progress=False))
+    for tables in res["perturbation"].values():
+        assert [(lv["action_noise"], lv["spread"]) for lv in tables["grid"]] == [
+            (0.0, 0.0), (0.0, 0.05), (3e-3, 0.0), (3e-3, 0.05)]
