@@ -6,7 +6,7 @@ episode's factors and with the nominal model.
     python scripts/positioner_sizing.py [--spacings 0.2,0.25,0.3,0.4,0.5] [--targets 100] \\
         [--out docs/figures/positioner_sizing.json]
 
-The controller (:class:`agents.mpc.positioner_batch.BatchExpert`) fires, before every firing,
+The controller (:class:`agents.mpc.positioner.BatchExpert`) fires, before every firing,
 the gentlest candidate whose predicted rest is nearest the target, with a margin from
 detachment, at most ``max_firings`` (24) times. A part comes to rest where no actuator reaches
 it when the spacing leaves gaps. JSON in SI units: per spacing and case, the share within
@@ -29,7 +29,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from agents.mpc.positioner_batch import BatchExpert  # noqa: E402
+from agents.mpc.positioner import BatchExpert  # noqa: E402
 from microconveyor_env.envs.positioner.config import PositionerConfig  # noqa: E402
 from microconveyor_env.envs.positioner.vector import MicroPositionerVectorEnv  # noqa: E402
 

@@ -1,5 +1,5 @@
 """DAgger on MicroPositioner-v0: a policy network that imitates the one-step model-based expert
-(:mod:`agents.mpc.positioner_batch`) on the states the policy itself visits, saved as a policy folder that loads as
+(:mod:`agents.mpc.positioner`) on the states the policy itself visits, saved as a policy folder that loads as
 data like every trained policy.
 
 Each round plays ``episodes`` episodes at once on the batched env with the training's
@@ -34,7 +34,7 @@ from microconveyor_env.envs.positioner.config import PositionerConfig
 from microconveyor_env.envs.positioner.vector import MicroPositionerVectorEnv
 from microconveyor_env.envs.versions import check_env_id, scene_config
 
-from ..mpc.positioner_batch import BatchExpert
+from ..mpc.positioner import BatchExpert
 
 ENV_ID = "MicroPositioner-v0"
 # the training's per-episode randomisation: the level the policy is meant to hold
@@ -52,7 +52,7 @@ class DaggerSettings:
     ``frequencies``, ``strokes`` [-], ``margin`` [-], ``slack_m`` [m], ``heavier`` [-]: the
     expert's candidate grid, its margins from detachment (grid cells; a part that much heavier)
     and how much farther a gentler firing may land
-    (:class:`~agents.mpc.positioner_batch.BatchExpert`); ``lr_decay`` [-]: the learning rate is multiplied by it
+    (:class:`~agents.mpc.positioner.BatchExpert`); ``lr_decay`` [-]: the learning rate is multiplied by it
     after every round."""
 
     env_id: str = ENV_ID
