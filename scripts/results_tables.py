@@ -15,6 +15,8 @@ A generated table sits between two markers, ``<!-- results:NAME -->`` and
   ``docs/figures/sac_threads.json`` (``scripts/sac_threads.py``);
 * ``seeds``: training seeds' final checkpoints, IQM and bootstrap interval, from the
   ``microconveyor seeds --json`` outputs stored in ``docs/figures/*seeds.json``;
+* ``positioner_compare``: every method on MicroPositioner-v0 under perturbation, from
+  ``docs/figures/compare_positioner.json`` (``microconveyor compare --env MicroPositioner-v0``);
 * ``positioner_sizing``: MicroPositioner-v0's spacing study, from
   ``docs/figures/positioner_sizing.json`` (``scripts/positioner_sizing.py``);
 * ``positioner_seeds``: its policies per training seed and their IQM, from
@@ -176,7 +178,11 @@ COMPARE_NAMES = {"ppo": "the shipped `ppo`", "ppo_randomised": "the shipped `ppo
                  "mpc": "MPC (re-plans after every firing)", "mpc_ppo": "MPC seeded by `ppo`",
                  "mpc_robust": "robust adaptive MPC seeded by `ppo`", "random": "random actions",
                  "fixed_schedule": "a fixed schedule (950 Hz, 200 µm, no delay)",
-                 "de": "DE per target (open loop)", "cmaes": "CMA-ES per target (open loop)"}
+                 "de": "DE per target (open loop)", "cmaes": "CMA-ES per target (open loop)",
+                 "mpc_identified": "one-step model-based control, friction identified online",
+                 "mpc_nominal": "one-step model-based control, nominal model",
+                 "mpc_oracle": "reference: the same, knowing each episode's friction and mass",
+                 "dagger": "the shipped policy `dagger`"}
 
 
 def compare_table(data: dict, level: tuple[float, float] = (3e-3, 0.05)) -> str:
@@ -308,6 +314,7 @@ def generators() -> dict:
             "compare": lambda: compare_table(load("compare_v1_mpc_ppo.json")),
             "plane": lambda: plane_table(load("plane_v0_errors.json")),
             "threads": lambda: threads_table(load("sac_threads.json")),
+            "positioner_compare": lambda: compare_table(load("compare_positioner.json")),
             "positioner_sizing": lambda: positioner_sizing_table(load("positioner_sizing.json")),
             "positioner_seeds": lambda: positioner_seeds_table(load("positioner_seeds.json"))}
 
