@@ -36,7 +36,7 @@ NEW_RECORDS = {"evaluation": (100, 12345, "trained"),
                "evaluation_nominal": (100, 12345, "nominal"),
                "evaluation_fresh": (1000, 1, "trained")}
 # per (env id, name), where it differs from EVALUATIONS
-POLICY_EVALUATIONS = {("MicroPositioner-v0", "ppo"): {k: v[2] for k, v in NEW_RECORDS.items()}}
+POLICY_EVALUATIONS = {("MicroPositioner-v0", "dagger"): {k: v[2] for k, v in NEW_RECORDS.items()}}
 EPISODES = "episodes.json"
 
 

@@ -84,15 +84,15 @@ def _plan_row(method: str, budget: int, cfg: Any, targets: np.ndarray, seed: int
 
 
 def _policy(s: CompareSettings) -> Path | None:
-    """The PPO folder: the one given, else the env's shipped ``ppo`` if there is one (None:
-    no PPO row)."""
-    from ..rl.artefacts.shipped import shipped_path
+    """The policy folder: the one given, else the env's default shipped policy if there is one
+    (None: no policy row)."""
+    from ..rl.artefacts.shipped import default_policy_name, shipped_path
 
     if s.policy == "":
         return None
     if s.policy is not None:
         return Path(s.policy)
-    cand = shipped_path("ppo", s.env_id)
+    cand = shipped_path(default_policy_name(s.env_id), s.env_id)
     return cand if (cand / "model.zip").is_file() else None
 
 
@@ -114,10 +114,11 @@ def compare_positioner(settings: CompareSettings) -> dict:
         ppo = load_policy(path, cfg)
         rollout(ppo, targets[:1], cfg, seed=seed)   # warm-up: nothing below times a first call
         meta = ppo.metadata
-        rows.append(closed_loop_row("ppo", ppo, targets, cfg, seed,
-                                 train_wall_s=float(meta.get("wall_time_s", np.nan)),
-                                 train_steps=int(meta.get("steps", 0))))
-        runners["ppo"] = policy_rollout(ppo)
+        name = str(meta.get("trained_by", "ppo"))   # "dagger": imitation, not PPO's updates
+        rows.append(closed_loop_row(name, ppo, targets, cfg, seed,
+                                    train_wall_s=float(meta.get("wall_time_s", np.nan)),
+                                    train_steps=int(meta.get("steps", 0))))
+        runners[name] = policy_rollout(ppo)
     for model in (m for m in s.mpc_models if f"mpc_{m}" not in REFERENCE):
         rows.append(_mpc_row(f"mpc_{model}", model, cfg, targets, seed, runners, s.progress))
     plans: dict[str, np.ndarray] = {}

@@ -18,14 +18,16 @@ LABELS = {"ppo": "PPO (shipped)", "ppo_randomised": "PPO trained with randomisat
           "de": "DE (open loop)", "cmaes": "CMA-ES (open loop)",
           "mpc_identified": "model-based, friction identified online",
           "mpc_nominal": "model-based, nominal model",
-          "mpc_oracle": "reference (knows the hidden factors): model-based, true factors"}
+          "mpc_oracle": "reference (knows the hidden factors): model-based, true factors",
+          "dagger": "policy trained by DAgger (shipped)"}
 COLORS = {"ppo": "C0", "ppo_randomised": "C4", "mpc": "C3", "mpc_ppo": "C8", "mpc_robust": "C9", "random": "C7", "fixed_schedule": "C5",
           "de": "C1", "cmaes": "C2", "mpc_identified": "C3", "mpc_nominal": "C6",
-          "mpc_oracle": "k"}
+          "mpc_oracle": "k", "dagger": "C0"}
 # one marker shape per method, so points that coincide (e.g. several methods at 0 %) stay
 # distinguishable
 MARKERS = {"ppo": "s", "ppo_randomised": "P", "mpc": "*", "mpc_ppo": "p", "mpc_robust": "h", "random": "X", "fixed_schedule": "^",
-           "de": "o", "cmaes": "D", "mpc_identified": "*", "mpc_nominal": "v", "mpc_oracle": "x"}
+           "de": "o", "cmaes": "D", "mpc_identified": "*", "mpc_nominal": "v", "mpc_oracle": "x",
+           "dagger": "s"}
 
 
 def _label(key: str) -> str:
@@ -84,10 +86,11 @@ def accuracy_vs_compute(result: dict, path: str | Path) -> str:
                  color=_color(m), label=LABELS.get(m, m), alpha=0.85)
         b.semilogx(r["wall_s_per_target"], 100 * r["success_rate"], _marker(m), color=_color(m),
                    alpha=0.85)
-        if m == "ppo":
+        if m in ("ppo", "dagger") and "ppo_amortised" in result:
             am = result["ppo_amortised"]
             a.loglog(am["wall_s_per_target"], 1e6 * r["median_abs_error_m"], "D", mfc="none",
-                     color=_color(m), label=f"PPO incl. training / {am['over_targets']} targets")
+                     color=_color(m), label=f"{LABELS.get(m, m)} incl. training / "
+                                              f"{am['over_targets']} targets")
             b.semilogx(am["wall_s_per_target"], 100 * r["success_rate"], "D", mfc="none",
                        color=_color(m))
     _tolerance_line(a, tol, horizontal=True)

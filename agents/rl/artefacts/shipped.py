@@ -16,7 +16,7 @@ from microconveyor_env.env_ids import DEFAULT_ENV_ID
 # shipped for it; an id not named here uses ``ppo``. Chosen here, in code, rather than by a
 # marker in a policy's metadata: metadata travels with a folder a user copies or receives, and
 # one table cannot name two defaults for one id.
-DEFAULT_POLICIES = {"MicroConveyor-v1": "ppo_refined"}
+DEFAULT_POLICIES = {"MicroConveyor-v1": "ppo_refined", "MicroPositioner-v0": "dagger"}
 
 
 def default_policy_name(env_id: str = DEFAULT_ENV_ID) -> str:
