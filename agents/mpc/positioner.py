@@ -372,6 +372,7 @@ class PositionerMPCRollout:
 
 # ---- the same search batched over many parts (DAgger's expert, the sizing study) ----
 AIMS = 3          # the reachable actuators tried per part (the nearest three)
+CHECKED = 24      # candidates per part fired again on the heavier model, in the order tried
 
 
 class BatchExpert:
@@ -392,7 +393,8 @@ class BatchExpert:
     within ``slack`` [m] of the nearest, the gentlest fires (the lowest frequency, then the
     shortest stroke): it lands as near, accelerates the part least and makes the answer change
     smoothly with the state, which a network imitating it needs (an argmin over the grid jumps
-    between firings that land equally near). ``frequencies`` and ``strokes`` [-]: candidates
+    between firings that land equally near). The heavier model checks the first ``CHECKED`` in
+    that order (then by predicted error), and the first one it does not detach fires. ``frequencies`` and ``strokes`` [-]: candidates
     evenly over each action's [-1, 1]; ``config``'s randomisation is the real env's, unused."""
 
     def __init__(self, config: PositionerConfig, frequencies: int = 41, strokes: int = 6,
@@ -453,35 +455,41 @@ class BatchExpert:
         p.target[:] = np.repeat(target, rep)
         p.fired[:] = 0
         shape = (m, AIMS, len(self.fa), len(self.ha))
-        bad = np.zeros(shape, bool)
-        if self.heavier > 0.0:   # first the heavier part: its rests are not the prediction
-            base = c.consts.P.copy()
-            fac = np.ones((m, 2)) if factors is None else np.asarray(factors, float)
-            for i in range(m):
-                apply_factors(c.sim.params, c.consts.P[i * rep], fac[i, 0],
-                              fac[i, 1] * (1.0 + self.heavier))
-                c.consts.P[i * rep + 1:(i + 1) * rep] = c.consts.P[i * rep]
-            c.step(flat)
-            code = c.out.outcome.reshape(shape)
-            bad |= ~((code == kernel.MOVING) | (code == kernel.REST))
-            c.consts.P[:] = base
-            p.x[:] = np.repeat(x, rep)
-            p.t[:] = np.repeat(t, rep)
-            p.fired[:] = 0
         c.step(flat)
         code = c.out.outcome.reshape(shape)
-        bad |= ~((code == kernel.MOVING) | (code == kernel.REST))
-        grown = _dilate(bad, self.margin)
+        grown = _dilate(~((code == kernel.MOVING) | (code == kernel.REST)), self.margin)
         err = np.abs(p.x.reshape(code.shape) - np.asarray(target)[:, None, None, None])
         err = np.where(grown, np.inf, err).reshape(m, -1)
         least = err.min(axis=1, keepdims=True)
-        # the gentlest within the slack: candidates are ordered aim, frequency, stroke; rank
-        # them by frequency, then stroke, then the aim's order
-        near = err <= least + self.slack
+        # the gentlest within the slack first (candidates are ordered aim, frequency, stroke;
+        # ranked by frequency, then stroke, then aim), then the others by predicted error
         f, h = len(self.fa), len(self.ha)
         rank = (np.arange(f)[None, :, None] * (h * AIMS) + np.arange(h)[None, None, :] * AIMS
                 + np.arange(AIMS)[:, None, None]).ravel()
-        best = np.argmin(np.where(near, rank[None, :], rank.max() + 1), axis=1)
+        n = rank.size
+        by_err = np.argsort(np.argsort(err, axis=1, kind="stable"), axis=1)
+        key = np.where(err <= least + self.slack, rank[None, :], n + by_err)
+        order = np.argsort(key, axis=1, kind="stable")
+        best = order[:, 0]
+        if self.heavier > 0.0:   # the first of the CHECKED in that order that a heavier part survives
+            k = min(CHECKED, n)
+            top = order[:, :k]
+            fac = np.ones((m, 2)) if factors is None else np.asarray(factors, float)
+            hc = self._container(m * k)
+            self._factored[m * k] = True
+            for i in range(m):
+                apply_factors(hc.sim.params, hc.consts.P[i * k], fac[i, 0],
+                              fac[i, 1] * (1.0 + self.heavier))
+                hc.consts.P[i * k + 1:(i + 1) * k] = hc.consts.P[i * k]
+            hp = hc.parts
+            hp.x[:], hp.t[:] = np.repeat(x, k), np.repeat(t, k)
+            hp.target[:], hp.fired[:] = np.repeat(target, k), 0
+            hc.step(acts.reshape(m, -1, 3)[np.arange(m)[:, None], top].reshape(-1, 3))
+            hcode = hc.out.outcome.reshape(m, k)
+            survives = ((hcode == kernel.MOVING) | (hcode == kernel.REST)) & \
+                np.isfinite(np.take_along_axis(err, top, axis=1))
+            first = np.argmax(survives, axis=1)
+            best = np.where(survives.any(axis=1), top[np.arange(m), first], best)
         now = np.abs(np.asarray(x) - np.asarray(target))
         ok = err[np.arange(m), best] < now - 0.1e-6
         return acts.reshape(m, -1, 3)[np.arange(m), best].astype(np.float32), ok
