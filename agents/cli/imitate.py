@@ -33,7 +33,8 @@ def cmd_imitate(args: argparse.Namespace) -> None:
     s = DaggerSettings(env_id=args.env, env_kwargs=kwargs, seed=args.seed, rounds=args.rounds,
                        episodes=args.episodes)
     say = (lambda line: print(line, file=sys.stderr)) if args.json else print
-    meta = dagger(args.out, s, progress=say)
+    meta = dagger(args.out, s, progress=say,
+                  command="microconveyor imitate " + " ".join(sys.argv[2:]))
     last = meta["rounds"][-1]
     emit(args, {"policy": args.out, "env_id": meta["env_id"], "seed": meta["seed"],
                 "steps": meta["steps"], "wall_time_s": meta["wall_time_s"],

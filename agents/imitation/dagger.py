@@ -203,9 +203,11 @@ class Student:
         (out / META).write_text(json.dumps(meta, indent=2, default=str) + "\n")
 
 
-def dagger(out: str | Path, s: DaggerSettings | None = None, progress: Any = print) -> dict:
+def dagger(out: str | Path, s: DaggerSettings | None = None, progress: Any = print,
+           command: str | None = None) -> dict:
     """Train by DAgger (module docstring) into the policy folder ``out``; returns its metadata.
-    ``progress(line)`` is told each round's figures."""
+    ``progress(line)`` is told each round's figures; ``command``: the command line that ran it
+    (recorded in the metadata)."""
     import torch
 
     s = s or DaggerSettings()
@@ -245,7 +247,7 @@ def dagger(out: str | Path, s: DaggerSettings | None = None, progress: Any = pri
                                "the slack of the nearest",
                        "frequencies": s.frequencies, "strokes": s.strokes,
                        "margin": s.margin, "slack_m": s.slack_m, "heavier": s.heavier},
-            "rounds": rounds, "machine": {"cpu_count": os.cpu_count(),
+            "command": command, "rounds": rounds, "machine": {"cpu_count": os.cpu_count(),
                                           "processor": platform.processor()},
             "note": "A policy network trained by DAgger to imitate the one-step model-based "
                     "controller on the nominal model (it never sees an episode's friction, "
