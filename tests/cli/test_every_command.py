@@ -95,6 +95,8 @@ RUNS: dict[str, list[list[str]]] = {
     "train": [[*TRAIN_TINY, "--algo", "ppo", "--out", "{tmp}/run", "--seed", "1",
                "--checkpoint-freq", "128", "--max-minutes", "5", "--no-progress"]],
     "seeds": [["{run}", "--plot", "{tmp}/curves.png"]],
+    "imitate": [["--out", "{tmp}/dagger", "--rounds", "1", "--episodes", "2", "--seed", "1",
+                 "--env", "MicroPositioner-v0", "--env-kwargs", "action_noise:1e-3"]],
     "refine": [[V1_POLICY, "--out", "{tmp}/refined", "--targets", "2", "--rounds", "1",
                 "--fit-iterations", "1", "--eval-targets", "2", "--seed", "1"]],
     "convert-stats": [["{pkl}", "--out", "{tmp}/normalization.json"]],
@@ -209,7 +211,7 @@ def _setup(name: str, tmp: Path) -> dict[str, str]:
 
 def test_every_command_has_runs():
     assert sorted(RUNS) == sorted(COMMANDS)
-    assert len(COMMANDS) == 22
+    assert len(COMMANDS) == 23
 
 
 # commands whose modules belong to other work: what they break is reported, not fixed here
