@@ -67,6 +67,10 @@ REGISTRY: dict[str, Registration] = {r.env_id: r for r in (
                  f"{_ENVS}.plane.env:MicroConveyor2DEnv",
                  f"{_ENVS}.plane.vector:MicroConveyor2DVectorEnv",
                  "MicroConveyor2D-v0", False, PLANE_MAX_FIRINGS, NOT_SCENE),
+    Registration("MicroConveyor2D-v1", "plane", f"{_ENVS}.plane.config:PlaneEnvConfig",
+                 f"{_ENVS}.plane.env:MicroConveyor2DEnv",
+                 f"{_ENVS}.plane.vector:MicroConveyor2DVectorEnv",
+                 "MicroConveyor2D-v1", True, PLANE_MAX_FIRINGS, NOT_SCENE),
 )}
 DEFAULT_ENV_ID = "MicroConveyor-v1"   # what every command and function uses unless told
 FIRST_ENV_ID = "MicroConveyor-v0"     # what a policy whose metadata names no env id was trained on

@@ -149,6 +149,10 @@ class MicroConveyor2DEnv(SingleEnv):
                          doc="actuator positions (n_actuators, 2) [m]")
     path = property(lambda self: tuple(self._path),
                     doc="the part's positions [m] after the reset and each step")
+    friction_factor = property(lambda self: float(self.conveyor.friction_factor[0]),
+                               doc="this episode's factor on the friction [-]")
+    mass_factor = property(lambda self: float(self.conveyor.mass_factor[0]),
+                           doc="this episode's factor on the mass [-]")
 
     def _after_reset(self) -> None:
         self._path = [(self.x, self.y)]
@@ -187,6 +191,11 @@ class MicroConveyor2DEnv(SingleEnv):
 
     def _info(self, outcome: str, success: bool) -> dict[str, Any]:
         (tx, ty), x, y = self.target, self.x, self.y
-        return {"is_success": success, "position_error_m": (x - tx, y - ty),
+        info = {"is_success": success, "position_error_m": (x - tx, y - ty),
                 "distance_m": float(np.hypot(x - tx, y - ty)), "outcome": outcome,
                 "sim_time_s": self.t}
+        c = self.conveyor
+        if c.randomised:
+            info["friction_factor"] = float(c.friction_factor[0])
+            info["mass_factor"] = float(c.mass_factor[0])
+        return info
