@@ -88,6 +88,7 @@ def _plane_video(args: argparse.Namespace, path: str, env_id: str) -> dict[str, 
     from microconveyor_env.envs.core.video import FPS_RANGE, check_writer, write_video
     from microconveyor_env.envs.plane.config import PlaneEnvConfig
     from microconveyor_env.envs.plane.env import MicroConveyor2DEnv
+    from microconveyor_env.envs.versions import scene_config
 
     from ..rl.artefacts.policy_files import policy_env_kwargs, read_policy_meta
     from ..rl.evaluation.evaluate import load_policy
@@ -95,7 +96,7 @@ def _plane_video(args: argparse.Namespace, path: str, env_id: str) -> dict[str, 
     check_writer(args.out)
     meta = read_policy_meta(path)
     kwargs = {**policy_env_kwargs(meta), **env_kwargs_of(args)}
-    asked = PlaneEnvConfig.from_yaml(**kwargs) if args.env or args.env_kwargs else None
+    asked = scene_config(env_id, **kwargs) if args.env or args.env_kwargs else None
     policy = load_policy(path, asked)   # a 1-D policy or another plane scene is refused
     cfg = asked or policy.config
     if not isinstance(cfg, PlaneEnvConfig):

@@ -50,7 +50,7 @@ def _play(env, seed, actions, **reset):
 def _same(rows_a, rows_b, keys=("distance_m", "sim_time_s", "outcome", "frequency_hz",
                                 "stroke_m", "delay_s", "actuator")):
     assert len(rows_a) == len(rows_b)
-    for (oa, ra, ia), (ob, rb, ib) in zip(rows_a, rows_b):
+    for (oa, ra, ia), (ob, rb, ib) in zip(rows_a, rows_b, strict=True):
         np.testing.assert_array_equal(oa, ob)
         assert ra == rb
         for k in keys:
@@ -202,7 +202,7 @@ def test_saved_state_continues_a_randomised_episode_bit_for_bit(batched):
         ref = [env.step(np.stack([a, a])) for a in acts[2:5]]
         other = MicroConveyor2DVectorEnv(2, config=scene_config(ENV_ID, num_threads=1))
         other.reset(seed=99, options={"state": [state.to_dict(), state]})
-        for (o, r, *_), a in zip(ref, acts[2:5]):
+        for (o, r, *_), a in zip(ref, acts[2:5], strict=True):
             o2, r2, *_ = other.step(np.stack([a, a]))
             np.testing.assert_array_equal(o2[1], o[1])
             np.testing.assert_array_equal(o2[0], o[1])
@@ -221,7 +221,7 @@ def test_saved_state_continues_a_randomised_episode_bit_for_bit(batched):
     other = gym.make(ENV_ID).unwrapped
     other.reset(seed=1234, options={"state": saved})       # other draws, replaced by the state's
     assert (other.friction_factor, other.mass_factor) == (state.friction_factor, state.mass_factor)
-    for (o, r, t, tr, info), a in zip(ref, acts[2:6]):
+    for (o, r, t, tr, info), a in zip(ref, acts[2:6], strict=True):
         o2, r2, t2, tr2, info2 = other.step(a)
         np.testing.assert_array_equal(o2, o)
         assert (r2, t2, tr2, info2["frequency_hz"]) == (r, t, tr, info["frequency_hz"])
