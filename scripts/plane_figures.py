@@ -2,6 +2,12 @@
 MicroConveyor2D-v0 and of differential evolution per target (open loop) on the same 100 targets.
 
     python3 scripts/plane_figures.py [--de DIR]
+    python3 scripts/plane_figures.py --firings
+
+``--firings`` (MicroConveyor2D-v1's episode length, docs/env.md): the shipped MicroConveyor2D-v0
+PPO played under v1's per-episode randomisation with 8, 10, 12 and 16 firings on 1,000 targets
+for each of two seeds (targets and episode draws), and without randomisation with 8; writes
+docs/figures/plane_v1_firings.json.
 
 Writes docs/figures/plane_v0_errors.png (ECDF of the final error, um on a log axis, the +-50 um
 success radius marked) and docs/figures/plane_v0_errors.json (every error plotted, the summaries
@@ -56,10 +62,56 @@ def summary(err: np.ndarray) -> dict:
             "p90_error_m": float(np.percentile(err, 90))}
 
 
+FIRINGS_OUT = ROOT / "docs" / "figures" / "plane_v1_firings.json"
+FIRINGS = ((8, 1.0), (10, 1.5), (12, 1.0), (12, 1.5), (16, 2.0))   # (max_firings, max_time [s])
+FIRINGS_SEEDS = (11, 12)
+FIRINGS_TARGETS = 1000
+
+
+def firings_scan() -> dict:
+    """The shipped v0 PPO under v1's randomisation with more firings (module docstring)."""
+    from agents.rl.artefacts.policy_files import load_policy
+    from agents.rl.evaluation.evaluate import figures, rollout
+    from microconveyor_env.envs.versions import scene_config
+
+    pol = load_policy(shipped_path("ppo", "MicroConveyor2D-v0"))
+    off = {"action_noise": 0.0, "friction_factor_range": (1.0, 1.0),
+           "mass_factor_range": (1.0, 1.0)}
+    rows = []
+    cases = [(n, t, "v1") for n, t in FIRINGS] + [(8, 1.0, "nominal")]
+    for n, t, level in cases:
+        cfg = scene_config("MicroConveyor2D-v1", num_threads=1, max_firings=n, max_time=t,
+                           **(off if level == "nominal" else {}))
+        for seed in FIRINGS_SEEDS:
+            f = figures(rollout(pol, fixed_targets(cfg, FIRINGS_TARGETS, seed), cfg, seed=seed),
+                        TOL)
+            rows.append({"max_firings": n, "max_time_s": t, "randomisation": level,
+                         "action_noise": cfg.action_noise,
+                         "friction_factor_range": list(cfg.friction_factor_range),
+                         "mass_factor_range": list(cfg.mass_factor_range), "seed": seed,
+                         "n_targets": FIRINGS_TARGETS,
+                         **{k: f[k] for k in ("success_rate_50um", "success_rate_100um",
+                                              "median_abs_error_m", "rest_rate", "detach_rate",
+                                              "mean_firings")}})
+    data = {"policy": "agents/policies/MicroConveyor2D-v0/ppo (trained with 8 firings, no "
+                      "randomisation)",
+            "env_id": "MicroConveyor2D-v1", "tolerance_m": TOL, "rows": rows,
+            "command": "python3 scripts/plane_figures.py --firings"}
+    FIRINGS_OUT.write_text(json.dumps(data, indent=1) + "\n")
+    return data
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--de", default=None, help="folder of DE runs' de<budget>.json (default: the stored JSON's)")
+    p.add_argument("--firings", action="store_true",
+                   help="MicroConveyor2D-v1's firing count scan only (docs/figures/plane_v1_firings.json)")
     args = p.parse_args()
+    if args.firings:
+        for r in firings_scan()["rows"]:
+            print(r["max_firings"], r["max_time_s"], r["randomisation"], r["seed"],
+                  f"{r['success_rate_50um']:.3f}", f"{r['mean_firings']:.2f}")
+        return
     folder = shipped_path("ppo", "MicroConveyor2D-v0")
     meta = json.loads((folder / "metadata.json").read_text())
     rec = json.loads((folder / "episodes.json").read_text())["evaluation"]

@@ -89,7 +89,7 @@ def _firing_video(args: argparse.Namespace, path: str, env_id: str) -> dict[str,
 
     from microconveyor_env.env_ids import ENTRY_POINTS
     from microconveyor_env.envs.core.video import FPS_RANGE, check_writer, write_video
-    from microconveyor_env.envs.versions import config_class
+    from microconveyor_env.envs.versions import config_class, scene_config
 
     from ..rl.artefacts.policy_files import policy_env_kwargs, read_policy_meta
     from ..rl.evaluation.evaluate import load_policy
@@ -101,7 +101,7 @@ def _firing_video(args: argparse.Namespace, path: str, env_id: str) -> dict[str,
     meta = read_policy_meta(path)
     kwargs = {**policy_env_kwargs(meta), **env_kwargs_of(args)}
     cls = config_class(env_id)
-    asked = cls.from_yaml(**kwargs) if args.env or args.env_kwargs else None
+    asked = scene_config(env_id, **kwargs) if args.env or args.env_kwargs else None
     policy = load_policy(path, asked)   # a policy of another scene is refused
     cfg = asked or policy.config
     if not isinstance(cfg, cls):

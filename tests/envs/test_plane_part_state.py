@@ -133,7 +133,10 @@ def test_a_state_of_another_scene_or_id_is_refused_with_a_clear_error():
     bare = {k: v for k, v in saved.items() if k not in ("env_id", "scene")}
     with pytest.raises(ValueError, match=r"names no env id and scene.*PlaneState\(\*\*d\)"):
         plane.reset(options={"state": bare})
-    with pytest.raises(ValueError, match=r"unknown keys \['noise'\]"):
+    with pytest.raises(ValueError, match=r"unknown keys \['noise_m'\]"):
+        plane.reset(options={"state": {**saved, "noise_m": [[0.0] * 3]}})
+    # v0 has no randomisation: a state carrying draws is refused (MicroConveyor2D-v1 takes them)
+    with pytest.raises(ValueError, match=r"noise is given but the env has no execution noise"):
         plane.reset(options={"state": {**saved, "noise": [[0.0] * 3]}})
 
 

@@ -51,8 +51,9 @@ def rollout(policy: Actor, targets: np.ndarray, config: EnvConfig | PlaneEnvConf
     (module docstring), ``outcome``, ``success`` (the env's), ``time_s``, ``firings`` (fewer
     than the actuators when the part was delivered early or detached); on the line with
     ``record`` the positions after each firing ``path_m``. With randomisation on in ``config``
-    (docs/randomisation.md) also each episode's ``friction_factor`` and ``mass_factor``;
-    sub-env ``i`` is seeded ``seed + i``."""
+    (docs/randomisation.md; the line's or the plane's) also each episode's ``friction_factor``
+    and ``mass_factor``; sub-env ``i`` is seeded ``seed + i`` (its randomisation draws derive
+    from that seed)."""
     targets = np.asarray(targets, float)
     plane = isinstance(config, PlaneEnvConfig)
     if plane and (targets.ndim != 2 or targets.shape[1] != 2):
@@ -76,7 +77,7 @@ def rollout(policy: Actor, targets: np.ndarray, config: EnvConfig | PlaneEnvConf
     out = {"targets_m": targets, "error_m": f["distance_m" if plane else "position_error_m"],
            "outcome": f["outcome"], "success": f["is_success"], "time_s": f["sim_time_s"],
            "firings": ep.firings}
-    if isinstance(config, EnvConfig) and config.randomised:
+    if config.randomised:
         out.update({k: f.get(k, np.full(len(targets), np.nan))
                     for k in ("friction_factor", "mass_factor")})
     if path is not None:

@@ -10,16 +10,14 @@ from ...env_ids import MAX_ACTUATORS
 from ...physics.materials import ParameterError
 from ...physics.validation import MAX_STEPS, MIN_DT, MIN_WAVELENGTH
 from ..core.config import MIN_LENGTH, SceneConfig
+from ..core.randomisation import FACTOR_BOUNDS, MAX_ACTION_NOISE
 from .task import LENGTH_SCALE, OBS_BOUND
 
 # Position error and target are observed / LENGTH_SCALE, clipped to +-OBS_BOUND: targets beyond
 # this distance could not be seen.
 MAX_TARGET = OBS_BOUND * LENGTH_SCALE  # m
-# Randomisation (docs/randomisation.md): sigma of the execution noise, in action units (the action
-# box is [-1, 1], so sigma = 1 already spreads a firing over the whole box); the per-episode
-# friction and mass factors within an order of magnitude of the preset (beyond it, make a preset)
-MAX_ACTION_NOISE = 1.0
-FACTOR_BOUNDS = (0.1, 10.0)
+# Randomisation's bounds (MAX_ACTION_NOISE, FACTOR_BOUNDS: docs/randomisation.md) are every
+# scene's: ..core.randomisation
 _RANGES = {  # field -> (lo, hi, lo_open, unit)
     "spacing": (1e-6, 1.0, False, "m"), "wavelength": (MIN_WAVELENGTH, 1.0, False, "m"),
     "start_offset": (0.0, 1.0, False, "m"), "start_jitter": (0.0, 1.0, False, "m"),

@@ -1,4 +1,6 @@
-"""Per-episode randomisation of the line's envs (all off by default; docs/randomisation.md).
+"""Per-episode randomisation of the line's envs (all off by default; docs/randomisation.md). The
+streams, draws and factors are every scene's, written once in :mod:`..core.randomisation`; the
+line draws ``n_actuators`` rows of noise per episode (one per firing).
 
 Three options of :class:`.config.EnvConfig`:
 
@@ -30,55 +32,14 @@ randomisation draws come from two further streams *derived* from that generator'
 """
 from __future__ import annotations
 
-import hashlib
-from typing import TYPE_CHECKING
+from ..core.randomisation import (  # noqa: F401  (the line's names of the shared pieces)
+    FACTORS,
+    INFO_KEYS,
+    NOISE,
+    RAND_KEY,
+    apply_factors,
+    draw,
+    streams,
+)
 
-import numpy as np
-
-from ...physics import forces
-
-if TYPE_CHECKING:
-    from .config import EnvConfig
-
-RAND_KEY = 0x72616E64  # "rand": the spawn-key word of the randomisation streams
-FACTORS, NOISE = 0, 1  # the two derived streams
-INFO_KEYS = ("friction_factor", "mass_factor")  # in info when randomisation is on
-
-
-def streams(rng: np.random.Generator) -> tuple[np.random.Generator, np.random.Generator]:
-    """(factor stream, noise stream) derived from ``rng``'s seed sequence, without drawing from
-    ``rng``. A generator built without a seed sequence falls back to a hash of its state."""
-    ss = rng.bit_generator.seed_seq
-    if isinstance(ss, np.random.SeedSequence):
-        entropy, key, pool = ss.entropy, tuple(ss.spawn_key), ss.pool_size
-    else:  # e.g. a bit generator restored from a state dict
-        digest = hashlib.sha256(repr(rng.bit_generator.state).encode()).digest()
-        entropy, key, pool = int.from_bytes(digest[:16], "little"), (), 4
-    return tuple(np.random.Generator(np.random.PCG64(np.random.SeedSequence(  # type: ignore[return-value]
-        entropy, spawn_key=key + (RAND_KEY, j), pool_size=pool))) for j in (FACTORS, NOISE))
-
-
-def draw(cfg: EnvConfig, rngs: tuple[np.random.Generator, np.random.Generator],
-         base_P: np.ndarray, P_row: np.ndarray,
-         noise_row: np.ndarray | None) -> tuple[float, float]:
-    """Draw one episode's (friction factor, mass factor) and execution noise of one part: fill its
-    row of the per-part constants ``P_row`` (``base_P`` with the factors applied) and, when
-    ``action_noise`` > 0, its ``(firings, 3)`` standard normals ``noise_row`` (else None), one row
-    per firing an episode can have (``cfg.episode_limit``: the line's ``n_actuators``)."""
-    u_f, u_m = rngs[FACTORS].random(2)
-    (f_lo, f_hi), (m_lo, m_hi) = cfg.friction_factor_range, cfg.mass_factor_range
-    ff = f_lo + (f_hi - f_lo) * float(u_f)
-    mf = m_lo + (m_hi - m_lo) * float(u_m)
-    apply_factors(base_P, P_row, ff, mf)
-    if cfg.action_noise > 0.0:
-        assert noise_row is not None
-        noise_row[:] = rngs[NOISE].standard_normal((cfg.episode_limit[0], 3))
-    return ff, mf
-
-
-def apply_factors(base_P: np.ndarray, P_row: np.ndarray, friction_factor: float,
-                  mass_factor: float) -> None:
-    """Fill ``P_row`` with ``base_P`` whose friction and mass are multiplied by the factors [-]."""
-    P_row[:] = base_P
-    P_row[forces.I_MASS] = base_P[forces.I_MASS] * mass_factor
-    P_row[forces.I_FSCALE] = base_P[forces.I_FSCALE] * friction_factor
+__all__ = ["FACTORS", "INFO_KEYS", "NOISE", "RAND_KEY", "apply_factors", "draw", "streams"]

@@ -1,5 +1,6 @@
-"""Validated configuration of MicroConveyor2D-v0 (defaults in
-``configs/envs/MicroConveyor2D-v0.yaml``, where every key has its meaning and unit; SI units).
+"""Validated configuration of the plane's envs, MicroConveyor2D-v0 and -v1 (defaults in
+``configs/envs/MicroConveyor2D-v0.yaml``, where every key has its meaning and unit; v1's beyond
+them in ``configs/envs/MicroConveyor2D-v1.yaml``; SI units).
 
 A field that means what a field of the line's :class:`~..line.config.EnvConfig` means is checked
 the same way (the checks every scene shares: :mod:`..core.config`).
@@ -14,6 +15,7 @@ from ...env_ids import PLANE_MAX_FIRINGS
 from ...physics.materials import ParameterError, check_range
 from ...physics.validation import MAX_STEPS, MIN_DT, MIN_WAVELENGTH
 from ..core.config import MIN_LENGTH, SceneConfig
+from ..core.randomisation import FACTOR_PAIRS, NOISE_RANGE, is_randomised
 
 CONFIG_FILE = "MicroConveyor2D-v0.yaml"
 MAX_FIRINGS = PLANE_MAX_FIRINGS  # an episode has at most this many steps (spec.max_episode_steps)
@@ -24,15 +26,15 @@ _RANGES = {  # field -> (lo, hi, lo_open, unit)
     "pick_reach": (0.0, 1e-2, False, "m"),
     "time_cost": (0.0, 1e6, False, "1/s"), "success_bonus": (0.0, 1e6, False, "-"),
     "detach_penalty": (0.0, 1e6, True, "-"), "max_time": (1e-6, 1e6, False, "s"),
-    "dt": (MIN_DT, 1.0, False, "s"),
+    "dt": (MIN_DT, 1.0, False, "s"), **NOISE_RANGE,
 }
 _PAIRS = {"freq_range": (0.0, 1e6, "Hz"), "stroke_range": (0.0, 1e-2, "m"),
-          "delay_range": (0.0, 1e4, "s")}
+          "delay_range": (0.0, 1e4, "s"), **FACTOR_PAIRS}
 
 
 @dataclass(frozen=True)
 class PlaneEnvConfig(SceneConfig):
-    """All settings of MicroConveyor2D-v0 (SI units; meanings in its YAML file)."""
+    """All settings of the plane's envs (SI units; meanings in MicroConveyor2D-v0's YAML file)."""
 
     CONFIG_FILE: ClassVar[str] = CONFIG_FILE
 
@@ -62,6 +64,10 @@ class PlaneEnvConfig(SceneConfig):
     min_steps: int = 48               # [-]
     num_threads: int | None = None    # batched env only
     max_steps: int = MAX_STEPS        # [-]
+    # per-episode randomisation, off by default (..core.randomisation; docs/randomisation.md)
+    action_noise: float = 0.0                   # [action units] sigma on each fired f, h, delay
+    friction_factor_range: tuple = (1.0, 1.0)   # [-] factor on the friction Q, uniform per episode
+    mass_factor_range: tuple = (1.0, 1.0)       # [-] factor on the part mass, uniform per episode
 
     def __post_init__(self) -> None:
         self._check_ranges(_RANGES)
@@ -114,6 +120,11 @@ class PlaneEnvConfig(SceneConfig):
         dx = max(abs(x1 - self.start[0]), abs(self.start[0] - x0)) + j
         dy = max(abs(y1 - self.start[1]), abs(self.start[1] - y0)) + j
         return math.hypot(dx, dy)
+
+    @property
+    def randomised(self) -> bool:
+        """Whether any per-episode randomisation is on (noise > 0 or a factor range not (1, 1))."""
+        return is_randomised(self)
 
     @property
     def episode_limit(self) -> tuple[int, str]:

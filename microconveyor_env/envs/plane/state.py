@@ -1,9 +1,10 @@
-"""N parts on the plane: the state and the step that the single MicroConveyor2D-v0 env (N = 1)
-and its batched env share (arrays in :mod:`.step`, one compiled call per step through the
-container every scene shares, :class:`~..core.parts.PartsBase`: serial or numba's parallel loop
-as :class:`~..core.threads.ThreadChooser` picks; results bit-identical either way), the reset of
-one part (a drawn or given target, or a saved :class:`~.part_state.PlaneState`) and its saved
-state."""
+"""N parts on the plane: the state and the step that the single plane env (N = 1) and its batched
+env share (arrays in :mod:`.step`, one compiled call per step through the container every scene
+shares, :class:`~..core.parts.PartsBase`: serial or numba's parallel loop as
+:class:`~..core.threads.ThreadChooser` picks; results bit-identical either way), the reset of one
+part (a drawn or given target; with randomisation on, its factors and execution noise from the
+streams derived from the part's generator, :mod:`..core.randomisation`; or a saved
+:class:`~.part_state.PlaneState`) and its saved state."""
 from __future__ import annotations
 
 from typing import Any
@@ -15,10 +16,11 @@ from ...physics.contact_table import TableRangeError
 from ...physics.materials import ParameterError
 from ...physics.plane.simulator import PlaneSimulator
 from ...presets import load_preset
-from ..core import actions
+from ..core import actions, randomisation
 from . import task as plane_task
 from .config import PlaneEnvConfig
 from .step import (
+    NO_NOISE,
     NO_RECORD,
     PlaneConstants,
     PlaneOutputs,
@@ -34,14 +36,25 @@ from .part_state import PlaneState, check_plane_state
 
 def make_plane_simulator(cfg: PlaneEnvConfig) -> PlaneSimulator:
     """The env's plane simulator; refuses action ranges whose strongest stroke would load the
-    part beyond the contact table (checked once here, so steps never need to)."""
+    part (the heaviest ``mass_factor_range`` allows) beyond the contact table (checked once
+    here, so steps never need to)."""
     sim = PlaneSimulator(load_preset(cfg.preset).contact, shape=cfg.shape,
                          wavelength=cfg.wavelength, kinematics=cfg.kinematics, dt=cfg.dt,
                          max_time=cfg.max_time, min_steps=cfg.min_steps, max_steps=cfg.max_steps)
+    f, h = np.array([cfg.freq_range[1]]), np.array([cfg.stroke_range[1]])
     try:
-        sim.check_firings(np.array([cfg.freq_range[1]]), np.array([cfg.stroke_range[1]]))
+        sim.check_firings(f, h)
     except TableRangeError as exc:
         raise ParameterError(f"PlaneEnvConfig.freq_range / stroke_range: {exc}") from None
+    heaviest = cfg.mass_factor_range[1]
+    if heaviest > 1.0:
+        try:
+            sim.check_firings(f, h, mass_factor=heaviest)
+        except TableRangeError as exc:
+            raise ParameterError(f"PlaneEnvConfig.mass_factor_range = {cfg.mass_factor_range!r} "
+                                 f"is invalid with these freq_range / stroke_range: a part "
+                                 f"{heaviest:g} times heavier: {exc}; lower the upper factor"
+                                 ) from None
     return sim
 
 
@@ -61,10 +74,12 @@ def check_plane_target(target: object) -> tuple[float, float]:
 
 
 class PlaneConveyor(PartsBase):
-    """``n`` parts on one :class:`PlaneEnvConfig`: their state and step (see :mod:`.step`
-    for ``parts``, ``consts``, ``action``, ``task``, ``out``). ``num_threads``: as
-    :class:`~..core.threads.ThreadChooser` (the single env passes 1). The compiled calls hold
-    these very arrays: write them in place, never rebind them. Pickles."""
+    """``n`` parts on one :class:`PlaneEnvConfig`: their state, per-episode randomisation and
+    step (see :mod:`.step` for ``parts``, ``consts``, ``action``, ``task``, ``out``).
+    ``friction_factor`` / ``mass_factor``: each part's factors this episode (1 while
+    randomisation is off). ``num_threads``: as :class:`~..core.threads.ThreadChooser` (the single
+    env passes 1). The compiled calls hold these very arrays: write them in place, never rebind
+    them. Pickles."""
 
     components = ("aim x", "aim y", "frequency", "stroke", "delay")
 
@@ -74,7 +89,7 @@ class PlaneConveyor(PartsBase):
         self.sim = make_plane_simulator(config)
         pos = np.asarray(config.actuator_positions, dtype=np.float64).reshape(-1, 2)
         self.positions: np.ndarray = pos
-        self.action = actions.constants(config)  # no execution noise
+        self.action = actions.constants(config, config.action_noise)
         self.task = plane_task.constants(config)
         self.parts = PlaneParts(x=np.zeros(n), y=np.zeros(n), vx=np.zeros(n), vy=np.zeros(n),
                                 t=np.zeros(n), fired=np.zeros(n, dtype=np.int64),
@@ -83,7 +98,10 @@ class PlaneConveyor(PartsBase):
         self.consts = PlaneConstants(
             dt=float(self.sim.dt), min_steps=int(self.sim.min_steps),
             ax=np.ascontiguousarray(pos[:, 0]), ay=np.ascontiguousarray(pos[:, 1]),
-            P=np.tile(self.sim.params, (n, 1)), tu=tu, tq=tq, tqu=tqu, rec=NO_RECORD)
+            P=np.tile(self.sim.params, (n, 1)),
+            noise=(np.zeros((n, config.max_firings, randomisation.NOISE_COMPONENTS))
+                   if config.action_noise > 0 else NO_NOISE),
+            tu=tu, tq=tq, tqu=tqu, rec=NO_RECORD)
         self.out = PlaneOutputs(
             reward=np.zeros(n), outcome=np.zeros(n, dtype=np.int64),
             success=np.zeros(n, dtype=np.bool_), actuator=np.full(n, -1, dtype=np.int64),
@@ -92,6 +110,13 @@ class PlaneConveyor(PartsBase):
             kernel=np.zeros((n, plane_kernel.N_OUT)))
         self.obs_dim: int = plane_task.OBS_DIM
         self.obs_bound: float = plane_task.OBS_BOUND
+        # per-episode randomisation: the factors drawn, and each part's streams with the
+        # generator they were derived from (re-derived when it is replaced)
+        self.randomised: bool = config.randomised
+        self.friction_factor: np.ndarray = np.ones(n)  # this episode's factor on the friction
+        self.mass_factor: np.ndarray = np.ones(n)      # this episode's factor on the mass
+        self._streams: list[Any] = [None] * n
+        self._stream_src: list[np.random.Generator | None] = [None] * n
         self._start(n, num_threads)
 
     @property
@@ -130,9 +155,20 @@ class PlaneConveyor(PartsBase):
                    target: tuple[float, float] | None = None,
                    state: PlaneState | None = None) -> None:
         """Start part ``i``'s next episode: start and target from ``rng`` (``target`` overrides
-        the drawn one); then ``state``, if given, in place of them. ``target`` and ``state`` as
+        the drawn one), then, with randomisation on, its factors and noise from the streams
+        derived from ``rng``; then ``state``, if given, in place of all that (its randomisation
+        fields left None keep this episode's draws). ``target`` and ``state`` as
         :meth:`check_reset` gives them."""
         x0, y0, tx, ty = plane_task.initial_state(self.config, rng, target)
+        if self.randomised:
+            streams = self._streams[i]
+            if streams is None or self._stream_src[i] is not rng:  # seeded anew: new streams
+                streams = self._streams[i] = randomisation.streams(rng)
+                self._stream_src[i] = rng
+            noise = self.consts.noise
+            self.friction_factor[i], self.mass_factor[i] = randomisation.draw(
+                self.config, streams, self.sim.params, self.consts.P[i],
+                noise[i] if noise.size else None)
         p = self.parts
         p.x[i], p.y[i], p.vx[i], p.vy[i], p.t[i] = x0, y0, 0.0, 0.0, 0.0
         p.fired[i] = 0
@@ -141,13 +177,28 @@ class PlaneConveyor(PartsBase):
             (p.x[i], p.y[i]), (p.vx[i], p.vy[i]) = state.position_m, state.velocity_m_s
             p.t[i], p.fired[i] = state.time_s, state.fired
             p.tx[i], p.ty[i] = state.target_m
+            if state.friction_factor is not None or state.mass_factor is not None:
+                ff = (self.friction_factor[i] if state.friction_factor is None
+                      else state.friction_factor)
+                mf = self.mass_factor[i] if state.mass_factor is None else state.mass_factor
+                self.friction_factor[i], self.mass_factor[i] = ff, mf
+                randomisation.apply_factors(self.sim.params, self.consts.P[i], ff, mf)
+            if state.noise is not None:
+                self.consts.noise[i] = np.asarray(state.noise)
 
     def get_state(self, i: int, env_id: str | None = None) -> PlaneState:
-        """Part ``i``'s state now, naming ``env_id`` and this config's scene."""
+        """Part ``i``'s state now (with randomisation on, its factors and noise too), naming
+        ``env_id`` and this config's scene."""
         p = self.parts
+        ff = mf = None
+        noise = None
+        if self.randomised:
+            ff, mf = float(self.friction_factor[i]), float(self.mass_factor[i])
+            if self.consts.noise.size:
+                noise = tuple(map(tuple, self.consts.noise[i].tolist()))
         return PlaneState((float(p.x[i]), float(p.y[i])), (float(p.vx[i]), float(p.vy[i])),
                           float(p.t[i]), int(p.fired[i]), (float(p.tx[i]), float(p.ty[i])),
-                          env_id, scene_of(self.config))
+                          ff, mf, noise, env_id, scene_of(self.config))
 
     def observe(self) -> np.ndarray:
         """Every part's observation, into (and returned as) ``out.obs``: copy to keep it."""

@@ -1,5 +1,5 @@
-"""MicroConveyor2D-v0's compiled per-part step: pick the actuator and decode the firing
-(:func:`.task.pick`, :func:`..core.actions.decode`), fire it
+"""The plane's compiled per-part step: pick the actuator and decode the firing
+(:func:`.task.pick`, :func:`..core.actions.decode`, with the execution noise), fire it
 (:func:`...physics.plane.kernel.fire`), score and observe (:mod:`.task`).
 
 As on the line (:mod:`..line.step`), the single env (N = 1) and the batched env run the very same per-part
@@ -9,11 +9,18 @@ below (typed NamedTuples of arrays, one element or row per part, read by field n
 
 * :class:`PlaneParts`: the part state ``x, y, vx, vy, t, fired, tx, ty``;
 * :class:`PlaneConstants`: what a step reads but does not write: ``dt``, ``min_steps``, the
-  actuator positions ``ax, ay``, the physics rows ``P`` (one per part), the contact-table arrays
+  actuator positions ``ax, ay``, the physics rows ``P`` (one per part, with that part's friction
+  and mass factors of the episode), the execution ``noise``, the contact-table arrays
   ``tu, tq, tqu`` and ``rec`` (no trajectories are recorded);
 * :class:`PlaneOutputs`: what a step reports per part;
 * :class:`~..core.actions.ActionConstants` and :class:`~.task.PlaneTaskConstants` (scalars),
   passed on their own (numba's parallel loop cannot take nested NamedTuples of scalars).
+
+Execution noise: with ``AC.noise = sigma > 0`` part ``i`` fires ``clip(a + sigma * noise[i, k])``
+for the firing components ``a`` (frequency, stroke, delay: actions 2-4) of its firing ``k``
+(``noise``: standard normals drawn per episode, ``(N, max_firings, 3)``); the aim (actions 0-1)
+picks an actuator by its address, exactly. With sigma = 0 the action is used as given and
+``noise`` is not read (:data:`NO_NOISE`).
 """
 from __future__ import annotations
 
@@ -31,6 +38,7 @@ from .task import is_success, observe_part, pick, reward, stop_if_delivered
 
 ACTION_DIM = 5  # (aim x, aim y, frequency, stroke, delay)
 NO_RECORD = np.zeros((0, plane_kernel.N_REC))  # the env never records trajectories
+NO_NOISE = np.zeros((0, 0, 3))  # no execution noise (action_noise = 0)
 
 
 class PlaneParts(NamedTuple):
@@ -53,7 +61,8 @@ class PlaneConstants(NamedTuple):
     min_steps: int         # integrator steps per stroke, at least
     ax: np.ndarray         # (n_actuators,) float64, actuator x [m]
     ay: np.ndarray         # (n_actuators,) float64, actuator y [m]
-    P: np.ndarray          # (N, n_params) float64, each part's physics constants
+    P: np.ndarray          # (N, n_params) float64, each part's physics constants (forces.I_*)
+    noise: np.ndarray      # (N, max_firings, 3) float64 standard normals, or NO_NOISE
     tu: np.ndarray         # contact table (PlaneSimulator.tables)
     tq: np.ndarray
     tqu: np.ndarray
@@ -68,7 +77,7 @@ class PlaneOutputs(NamedTuple):
     outcome: np.ndarray    # (N,) int64, dynamics_kernel outcome code
     success: np.ndarray    # (N,) bool
     actuator: np.ndarray   # (N,) int64, the actuator fired
-    frequency: np.ndarray  # (N,) float64 [Hz]
+    frequency: np.ndarray  # (N,) float64, as fired (noise included) [Hz]
     stroke: np.ndarray     # (N,) float64 [m]
     delay: np.ndarray      # (N,) float64 [s]
     obs: np.ndarray        # (N, OBS_DIM) float32, observation after the step
@@ -80,8 +89,14 @@ def _step_part(i, actions, parts, c, AC, TC, out):
     x0, y0, vx0, vy0, t0 = parts.x[i], parts.y[i], parts.vx[i], parts.vy[i], parts.t[i]
     tx, ty = parts.tx[i], parts.ty[i]
     j = pick(x0, y0, actions[i, 0], actions[i, 1], TC)
-    f, h, d = decode(actions[i, 2], actions[i, 3], actions[i, 4], AC)
     k = parts.fired[i]
+    a2, a3, a4 = actions[i, 2], actions[i, 3], actions[i, 4]
+    sigma = AC.noise
+    if sigma > 0.0:
+        a2 += sigma * c.noise[i, k, 0]
+        a3 += sigma * c.noise[i, k, 1]
+        a4 += sigma * c.noise[i, k, 2]
+    f, h, d = decode(a2, a3, a4, AC)
     last = k >= TC.max_firings - 1
     kout = out.kernel[i]
     plane_kernel.reset_out(kout)

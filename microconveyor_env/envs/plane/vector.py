@@ -1,4 +1,4 @@
-"""Batched MicroConveyor2D-v0: N parts on the plane stepped together by one compiled call (numba
+"""The plane's batched env (MicroConveyor2D-v0, -v1): N parts on the plane stepped together by one compiled call (numba
 prange), bit-identical to N single envs (the shared machinery: :mod:`..core.vector`)."""
 from __future__ import annotations
 
@@ -25,6 +25,11 @@ class MicroConveyor2DVectorEnv(BatchedEnv):
     chosen by measuring. ``reset(options={"target": (x, y)})``: one target [m] for every
     sub-env, or an ``(num_envs, 2)`` array; ``reset(options={"state": s})``: every sub-env
     starts from the saved part state ``s`` (a list: one per sub-env; :meth:`get_state`).
+    Per-episode randomisation (``action_noise``, ``friction_factor_range``,
+    ``mass_factor_range``; :mod:`..core.randomisation`): each part has its own row of constants
+    and draws from streams derived from its generator, so sub-env ``i`` draws what a single env
+    seeded ``seed + i`` draws; ``friction_factor`` / ``mass_factor`` (arrays) hold this
+    episode's factors, also in ``infos`` when randomisation is on.
     """
 
     config_class: ClassVar[type] = PlaneEnvConfig
@@ -32,7 +37,8 @@ class MicroConveyor2DVectorEnv(BatchedEnv):
     step_info = (("actuator", "actuator", -1), ("frequency_hz", "frequency", 0.0),
                  ("stroke_m", "stroke", 0.0), ("delay_s", "delay", 0.0))
     sb3_info = ("is_success", "position_error_m", "distance_m", "outcome", "sim_time_s",
-                "actuator", "frequency_hz", "stroke_m", "delay_s")
+                "actuator", "frequency_hz", "stroke_m", "delay_s", "friction_factor",
+                "mass_factor")
     config: PlaneEnvConfig
     conveyor: PlaneConveyor
 
@@ -43,6 +49,10 @@ class MicroConveyor2DVectorEnv(BatchedEnv):
     fired = property(lambda self: self.conveyor.parts.fired, doc="firings so far (int64)")
     target = property(lambda self: np.stack([self.conveyor.parts.tx, self.conveyor.parts.ty], 1),
                       doc="targets (num_envs, 2) [m] (a copy)")
+    friction_factor = property(lambda self: self.conveyor.friction_factor,
+                               doc="this episode's factor on the friction [-], per sub-env")
+    mass_factor = property(lambda self: self.conveyor.mass_factor,
+                           doc="this episode's factor on the mass [-], per sub-env")
 
     def get_state(self, i: int) -> PlaneState:
         """Sub-env ``i``'s :class:`~.part_state.PlaneState` now."""
@@ -54,6 +64,9 @@ class MicroConveyor2DVectorEnv(BatchedEnv):
         infos = {"is_success": success.copy(), "position_error_m": err,
                  "distance_m": np.hypot(err[:, 0], err[:, 1]), "outcome": outcome,
                  "sim_time_s": p.t.copy()}
+        if self.conveyor.randomised:
+            infos["friction_factor"] = self.friction_factor.copy()
+            infos["mass_factor"] = self.mass_factor.copy()
         return self._with_masks(infos, self.num_envs)
 
     def render(self) -> tuple | None:
