@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import collections
-import dataclasses
 import json
 import os
 import sys
@@ -63,7 +62,7 @@ def run(spacing: float, sigma: float, spread: float, knows: bool, targets: np.nd
         done |= end
     hit = (out == "rest") & (np.abs(err) <= cfg.tolerance)
     why = collections.Counter("within tolerance" if h else ("firings spent" if o == "rest" else o)
-                              for h, o in zip(hit, out))
+                              for h, o in zip(hit, out, strict=True))
     return {"spacing_m": spacing, "n_actuators": n, "action_noise": sigma, "spread": spread,
             "model_knows_factors": knows, "success_rate": float(hit.mean()),
             "median_abs_error_m": float(np.median(np.abs(err))),

@@ -40,7 +40,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, NamedTuple
 
-import numpy as np
 
 from ..core.part_state import (
     SavedState,
@@ -51,13 +50,12 @@ from ..core.part_state import (
     reset_state,
     within,
 )
+from ..core.randomisation import NOISE_BOUND
+from ..core.randomised_state import check_saved
 from .config import MAX_TARGET, EnvConfig
 
-__all__ = ["NOISE_BOUND", "PartState", "StateBounds", "check_perturbation", "check_state",
-           "reset_state", "state_bounds"]
-# standard normals beyond it are never drawn (numpy's ziggurat on 53-bit uniforms cannot return
-# |z| >= 12.23; P(|z| > 13) = 1.2e-38)
-NOISE_BOUND = 13.0
+__all__ = ["NOISE_BOUND", "PartState", "StateBounds", "check_state", "reset_state",
+           "state_bounds"]
 
 
 @dataclass(frozen=True)
@@ -123,34 +121,6 @@ def check_state(state: PartState | dict, config: EnvConfig) -> PartState:
     t = check_time(s.time_s, config)
     target = within("target_m", s.target_m, -MAX_TARGET, MAX_TARGET, "mm", 1e3,
                     "where the observation can show it")
-    ff, mf, noise = check_perturbation(s.friction_factor, s.mass_factor, s.noise, config, n)
+    ff, mf, noise = check_saved(s.friction_factor, s.mass_factor, s.noise, config, n)
     return PartState(x, v, t, fired, target, ff, mf, noise, s.env_id, s.scene)
 
-
-def check_perturbation(ff: object, mf: object, noise: object, config: EnvConfig,
-                       rows: int) -> tuple[float | None, float | None, tuple | None]:
-    """A saved state's randomisation fields checked against ``config``: the friction and mass
-    factors (None or inside the config's ranges) and the execution noise (None, or ``(rows, 3)``
-    standard normals, only where the config has noise). Returns them as floats and tuples."""
-    for name, val, (lo, hi) in (("friction_factor", ff, config.friction_factor_range),
-                                ("mass_factor", mf, config.mass_factor_range)):
-        if val is not None:
-            within(name, val, lo, hi, "", 1.0, f"this env's {name}_range")
-    if noise is not None:
-        if config.action_noise <= 0.0:
-            raise ValueError("part state noise is given but the env has no execution noise "
-                             "(action_noise = 0)")
-        try:
-            arr = np.asarray(noise, dtype=float)
-        except (TypeError, ValueError):
-            arr = np.full(1, np.nan)
-        if arr.shape != (rows, 3):
-            raise ValueError(f"part state noise must be ({rows}, 3) numbers, got shape "
-                             f"{arr.shape}")
-        bad = np.argwhere(~(np.abs(arr) <= NOISE_BOUND))  # NaN too
-        if len(bad):
-            i, j = bad[0]
-            within(f"noise[{i}][{j}]", arr[i, j], -NOISE_BOUND, NOISE_BOUND, "", 1.0,
-                   "standard normal draws")
-        noise = tuple(map(tuple, arr.tolist()))
-    return (None if ff is None else float(ff)), (None if mf is None else float(mf)), noise

@@ -12,7 +12,7 @@ firings the part is at rest, so the state holds no velocity.
 What it shares with the line's and the plane's saved states (naming ``env_id`` and ``scene``,
 the JSON-safe dict with unit-suffixed keys, the refusal of another scene's state or of a dict
 that names none, the time and position bounds, the randomisation fields) is
-:mod:`..core.part_state` and :func:`..line.part_state.check_perturbation`.
+:mod:`..core.part_state` and :mod:`..core.randomised_state`.
 
 Bounds (:func:`check_positioner_state`; a value outside is refused in one line):
 
@@ -33,7 +33,8 @@ from typing import Any, ClassVar
 
 from ..core.part_state import SavedState, check_fired, check_scene, check_time, within
 from ..line.config import MAX_TARGET
-from ..line.part_state import check_perturbation, state_bounds
+from ..core.randomised_state import check_saved
+from ..line.part_state import state_bounds
 from .config import PositionerConfig
 
 __all__ = ["PositionerState", "check_positioner_state"]
@@ -91,7 +92,7 @@ def check_positioner_state(state: PositionerState | dict,
     span = config.actuator_positions[-1] + config.pick_reach + (hi - lo)
     off = within("last_offset_m", s.last_offset_m, -span, span, "mm", 1e3,
                  "the array's length, the reach and the part's span")
-    ff, mf, noise = check_perturbation(s.friction_factor, s.mass_factor, s.noise, config,
-                                       config.max_firings)
+    ff, mf, noise = check_saved(s.friction_factor, s.mass_factor, s.noise, config,
+                                config.max_firings)
     return PositionerState(x, t, fired, target, step, f, h, off, ff, mf, noise, s.env_id,
                            s.scene)
