@@ -109,6 +109,9 @@ def _firing_video(args: argparse.Namespace, path: str, env_id: str) -> dict[str,
                          f"{meta.get('env_id')!r})")
     target: Any = float(args.target)
     if plane:
+        from microconveyor_env.envs.plane.config import PlaneEnvConfig
+
+        assert isinstance(cfg, PlaneEnvConfig)
         (y0, y1) = cfg.grid_box[1]
         target = (target, (y0 + y1) / 2 if args.target_y is None else float(args.target_y))
     module, name = ENTRY_POINTS[env_id].split(":")

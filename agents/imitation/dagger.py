@@ -156,10 +156,13 @@ class Student:
         self.s = s
 
     def normalise(self, obs: np.ndarray) -> np.ndarray:
-        return self.venv.normalize_obs(obs.astype(np.float32))
+        out = self.venv.normalize_obs(obs.astype(np.float32))
+        assert isinstance(out, np.ndarray)   # a Box observation
+        return out
 
     def set_stats(self, X: np.ndarray) -> None:
         rms = self.venv.obs_rms
+        assert not isinstance(rms, dict)      # a Box observation
         rms.mean, rms.var, rms.count = X.mean(0).astype(np.float64), \
             X.var(0).astype(np.float64), float(len(X))
 
@@ -217,7 +220,7 @@ def dagger(out: str | Path, s: DaggerSettings | None = None, progress: Any = pri
     venv = MicroPositionerVectorEnv(s.episodes, config=dataclasses.replace(cfg, num_threads=1))
     expert = BatchExpert(cfg, s.frequencies, s.strokes, s.margin, s.slack_m, s.heavier)
     student = Student(s, cfg)
-    X = np.zeros((0, venv.single_observation_space.shape[0]), np.float32)
+    X = np.zeros((0, venv.conveyor.obs_dim), np.float32)
     Y = np.zeros((0, 3), np.float32)
     rounds, steps = [], 0
     for r in range(s.rounds):
