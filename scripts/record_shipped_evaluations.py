@@ -48,7 +48,8 @@ def record(env_id: str, name: str) -> None:
     meta_path.write_text(json.dumps(meta, indent=2) + "\n")
     pol = load_policy(folder)
     episodes = {}
-    for key, which in POLICY_EVALUATIONS.get((env_id, name), EVALUATIONS[name]).items():
+    plan = POLICY_EVALUATIONS.get((env_id, name)) or EVALUATIONS[name]
+    for key, which in plan.items():
         old = meta[key]
         # "trained": the scene and randomisation it was trained under; "nominal": randomisation off
         cfg = policy_scene(meta) if which == "trained" else pol.config
