@@ -17,9 +17,11 @@ def _imitate_args(p: argparse.ArgumentParser) -> None:
                    help="DAgger rounds (round 0: the expert acts; later: the policy)")
     p.add_argument("--episodes", type=count(1, 100000), default=256,
                    help="episodes per round, played at once on the batched env")
-    add_env_args(p, default="MicroPositioner-v0", default_text="MicroPositioner-v0",
-                 what=" (a positioner; --env-kwargs replace the training's randomisation: "
-                      "action_noise 3e-3, friction and mass factors in [0.95, 1.05])")
+    add_env_args(p, default=None,
+                 default_text="MicroPositioner-v0: the expert plans a positioner's firings, so "
+                              "the conveyors, MicroConveyor-v1 among them, are refused",
+                 what=" (--env-kwargs replace the training's randomisation: action_noise "
+                      "3e-3, friction and mass factors in [0.95, 1.05])")
 
 
 @command("imitate", "train a policy by DAgger: a network that imitates the one-step model-based "
@@ -30,7 +32,7 @@ def cmd_imitate(args: argparse.Namespace) -> None:
     from ..imitation.dagger import TRAIN_KWARGS, DaggerSettings, dagger
 
     kwargs = {**TRAIN_KWARGS, **env_kwargs_of(args)}
-    s = DaggerSettings(env_id=args.env, env_kwargs=kwargs, seed=args.seed, rounds=args.rounds,
+    s = DaggerSettings(env_id=args.env or "MicroPositioner-v0", env_kwargs=kwargs, seed=args.seed, rounds=args.rounds,
                        episodes=args.episodes)
     say = (lambda line: print(line, file=sys.stderr)) if args.json else print
     meta = dagger(args.out, s, progress=say,
