@@ -242,7 +242,10 @@ def dagger(out: str | Path, s: DaggerSettings | None = None, progress: Any = pri
                  f"{fig['wall_time_s']:.0f} s")
     wall = time.perf_counter() - t0
     env_kwargs = {k: list(v) if isinstance(v, tuple) else v for k, v in s.env_kwargs.items()}
+    # portable inference: an episode of many firings amplifies torch's CPU-specific float32
+    # rounding into other trajectories, so the policy is evaluated with the same bits everywhere
     meta = {"format": 2, "env_id": s.env_id, "algo": "ppo", "trained_by": "dagger",
+            "inference": "portable",
             "env_kwargs": env_kwargs, "seed": s.seed, "steps": int(steps),
             "wall_time_s": wall, "hyperparams": {**dataclasses.asdict(s), "env_kwargs":
                                                   env_kwargs},

@@ -39,3 +39,17 @@ def test_positioner_policy_holds_held_out_targets_under_perturbation():
     least 90 % of them, as recorded."""
     res = assert_reproduces(NAME, "evaluation_fresh", ENV_ID)
     assert res["n_targets"] == 1000 and res["success_rate_50um"] >= 0.9
+
+
+def test_portable_inference_is_the_network_in_fixed_order_arithmetic():
+    """The policy acts through the float64 fixed-order actor (its metadata asks for it); that
+    actor is the network torch computes, within float32 rounding."""
+    import numpy as np
+
+    pol = load_policy(shipped_path(NAME, ENV_ID))
+    assert pol.metadata["inference"] == "portable"
+    obs = np.random.default_rng(0).normal(size=(16, 12)).astype(np.float32)
+    normed = pol.normalizer(obs)
+    portable = pol.actor.predict_portable(normed)
+    np.testing.assert_array_equal(pol.act(obs), portable)
+    np.testing.assert_allclose(portable, pol.actor.predict(normed), atol=2e-6)

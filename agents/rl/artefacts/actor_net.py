@@ -126,6 +126,9 @@ class ActorNet:
         self.low = np.asarray(action_low, np.float32)
         self.high = np.asarray(action_high, np.float32)
         self.module = _Module(layers, act_cls, final_tanh=self.squash)
+        # the same layers as float64 arrays, for predict_portable
+        self._layers64 = [(w.detach().double().numpy(), b.detach().double().numpy())
+                          for _, w, b in layers]
 
     def sb3_state(self) -> dict[str, Any]:
         """The actor's tensors under their SB3 state-dict keys (float32, detached copies)."""
@@ -159,6 +162,40 @@ class ActorNet:
         with torch.no_grad():
             a = self.mean(self.features(obs)).cpu().numpy()
         a = a.reshape((-1, *self.low.shape))
+        if self.squash:
+            return self.low + (0.5 * (a + 1.0) * (self.high - self.low))
+        return np.clip(a, self.low, self.high)
+
+
+    def predict_portable(self, obs: Any) -> np.ndarray:
+        """:meth:`predict` computed in float64 with IEEE operations in a fixed order only (each
+        layer's sums by :func:`~microconveyor_env.physics.portable_math.ordered_dot`, tanh from
+        its portable ``exp``), so the actions have the same bits on every CPU. torch's float32
+        kernels differ by a few ULP between CPU code paths; a policy whose episodes amplify such
+        differences (closed loop over many firings, each landing sensitive to where the part
+        rested) is evaluated this way (its metadata's ``inference: "portable"``). Tanh and ReLU
+        activations, Box observations."""
+        from microconveyor_env.physics.portable_math import exp, ordered_dot
+
+        if self.obs_keys is not None or self.activation not in ("Tanh", "ReLU"):
+            raise ActorFileError(f"portable inference takes Box observations and a Tanh or "
+                                 f"ReLU network, not {self.activation}")
+
+        def act(z: np.ndarray) -> np.ndarray:
+            if self.activation == "ReLU":
+                return np.maximum(z, 0.0)
+            e = exp(-2.0 * np.abs(z))
+            return np.sign(z) * ((1.0 - e) / (1.0 + e))
+
+        rows = []
+        for x in np.asarray(obs, np.float64).reshape(len(obs), -1):
+            for k, (w, b) in enumerate(self._layers64):
+                x = ordered_dot(w, x) + b
+                if k < len(self._layers64) - 1:
+                    x = act(x)
+            rows.append(act(x) if self.squash and self.activation == "Tanh" else
+                        (np.tanh(x) if self.squash else x))
+        a = np.asarray(rows, np.float64).astype(np.float32).reshape((-1, *self.low.shape))
         if self.squash:
             return self.low + (0.5 * (a + 1.0) * (self.high - self.low))
         return np.clip(a, self.low, self.high)

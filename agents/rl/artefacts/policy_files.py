@@ -72,7 +72,9 @@ class Policy:
         in: torch's CPU kernels round float32 products differently by batch size on some CPUs
         (AVX-512: up to ~2e-7 in action units between a batch of 64 and single rows), which
         would make a target's result depend on how many targets were evaluated together and
-        MPC's plan from a policy (one state at a time) differ from the policy's own episode."""
+        MPC's plan from a policy (one state at a time) differ from the policy's own episode.
+        A policy whose metadata says ``inference: "portable"`` is computed in float64 with the
+        same bits on every CPU (:meth:`~.actor_net.ActorNet.predict_portable`)."""
         obs = np.asarray(obs)
         if obs.ndim < 2:
             raise ValueError(f"act takes a batch of observations (n, d), got shape {obs.shape}")
@@ -87,6 +89,8 @@ class Policy:
             return self.actor.predict(goal_observations(obs))
         if self.normalizer is not None:
             obs = self.normalizer(obs)
+        if self.metadata.get("inference") == "portable":
+            return self.actor.predict_portable(obs)
         return self.actor.predict(obs)
 
 
