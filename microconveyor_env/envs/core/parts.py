@@ -18,6 +18,7 @@ import numpy as np
 
 from ...physics.contact_table import TableRangeError
 from ...physics.simulator import Simulator
+from . import randomisation
 from .checks import check_actions
 from .part_state import SavedState, reset_state
 from .threads import ThreadChooser, threads
@@ -104,6 +105,7 @@ class PartsBase:
     """
 
     n: int
+    config: Any
     # the action's components (named in the messages of refused actions)
     components: tuple[str, ...] = ("frequency", "stroke", "delay")
     sim: Any
@@ -112,6 +114,50 @@ class PartsBase:
     action: Any
     task: Any
     out: Any
+
+    def _start_randomisation(self, config: Any, n: int) -> None:
+        """The per-episode randomisation every scene keeps beside its parts
+        (:mod:`.randomisation`): whether it is on, each part's factors this episode (1 while it
+        is off), and each part's streams with the generator they were derived from."""
+        self.randomised: bool = config.randomised
+        self.friction_factor: np.ndarray = np.ones(n)  # this episode's factor on the friction
+        self.mass_factor: np.ndarray = np.ones(n)      # this episode's factor on the mass
+        self._streams: list[Any] = [None] * n
+        self._stream_src: list[np.random.Generator | None] = [None] * n
+
+    def _draw_randomisation(self, i: int, rng: np.random.Generator) -> None:
+        """With randomisation on, part ``i``'s factors and noise for its next episode, from the
+        streams derived from ``rng`` (derived anew when the part's generator is replaced)."""
+        if not self.randomised:
+            return
+        streams = self._streams[i]
+        if streams is None or self._stream_src[i] is not rng:  # seeded anew: new streams
+            streams = self._streams[i] = randomisation.streams(rng)
+            self._stream_src[i] = rng
+        noise = self.consts.noise
+        self.friction_factor[i], self.mass_factor[i] = randomisation.draw(
+            self.config, streams, self.sim.params, self.consts.P[i],
+            noise[i] if noise.size else None)
+
+    def _restore_randomisation(self, i: int, state: Any) -> None:
+        """Part ``i``'s factors and noise from a checked saved ``state`` (its fields left None
+        keep this episode's draws)."""
+        if state.friction_factor is not None or state.mass_factor is not None:
+            ff = self.friction_factor[i] if state.friction_factor is None else state.friction_factor
+            mf = self.mass_factor[i] if state.mass_factor is None else state.mass_factor
+            self.friction_factor[i], self.mass_factor[i] = ff, mf
+            randomisation.apply_factors(self.sim.params, self.consts.P[i], ff, mf)
+        if state.noise is not None:
+            self.consts.noise[i] = np.asarray(state.noise)
+
+    def _saved_randomisation(self, i: int) -> tuple[float | None, float | None, Any]:
+        """Part ``i``'s (friction factor, mass factor, noise) for its saved state (None while
+        randomisation is off; noise None without execution noise)."""
+        if not self.randomised:
+            return None, None, None
+        noise = (tuple(map(tuple, self.consts.noise[i].tolist())) if self.consts.noise.size
+                 else None)
+        return float(self.friction_factor[i]), float(self.mass_factor[i]), noise
 
     def _start(self, n: int, num_threads: int | None) -> None:
         """The common tail of a subclass's ``__init__``: the thread chooser, the actions'

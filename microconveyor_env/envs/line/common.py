@@ -1,5 +1,5 @@
-"""What the line's single and batched envs share beyond the core: the simulator a config
-builds and the check of a target option."""
+"""What the line's single and batched envs share beyond the core (and the positioner, a line
+too): the simulator a config builds and the check of a target option."""
 from __future__ import annotations
 
 import math
@@ -48,4 +48,20 @@ def check_target(target: object) -> float:
         raise ValueError(f"options['target'] = {target!r} is invalid: must be a finite distance "
                          f"beyond actuator 1 within ±{limit * 1e3:g} mm")
     return t
+
+
+def check_targets(given: object, batched: bool, n: int) -> list[float]:
+    """Every part's target [m] from reset's ``target`` option (:func:`check_target`):
+    ``batched``, one for all ``n`` parts or a sequence of ``n``, one per part; else the single
+    env's one."""
+    from ..core.parts import for_part
+
+    if not batched:
+        return [check_target(given)]
+    try:
+        tv = np.broadcast_to(np.asarray(given, dtype=float), (n,))
+    except (TypeError, ValueError):
+        raise ValueError(f"options['target'] = {given!r} is invalid: give "
+                         f"one target [m] or {n}, one per env") from None
+    return [for_part(i, check_target, t) for i, t in enumerate(tv)]
 

@@ -26,9 +26,9 @@ import numpy as np
 from ...physics import dynamics_kernel as kernel
 from ...physics.simulator import Simulator
 from ..core import actions
-from . import randomisation, task
-from .common import check_target, make_simulator
-from ..core.parts import PartsBase, Resets, for_part
+from . import task
+from .common import check_targets, make_simulator
+from ..core.parts import PartsBase, Resets
 from .config import EnvConfig
 from .part_state import PartState, check_state
 from .step import (
@@ -87,11 +87,7 @@ class Conveyor(PartsBase):
                            kernel=np.zeros((n, kernel.N_OUT)))
         # per-episode randomisation (randomisation.py): the factors drawn, and each part's streams
         # with the generator they were derived from (re-derived when it is replaced)
-        self.randomised: bool = config.randomised
-        self.friction_factor: np.ndarray = np.ones(n)  # this episode's factor on the friction
-        self.mass_factor: np.ndarray = np.ones(n)      # this episode's factor on the mass
-        self._streams: list[Streams | None] = [None] * n
-        self._stream_src: list[np.random.Generator | None] = [None] * n
+        self._start_randomisation(config, n)
         # the observations the envs return: with observe_history k > 0, each part's row followed
         # by its k most recent firings (HISTORY_ROW numbers each, the latest first); with k = 0,
         # the compiled step's own rows (``out.obs``, the same array: nothing is copied)
@@ -112,17 +108,8 @@ class Conveyor(PartsBase):
 
     # ------------------------------------------------------------------ reset
     def check_targets(self, given: Any, batched: bool) -> list[float]:
-        """Every part's target [m] (:func:`.common.check_target`): ``batched``, one for every
-        part or a sequence of ``n``, one per part."""
-        if not batched:
-            return [check_target(given)]
-        n = self.n
-        try:
-            tv = np.broadcast_to(np.asarray(given, dtype=float), (n,))
-        except (TypeError, ValueError):
-            raise ValueError(f"options['target'] = {given!r} is invalid: give "
-                             f"one target [m] or {n}, one per env") from None
-        return [for_part(i, check_target, t) for i, t in enumerate(tv)]
+        """Every part's target [m] (:func:`.common.check_targets`)."""
+        return check_targets(given, batched, self.n)
 
     def check_state(self, state: Any) -> PartState:
         """A saved part state checked against the config (:func:`.part_state.check_state`)."""
@@ -136,15 +123,7 @@ class Conveyor(PartsBase):
         None keep this episode's draws). ``target`` and ``state`` as :meth:`check_reset` gives
         them."""
         x0, tgt = task.initial_state(self.config, rng, target)
-        if self.randomised:
-            streams = self._streams[i]
-            if streams is None or self._stream_src[i] is not rng:  # seeded anew: new streams
-                streams = self._streams[i] = randomisation.streams(rng)
-                self._stream_src[i] = rng
-            noise = self.consts.noise
-            self.friction_factor[i], self.mass_factor[i] = randomisation.draw(
-                self.config, streams, self.sim.params, self.consts.P[i],
-                noise[i] if noise.size else None)
+        self._draw_randomisation(i, rng)
         p = self.parts
         p.x[i], p.v[i], p.t[i] = x0, 0.0, 0.0
         p.fired[i] = 0
@@ -159,12 +138,7 @@ class Conveyor(PartsBase):
         observation history: an episode started from it starts with an empty history), naming
         ``env_id`` and this config's scene."""
         p = self.parts
-        ff = mf = None
-        noise = None
-        if self.randomised:
-            ff, mf = float(self.friction_factor[i]), float(self.mass_factor[i])
-            if self.consts.noise.size:
-                noise = tuple(map(tuple, self.consts.noise[i].tolist()))
+        ff, mf, noise = self._saved_randomisation(i)
         return PartState(float(p.x[i]), float(p.v[i]), float(p.t[i]), int(p.fired[i]),
                          float(p.target[i]), ff, mf, noise, env_id, scene_of(self.config))
 
@@ -175,13 +149,7 @@ class Conveyor(PartsBase):
         p.x[i], p.v[i], p.t[i] = s.position_m, s.velocity_m_s, s.time_s
         p.fired[i] = s.fired
         p.target[i] = s.target_m
-        if s.friction_factor is not None or s.mass_factor is not None:
-            ff = self.friction_factor[i] if s.friction_factor is None else s.friction_factor
-            mf = self.mass_factor[i] if s.mass_factor is None else s.mass_factor
-            self.friction_factor[i], self.mass_factor[i] = ff, mf
-            randomisation.apply_factors(self.sim.params, self.consts.P[i], ff, mf)
-        if s.noise is not None:
-            self.consts.noise[i] = np.asarray(s.noise)
+        self._restore_randomisation(i, s)
 
     # ------------------------------------------------------------------ step
     @property

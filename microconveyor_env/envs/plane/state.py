@@ -112,11 +112,7 @@ class PlaneConveyor(PartsBase):
         self.obs_bound: float = plane_task.OBS_BOUND
         # per-episode randomisation: the factors drawn, and each part's streams with the
         # generator they were derived from (re-derived when it is replaced)
-        self.randomised: bool = config.randomised
-        self.friction_factor: np.ndarray = np.ones(n)  # this episode's factor on the friction
-        self.mass_factor: np.ndarray = np.ones(n)      # this episode's factor on the mass
-        self._streams: list[Any] = [None] * n
-        self._stream_src: list[np.random.Generator | None] = [None] * n
+        self._start_randomisation(config, n)
         self._start(n, num_threads)
 
     @property
@@ -160,15 +156,7 @@ class PlaneConveyor(PartsBase):
         fields left None keep this episode's draws). ``target`` and ``state`` as
         :meth:`check_reset` gives them."""
         x0, y0, tx, ty = plane_task.initial_state(self.config, rng, target)
-        if self.randomised:
-            streams = self._streams[i]
-            if streams is None or self._stream_src[i] is not rng:  # seeded anew: new streams
-                streams = self._streams[i] = randomisation.streams(rng)
-                self._stream_src[i] = rng
-            noise = self.consts.noise
-            self.friction_factor[i], self.mass_factor[i] = randomisation.draw(
-                self.config, streams, self.sim.params, self.consts.P[i],
-                noise[i] if noise.size else None)
+        self._draw_randomisation(i, rng)
         p = self.parts
         p.x[i], p.y[i], p.vx[i], p.vy[i], p.t[i] = x0, y0, 0.0, 0.0, 0.0
         p.fired[i] = 0
@@ -177,25 +165,13 @@ class PlaneConveyor(PartsBase):
             (p.x[i], p.y[i]), (p.vx[i], p.vy[i]) = state.position_m, state.velocity_m_s
             p.t[i], p.fired[i] = state.time_s, state.fired
             p.tx[i], p.ty[i] = state.target_m
-            if state.friction_factor is not None or state.mass_factor is not None:
-                ff = (self.friction_factor[i] if state.friction_factor is None
-                      else state.friction_factor)
-                mf = self.mass_factor[i] if state.mass_factor is None else state.mass_factor
-                self.friction_factor[i], self.mass_factor[i] = ff, mf
-                randomisation.apply_factors(self.sim.params, self.consts.P[i], ff, mf)
-            if state.noise is not None:
-                self.consts.noise[i] = np.asarray(state.noise)
+            self._restore_randomisation(i, state)
 
     def get_state(self, i: int, env_id: str | None = None) -> PlaneState:
         """Part ``i``'s state now (with randomisation on, its factors and noise too), naming
         ``env_id`` and this config's scene."""
         p = self.parts
-        ff = mf = None
-        noise = None
-        if self.randomised:
-            ff, mf = float(self.friction_factor[i]), float(self.mass_factor[i])
-            if self.consts.noise.size:
-                noise = tuple(map(tuple, self.consts.noise[i].tolist()))
+        ff, mf, noise = self._saved_randomisation(i)
         return PlaneState((float(p.x[i]), float(p.y[i])), (float(p.vx[i]), float(p.vy[i])),
                           float(p.t[i]), int(p.fired[i]), (float(p.tx[i]), float(p.ty[i])),
                           ff, mf, noise, env_id, scene_of(self.config))

@@ -15,9 +15,8 @@ import numpy as np
 
 from ...physics import dynamics_kernel as kernel
 from ..core import actions
-from ..core.parts import PartsBase, for_part
-from ..line import randomisation
-from ..line.common import check_target, make_simulator
+from ..core.parts import PartsBase
+from ..line.common import check_targets, make_simulator
 from ..line.step import NO_NOISE, NO_RECORD, Constants
 from ..versions import scene_of
 from . import task
@@ -60,11 +59,7 @@ class PositionerParts(PartsBase):
         self.obs = self.out.obs
         self.obs_dim: int = task.OBS_DIM
         self.obs_bound: float = task.OBS_BOUND
-        self.randomised: bool = config.randomised
-        self.friction_factor: np.ndarray = np.ones(n)
-        self.mass_factor: np.ndarray = np.ones(n)
-        self._streams: list[Any] = [None] * n
-        self._stream_src: list[np.random.Generator | None] = [None] * n
+        self._start_randomisation(config, n)
         self._start(n, num_threads)
 
     def compiled(self) -> tuple[Any, Any, Any, tuple[Any, ...]]:
@@ -77,16 +72,8 @@ class PositionerParts(PartsBase):
 
     # ------------------------------------------------------------------ reset
     def check_targets(self, given: Any, batched: bool) -> list[float]:
-        """Every part's target [m] (:func:`..line.common.check_target`): ``batched``, one for
-        every part or a sequence of ``n``."""
-        if not batched:
-            return [check_target(given)]
-        try:
-            tv = np.broadcast_to(np.asarray(given, dtype=float), (self.n,))
-        except (TypeError, ValueError):
-            raise ValueError(f"options['target'] = {given!r} is invalid: give one target [m] "
-                             f"or {self.n}, one per env") from None
-        return [for_part(i, check_target, t) for i, t in enumerate(tv)]
+        """Every part's target [m], as the line checks them (:func:`..line.common.check_targets`)."""
+        return check_targets(given, batched, self.n)
 
     def check_state(self, state: Any) -> PositionerState:
         return check_positioner_state(state, self.config)
@@ -98,15 +85,7 @@ class PositionerParts(PartsBase):
         ``state``, if given, in place of all that (its randomisation fields left None keep this
         episode's draws)."""
         x0, tgt = task.initial_state(self.config, rng, target)
-        if self.randomised:
-            streams = self._streams[i]
-            if streams is None or self._stream_src[i] is not rng:
-                streams = self._streams[i] = randomisation.streams(rng)
-                self._stream_src[i] = rng
-            noise = self.consts.noise
-            self.friction_factor[i], self.mass_factor[i] = randomisation.draw(
-                self.config, streams, self.sim.params, self.consts.P[i],
-                noise[i] if noise.size else None)
+        self._draw_randomisation(i, rng)
         p = self.parts
         p.x[i], p.t[i], p.fired[i], p.target[i] = x0, 0.0, 0, tgt
         p.last_step[i] = p.last_f[i] = p.last_h[i] = p.last_off[i] = 0.0
@@ -115,12 +94,7 @@ class PositionerParts(PartsBase):
 
     def get_state(self, i: int, env_id: str | None = None) -> PositionerState:
         p = self.parts
-        ff = mf = None
-        noise = None
-        if self.randomised:
-            ff, mf = float(self.friction_factor[i]), float(self.mass_factor[i])
-            if self.consts.noise.size:
-                noise = tuple(map(tuple, self.consts.noise[i].tolist()))
+        ff, mf, noise = self._saved_randomisation(i)
         return PositionerState(float(p.x[i]), float(p.t[i]), int(p.fired[i]),
                                float(p.target[i]), float(p.last_step[i]), float(p.last_f[i]),
                                float(p.last_h[i]), float(p.last_off[i]), ff, mf, noise, env_id,
@@ -131,10 +105,4 @@ class PositionerParts(PartsBase):
         p.x[i], p.t[i], p.fired[i], p.target[i] = s.position_m, s.time_s, s.fired, s.target_m
         p.last_step[i], p.last_f[i] = s.last_step_m, s.last_frequency
         p.last_h[i], p.last_off[i] = s.last_stroke, s.last_offset_m
-        if s.friction_factor is not None or s.mass_factor is not None:
-            ff = self.friction_factor[i] if s.friction_factor is None else s.friction_factor
-            mf = self.mass_factor[i] if s.mass_factor is None else s.mass_factor
-            self.friction_factor[i], self.mass_factor[i] = ff, mf
-            randomisation.apply_factors(self.sim.params, self.consts.P[i], ff, mf)
-        if s.noise is not None:
-            self.consts.noise[i] = np.asarray(s.noise)
+        self._restore_randomisation(i, s)
