@@ -1,5 +1,5 @@
-"""The ``microconveyor imitate`` command: train a policy by DAgger from the model-based expert
-(:mod:`agents.imitation.dagger`) on MicroPositioner-v0."""
+"""The ``microconveyor imitate`` command: train a policy by DAgger from a model-based expert
+(:mod:`agents.imitation.dagger`; the recipe of each env id in ``configs/dagger.yml``)."""
 from __future__ import annotations
 
 import argparse
@@ -13,28 +13,37 @@ from .args import add_env_args, env_kwargs_of
 def _imitate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="runs/dagger", help="policy folder to write")
     p.add_argument("--seed", type=count(0, 2**31 - 1), default=0, help="training seed")
-    p.add_argument("--rounds", type=count(1, 1000), default=10,
-                   help="DAgger rounds (round 0: the expert acts; later: the policy)")
-    p.add_argument("--episodes", type=count(1, 100000), default=256,
-                   help="episodes per round, played at once on the batched env")
-    add_env_args(p, default=None,
-                 default_text="MicroPositioner-v0: the expert plans a positioner's firings, so "
-                              "the conveyors, MicroConveyor-v1 among them, are refused",
-                 what=" (--env-kwargs replace the training's randomisation: action_noise "
-                      "3e-3, friction and mass factors in [0.95, 1.05])")
+    p.add_argument("--rounds", type=count(1, 1000), default=None,
+                   help="DAgger rounds (round 0: the expert acts; later: the policy; default: "
+                        "the recipe's, 5 on MicroConveyor-v1, 10 on MicroPositioner-v0)")
+    p.add_argument("--episodes", type=count(1, 100000), default=None,
+                   help="episodes per round, played at once on the batched env (default: the "
+                        "recipe's, 256)")
+    p.add_argument("--seed-policy", default=None, metavar="NAME|PATH",
+                   help="MicroConveyor-v1: the policy that seeds the expert, a shipped policy's "
+                        "name or a policy folder (default: the recipe's, ppo_refined)")
+    add_env_args(p, what=" (MicroConveyor-v1: the expert is the seed policy's firings with its "
+                         "last re-aimed on the model; MicroPositioner-v0: the one-step "
+                         "model-based search, trained under per-episode randomisation; other "
+                         "ids are refused; --env-kwargs are added to the recipe's)")
 
 
-@command("imitate", "train a policy by DAgger: a network that imitates the one-step model-based "
-                    "controller on the states it visits itself, under per-episode "
-                    "randomisation; written as a policy folder that loads as data",
+@command("imitate", "train a policy by DAgger: a network that imitates a model-based expert on "
+                    "the states it visits itself; written as a policy folder that loads as data",
          _imitate_args)
 def cmd_imitate(args: argparse.Namespace) -> None:
-    from ..imitation.dagger import TRAIN_KWARGS, DaggerSettings, dagger
+    from ..imitation.dagger import recipe
 
-    kwargs = {**TRAIN_KWARGS, **env_kwargs_of(args)}
-    s = DaggerSettings(env_id=args.env or "MicroPositioner-v0", env_kwargs=kwargs, seed=args.seed, rounds=args.rounds,
-                       episodes=args.episodes)
+    base = recipe(args.env)
+    given = {k: v for k, v in (("rounds", args.rounds), ("episodes", args.episodes),
+                               ("seed_policy", args.seed_policy)) if v is not None}
+    if "seed_policy" in given and base.seed_policy is None:
+        raise ValueError(f"--seed-policy: {args.env}'s expert is not seeded by a policy")
+    s = recipe(args.env, env_kwargs={**base.env_kwargs, **env_kwargs_of(args)}, seed=args.seed,
+               **given)
     say = (lambda line: print(line, file=sys.stderr)) if args.json else print
+    from ..imitation.dagger import dagger
+
     meta = dagger(args.out, s, progress=say,
                   command="microconveyor imitate " + " ".join(sys.argv[2:]))
     last = meta["rounds"][-1]

@@ -1,21 +1,30 @@
-"""DAgger on MicroPositioner-v0: a policy network that imitates the one-step model-based expert
-(:mod:`agents.mpc.positioner`) on the states the policy itself visits, saved as a policy folder that loads as
-data like every trained policy.
+"""DAgger: a policy network that imitates a model-based expert on the states it visits itself,
+saved as a policy folder that loads as data like every trained policy.
 
-Each round plays ``episodes`` episodes at once on the batched env with the training's
-per-episode randomisation (round 0 with the expert acting, later rounds with the policy), asks
-the expert what it would fire from every state visited (it sees where the part rests and the
-target, never the episode's friction, mass or noise), adds those pairs to the data set, and fits
-the policy network to the whole set (mean squared error on the action). Ross, Gordon and
-Bagnell's DAgger (2011): the policy learns the expert's answers on its own mistakes, which
-behaviour cloning from the expert's episodes alone never shows it.
+Two experts, one per scene (their settings: ``configs/dagger.yml``, keyed by env id):
+
+* MicroPositioner-v0: the one-step model-based search (:class:`~agents.mpc.positioner.
+  BatchExpert`): every reachable actuator, frequency and stroke fired on the nominal model from
+  where the part rests; it sees where the part rests and the target, never the episode's
+  friction, mass or noise;
+* MicroConveyor-v1 (the 1-D conveyor): model-predictive control seeded by a policy
+  (:class:`~agents.mpc.seeded.SeededExpert`): the seed policy's firing, its last firing re-aimed
+  on the nominal model so that the part rests on the target.
+
+Each round plays ``episodes`` episodes at once on the batched env (round 0 with the expert
+acting, later rounds with the policy), asks the expert what it would fire from every state
+visited, adds those pairs to the data set, and fits the policy network to the whole set (mean
+squared error on the action: Adam over ``epochs`` passes, or full-batch L-BFGS in float64 for
+``fit_iterations``, which resolves the 10^-3 action units a conveyor's last firing needs). Ross,
+Gordon and Bagnell's DAgger (2011): the policy learns the expert's answers on its own mistakes,
+which behaviour cloning from the expert's episodes alone never shows it.
 
 The network is SB3 PPO's actor (``MlpPolicy``, tanh, ``net_arch``), trained in place inside a PPO
-model with observation normalisation (VecNormalize's formula, statistics of the data set,
-frozen), so the result is an ordinary PPO policy folder: ``model.zip``, ``normalization.json``
-and ``metadata.json`` (``trained_by: "dagger"``, the expert, every round's figures), which
-``evaluate``, ``compare`` and ``video`` load as data (:mod:`agents.rl.artefacts.policy_files`). It acts in
-one forward pass; the expert needs ~10^3 model firings per decision.
+model with observation normalisation (VecNormalize's formula, statistics of the first round's
+data, frozen), so the result is an ordinary PPO policy folder: ``model.zip``,
+``normalization.json`` and ``metadata.json`` (``trained_by: "dagger"``, the expert, every
+round's figures), which ``evaluate``, ``compare`` and ``video`` load as data
+(:mod:`agents.rl.artefacts.policy_files`). It acts in one forward pass.
 """
 from __future__ import annotations
 
@@ -24,36 +33,51 @@ import json
 import os
 import platform
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 
+from microconveyor_env.envs.line.config import EnvConfig
 from microconveyor_env.envs.positioner.config import PositionerConfig
-from microconveyor_env.envs.positioner.vector import MicroPositionerVectorEnv
-from microconveyor_env.envs.versions import check_env_id, scene_config
+from microconveyor_env.envs.versions import (GOAL_ENV_IDS, check_env_id, scene_config,
+                                             vector_class)
 
 from ..mpc.positioner import BatchExpert
+from ..mpc.seeded import SeededExpert
 
-ENV_ID = "MicroPositioner-v0"
-# the training's per-episode randomisation: the level the policy is meant to hold
+ENV_ID = "MicroPositioner-v0"   # the dataclass defaults are the positioner's recipe
+# the positioner's per-episode randomisation: the level its policy is meant to hold
 TRAIN_KWARGS = {"action_noise": 3e-3, "friction_factor_range": (0.95, 1.05),
                 "mass_factor_range": (0.95, 1.05)}
 NO_FIRING = np.array([1.0, -1.0, -1.0], np.float32)  # the weakest firing of a far actuator
+FITS = ("adam", "lbfgs")
+# an expert's answers for a batch: (actions (M, 3) float32, whether each has one, whether each
+# was corrected by the model rather than taken from a seed; None: not that kind of expert)
+Labels = tuple[np.ndarray, np.ndarray, "np.ndarray | None"]
 
 
 @dataclass(frozen=True)
 class DaggerSettings:
-    """``env_id`` (a positioner id) with ``env_kwargs`` (``gym.make`` overrides, SI; default:
-    :data:`TRAIN_KWARGS`); ``seed`` [-]; ``rounds`` [-] (round 0: the expert acts);
-    ``episodes`` [-] per round; ``net_arch`` [-] hidden layer widths; ``epochs`` [-] passes
-    over the whole data set after each round; ``batch_size`` [-]; ``learning_rate`` [-] (Adam);
-    ``frequencies``, ``strokes`` [-], ``margin`` [-], ``slack_m`` [m], ``heavier`` [-]: the
-    expert's candidate grid, its margins from detachment (grid cells; a part that much heavier)
-    and how much farther a gentler firing may land
-    (:class:`~agents.mpc.positioner.BatchExpert`); ``lr_decay`` [-]: the learning rate is multiplied by it
-    after every round."""
+    """One DAgger run. ``env_id``: a positioner or a 1-D conveyor (Box observations), with
+    ``env_kwargs`` (``gym.make`` overrides, SI; default: :data:`TRAIN_KWARGS`); ``seed`` [-];
+    ``rounds`` [-] (round 0: the expert acts); ``episodes`` [-] per round; ``net_arch`` [-]
+    hidden layer widths.
+
+    The fit after each round: ``fit`` ``"adam"`` (``epochs`` [-] passes over the whole data set
+    in batches of ``batch_size`` [-], ``learning_rate`` [-] multiplied by ``lr_decay`` [-] after
+    every round) or ``"lbfgs"`` (full batch in float64, ``fit_iterations`` [-]).
+
+    The positioner's expert (:class:`~agents.mpc.positioner.BatchExpert`): ``frequencies``,
+    ``strokes`` [-] its candidate grid, ``margin`` [-] grid cells from detachment, ``slack_m``
+    [m] how much farther a gentler firing may land, ``heavier`` [-] the heavier part it checks.
+    The conveyor's expert (:class:`~agents.mpc.seeded.SeededExpert`): ``seed_policy``, a shipped
+    policy's name for ``env_id`` or a policy folder; ``newton_iterations`` [-] and ``accept_m``
+    [m] of the re-aimed last firing."""
 
     env_id: str = ENV_ID
     env_kwargs: dict[str, Any] = field(default_factory=lambda: dict(TRAIN_KWARGS))
@@ -61,44 +85,133 @@ class DaggerSettings:
     rounds: int = 10
     episodes: int = 256
     net_arch: tuple[int, ...] = (256, 256)
+    fit: str = "adam"
     epochs: int = 30
     batch_size: int = 256
     learning_rate: float = 1e-3
+    lr_decay: float = 0.7
+    fit_iterations: int = 1000
     frequencies: int = 41
     strokes: int = 6
     margin: int = 2
     slack_m: float = 5e-6
     heavier: float = 0.1
-    lr_decay: float = 0.7
+    seed_policy: str | None = None
+    newton_iterations: int = 6
+    accept_m: float = 2e-6
 
     def __post_init__(self) -> None:
         check_env_id(self.env_id)
+        if self.env_id in GOAL_ENV_IDS:
+            raise ValueError(f"{self.env_id} has Dict observations; DAgger trains on the Box "
+                             "env of the same scene (MicroConveyor-v1)")
         for name, least in (("seed", 0), ("rounds", 1), ("episodes", 1), ("epochs", 1),
                             ("batch_size", 1), ("frequencies", 2), ("strokes", 2),
-                            ("margin", 0)):
+                            ("margin", 0), ("fit_iterations", 1), ("newton_iterations", 1)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < least:
                 raise ValueError(f"{name} = {v!r} is invalid: must be an integer >= {least}")
         if not self.net_arch or any(not isinstance(w, int) or w < 1 for w in self.net_arch):
             raise ValueError(f"net_arch = {self.net_arch!r} is invalid: positive widths")
+        if self.fit not in FITS:
+            raise ValueError(f"fit = {self.fit!r} is invalid: must be one of {FITS}")
         for name in ("learning_rate", "lr_decay"):
             v = getattr(self, name)
             if not (isinstance(v, float) and 0.0 < v <= 1.0) or v == 1.0 and name != "lr_decay":
                 raise ValueError(f"{name} = {v!r} is invalid: must be in (0, 1)")
         if not (isinstance(self.heavier, float) and 0.0 <= self.heavier <= 1.0):
             raise ValueError(f"heavier = {self.heavier!r} is invalid: must be in [0, 1]")
-        if not (isinstance(self.slack_m, float) and 0.0 <= self.slack_m < 1e-3):
-            raise ValueError(f"slack_m = {self.slack_m!r} is invalid: must be in [0, 1e-3) m")
+        for name in ("slack_m", "accept_m"):
+            v = getattr(self, name)
+            if not (isinstance(v, float) and 0.0 <= v < 1e-3):
+                raise ValueError(f"{name} = {v!r} is invalid: must be in [0, 1e-3) m")
+        if self.seed_policy is not None and not (isinstance(self.seed_policy, str)
+                                                 and self.seed_policy):
+            raise ValueError(f"seed_policy = {self.seed_policy!r} is invalid: a shipped "
+                             "policy's name or a policy folder")
 
-    def config(self) -> PositionerConfig:
+    def config(self) -> PositionerConfig | EnvConfig:
         cfg = scene_config(self.env_id, **self.env_kwargs)
-        if not isinstance(cfg, PositionerConfig):
-            raise ValueError(f"{self.env_id} is not a positioner: DAgger's expert plans firings "
-                             "of any actuator to rest (MicroPositioner-v0)")
+        if isinstance(cfg, PositionerConfig):
+            return cfg
+        if not isinstance(cfg, EnvConfig):
+            raise ValueError(f"{self.env_id} is neither a positioner nor a 1-D conveyor: DAgger "
+                             "has an expert for MicroPositioner-v0 and MicroConveyor-v1")
+        if self.seed_policy is None:
+            raise ValueError(f"{self.env_id}: the conveyor's expert is seeded by a policy; "
+                             "give seed_policy (a shipped policy's name or a policy folder)")
         return cfg
 
 
-def _play(venv: MicroPositionerVectorEnv, expert: BatchExpert, act: Any,
+def recipe(env_id: str, **overrides: Any) -> DaggerSettings:
+    """The settings of ``env_id``'s recipe (``configs/dagger.yml``) with ``overrides`` (any
+    :class:`DaggerSettings` field; ``env_kwargs`` replaces the recipe's)."""
+    check_env_id(env_id)
+    data = yaml.safe_load((resources.files("microconveyor_env.configs") / "dagger.yml")
+                          .read_text()) or {}
+    if env_id not in data:
+        raise ValueError(f"configs/dagger.yml has no recipe for {env_id!r} (it has "
+                         f"{', '.join(map(str, data))}): DAgger's experts plan "
+                         "MicroPositioner-v0 and MicroConveyor-v1")
+    entry = dict(data[env_id])
+    names = {f.name for f in dataclasses.fields(DaggerSettings)}
+    unknown = sorted(set(entry) - names)
+    if unknown:
+        raise ValueError(f"configs/dagger.yml, {env_id}: unknown keys {unknown}")
+    if "net_arch" in entry:
+        entry["net_arch"] = tuple(entry["net_arch"])
+    if "env_kwargs" in entry:
+        entry["env_kwargs"] = {k: tuple(v) if isinstance(v, list) else v
+                               for k, v in (entry["env_kwargs"] or {}).items()}
+    return DaggerSettings(**{**entry, "env_id": env_id, **overrides})
+
+
+def seed_policy_path(s: DaggerSettings) -> Path:
+    """The folder of ``s.seed_policy``: a shipped policy of ``s.env_id`` by that name, else the
+    path itself."""
+    from ..rl.artefacts.shipped import shipped_path
+
+    assert s.seed_policy is not None
+    shipped = shipped_path(s.seed_policy, s.env_id)
+    return shipped if (shipped / "model.zip").is_file() else Path(s.seed_policy)
+
+
+def make_expert(s: DaggerSettings, cfg: Any) -> tuple[Callable[[np.ndarray, Any], Labels],
+                                                       dict[str, Any]]:
+    """The expert of ``cfg``'s scene as ``label(obs, venv)`` and its description for the
+    metadata."""
+    if isinstance(cfg, PositionerConfig):
+        grid = BatchExpert(cfg, s.frequencies, s.strokes, s.margin, s.slack_m, s.heavier)
+
+        def positioner(obs: np.ndarray, venv: Any) -> Labels:
+            acts, ok = grid.act(venv.x.copy(), venv.t.copy(), venv.target.copy())
+            return acts, ok, None
+
+        return positioner, {
+            "kind": "one-step model-based, nominal model, the gentlest firing within the "
+                    "slack of the nearest",
+            "frequencies": s.frequencies, "strokes": s.strokes, "margin": s.margin,
+            "slack_m": s.slack_m, "heavier": s.heavier}
+    from ..rl.artefacts.checkpoint import sha256
+    from ..rl.artefacts.policy_files import load_policy
+
+    folder = seed_policy_path(s)
+    policy = load_policy(folder, config=cfg)
+    seeded = SeededExpert(cfg, policy.act, s.newton_iterations, accept_m=s.accept_m)
+
+    def conveyor(obs: np.ndarray, venv: Any) -> Labels:
+        acts, fixed = seeded.act(obs, venv.conveyor.parts)
+        return acts, np.ones(len(acts), bool), fixed
+
+    return conveyor, {
+        "kind": "model-predictive control seeded by a policy: its firings, its last firing "
+                "re-aimed by Gauss-Newton on the nominal model",
+        "seed_policy": s.seed_policy, "seed_policy_env_id": policy.env_id,
+        "seed_policy_model_sha256": sha256(policy.path / "model.zip"),
+        "newton_iterations": s.newton_iterations, "accept_m": s.accept_m}
+
+
+def _play(venv: Any, label: Callable[[np.ndarray, Any], Labels], act: Any,
           seed: int) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
     """One episode per sub-env: ``act(obs)`` fires (None: the expert); every state visited
     before a firing is labelled with the expert's action. Returns (observations, labels,
@@ -109,14 +222,18 @@ def _play(venv: MicroPositionerVectorEnv, expert: BatchExpert, act: Any,
     err = np.zeros(n)
     outcome = np.empty(n, dtype=object)
     X, Y = [], []
-    firings = 0
+    firings = corrected = 0
+    seeded = False
     while not done.all():
         live = ~done
-        label, ok = expert.act(venv.x.copy(), venv.t.copy(), venv.target.copy())
+        lab, ok, fixed = label(obs, venv)
         keep = live & ok
         X.append(obs[keep].copy())
-        Y.append(label[keep])
-        a = label.copy() if act is None else np.asarray(act(obs), np.float32)
+        Y.append(lab[keep])
+        if fixed is not None:
+            seeded = True
+            corrected += int((fixed & live).sum())
+        a = lab.copy() if act is None else np.asarray(act(obs), np.float32)
         if act is None:
             a[~ok] = NO_FIRING
         obs, _, term, trunc, info = venv.step(a)
@@ -126,16 +243,38 @@ def _play(venv: MicroPositionerVectorEnv, expert: BatchExpert, act: Any,
         outcome[end] = info["outcome"][end]
         done |= end
     hit = (outcome == "rest") & (np.abs(err) <= venv.config.tolerance)
-    return np.concatenate(X), np.concatenate(Y), {
-        "episodes": n, "firings": firings, "success_rate": float(hit.mean()),
-        "median_abs_error_m": float(np.median(np.abs(err))),
-        "detach_rate": float(np.mean(outcome == "detached"))}
+    fig = {"episodes": n, "firings": firings, "success_rate": float(hit.mean()),
+           "median_abs_error_m": float(np.median(np.abs(err))),
+           "detach_rate": float(np.mean(outcome == "detached"))}
+    if seeded:   # how many labels the model re-aimed rather than took from the seed
+        fig["labels_corrected"] = corrected
+    return np.concatenate(X), np.concatenate(Y), fig
+
+
+class _MeanOf:
+    """The student's actor as :func:`agents.rl.refinement.fit.fit` fits one (``net``,
+    ``features``, ``mean``)."""
+
+    def __init__(self, student: Student) -> None:
+        import torch
+
+        pol = student.model.policy
+        self.net = torch.nn.ModuleList([pol.mlp_extractor.policy_net, pol.action_net])
+        self.student = student
+
+    def features(self, obs: np.ndarray) -> Any:
+        import torch
+
+        return torch.as_tensor(self.student.normalise(obs))
+
+    def mean(self, x: Any) -> Any:
+        return self.student.forward(x)
 
 
 class Student:
     """SB3 PPO's actor inside a PPO model, fitted by regression (module docstring)."""
 
-    def __init__(self, s: DaggerSettings, cfg: PositionerConfig) -> None:
+    def __init__(self, s: DaggerSettings, cfg: Any) -> None:
         import torch
         from stable_baselines3 import PPO
         from stable_baselines3.common.vec_env import VecNormalize
@@ -171,6 +310,15 @@ class Student:
         return pol.action_net(pol.mlp_extractor.policy_net(obs_n))
 
     def fit(self, X: np.ndarray, Y: np.ndarray) -> float:
+        """Fit to the data set (``s.fit``); returns the mean squared error [action units²]:
+        Adam's last batch, L-BFGS's whole set."""
+        if self.s.fit == "lbfgs":
+            from ..rl.refinement.fit import fit
+
+            return fit(_MeanOf(self), X, Y, self.s.fit_iterations)[1]
+        return self._adam(X, Y)
+
+    def _adam(self, X: np.ndarray, Y: np.ndarray) -> float:
         import torch
 
         xs = torch.as_tensor(self.normalise(X))
@@ -186,6 +334,8 @@ class Student:
                 loss.backward()
                 self.opt.step()
                 loss_v = loss.item()
+        for group in self.opt.param_groups:
+            group["lr"] *= self.s.lr_decay
         return loss_v
 
     def act(self, obs: np.ndarray) -> np.ndarray:
@@ -217,28 +367,26 @@ def dagger(out: str | Path, s: DaggerSettings | None = None, progress: Any = pri
     cfg = s.config()
     torch.set_num_threads(1)
     t0 = time.perf_counter()
-    venv = MicroPositionerVectorEnv(s.episodes, config=dataclasses.replace(cfg, num_threads=1))
-    expert = BatchExpert(cfg, s.frequencies, s.strokes, s.margin, s.slack_m, s.heavier)
+    venv = vector_class(s.env_id)(s.episodes, config=dataclasses.replace(cfg, num_threads=1))
+    label, expert_meta = make_expert(s, cfg)
     student = Student(s, cfg)
     X = np.zeros((0, venv.conveyor.obs_dim), np.float32)
     Y = np.zeros((0, 3), np.float32)
     rounds, steps = [], 0
     for r in range(s.rounds):
-        xr, yr, fig = _play(venv, expert, None if r == 0 else student.act,
+        xr, yr, fig = _play(venv, label, None if r == 0 else student.act,
                             seed=s.seed * 1_000_003 + r * s.episodes)
         steps += fig["firings"]
         X, Y = np.concatenate([X, xr]), np.concatenate([Y, yr])
         if r == 0:
             student.set_stats(X)   # the observation statistics of the expert's own states
         loss = student.fit(X, Y)
-        for group in student.opt.param_groups:
-            group["lr"] *= s.lr_decay
         fig.update(round=r, acting="expert" if r == 0 else "policy", samples=int(len(X)),
                    loss=loss, wall_time_s=time.perf_counter() - t0)
         rounds.append(fig)
         progress(f"round {r} ({fig['acting']} acting): {fig['success_rate']:.0%} within "
                  f"±{cfg.tolerance * 1e6:.0f} µm, median {fig['median_abs_error_m'] * 1e6:.1f} µm, "
-                 f"detached {fig['detach_rate']:.0%}; {len(X):,} samples, loss {loss:.4f}, "
+                 f"detached {fig['detach_rate']:.0%}; {len(X):,} samples, loss {loss:.2e}, "
                  f"{fig['wall_time_s']:.0f} s")
     wall = time.perf_counter() - t0
     env_kwargs = {k: list(v) if isinstance(v, tuple) else v for k, v in s.env_kwargs.items()}
@@ -249,15 +397,11 @@ def dagger(out: str | Path, s: DaggerSettings | None = None, progress: Any = pri
             "env_kwargs": env_kwargs, "seed": s.seed, "steps": int(steps),
             "wall_time_s": wall, "hyperparams": {**dataclasses.asdict(s), "env_kwargs":
                                                   env_kwargs},
-            "expert": {"kind": "one-step model-based, nominal model, the gentlest firing within "
-                               "the slack of the nearest",
-                       "frequencies": s.frequencies, "strokes": s.strokes,
-                       "margin": s.margin, "slack_m": s.slack_m, "heavier": s.heavier},
+            "expert": expert_meta,
             "command": command, "rounds": rounds, "machine": {"cpu_count": os.cpu_count(),
                                           "processor": platform.processor()},
-            "note": "A policy network trained by DAgger to imitate the one-step model-based "
-                    "controller on the nominal model (it never sees an episode's friction, "
-                    "mass or noise), under the per-episode randomisation in env_kwargs; one "
-                    "forward pass per firing."}
+            "note": "A policy network trained by DAgger to imitate a model-based expert on the "
+                    "nominal model (it never sees an episode's friction, mass or noise), in "
+                    "the scene of env_id with env_kwargs; one forward pass per firing."}
     student.save(Path(out), meta)
     return meta
