@@ -1,8 +1,11 @@
 """Wall time of one `microconveyor imitate` training on one core, per seed, and whether the policy
-it writes is at the bar on held-out targets.
+it writes meets the criterion on held-out targets.
 
     python benchmarks/imitate_wall_time.py --seeds 0-9 --out runs/imitate-bench \\
         --json docs/figures/imitate_v1_seeds.json [--env MicroConveyor-v1] [--cpu 0]
+    ATEN_CPU_CAPABILITY=default MKL_CBWR=COMPATIBLE OPENBLAS_CORETYPE=Prescott \\
+        python benchmarks/imitate_wall_time.py --seeds 0-2 --out runs/imitate-scalar \\
+        --compare-with runs/imitate-bench --json docs/figures/imitate_v1_code_paths.json
 
 Each seed runs ``microconveyor imitate --env ENV --seed S --out OUT/s<S>`` as its own process,
 pinned to one CPU (``--cpu``; its torch and numba threads set to 1), one seed after the other:
@@ -10,11 +13,17 @@ the wall time is the command's, from start to the written policy folder, imports
 included (the numba cache warm, as after an install's first run). Its CPU time (user + system,
 from the OS) is recorded beside it. Then each policy is evaluated on ``--targets`` held-out
 targets (``--eval-seed`` 1: not the set training monitors; the evaluation is not timed in the
-wall time) and checked against the bar: at least ``--bar-success`` at rest within the env's
-tolerance and a median |error| at most ``--bar-median-m``.
+wall time) and checked against the criterion: at least ``--min-success`` at rest within the env's
+tolerance and a median |error| at most ``--max-median-m``.
+
+``--compare-with DIR``: the same seeds trained on another of torch's CPU code paths (the second
+command above: torch's kernels without SIMD and the BLAS on its baseline path, against the
+machine's default, AVX2 here) are evaluated on the same targets too, and each row says whether
+the two policies played every episode identically and whether both are on the same side of
+the criterion.
 
 Writes JSON (SI units): per seed the wall and CPU time [s], success, median and 90th percentile
-|error| [m], detachment rate, whether it is at the bar; over the seeds the IQM of the success
+|error| [m], detachment rate, whether it meets the criterion; over the seeds the IQM of the success
 with its 95 % bootstrap interval, the worst seed, the median and slowest wall time; the machine,
 its load average before and after, the date and the command. Not a test: timings are noisy;
 record what else ran (``--note``).
@@ -37,7 +46,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from agents.rl.evaluation.evaluate import evaluate, load_policy  # noqa: E402
+from agents.rl.evaluation.evaluate import (figures, fixed_targets, load_policy,  # noqa: E402
+                                            rollout)
 from agents.rl.evaluation.seeds import iqm_interval  # noqa: E402
 
 
@@ -72,6 +82,30 @@ def train(env_id: str, seed: int, folder: Path, cpu: int | None, log: Path) -> d
     return {"wall_time_s": wall, "cpu_time_s": cpu_s, "command": " ".join(cmd[1:])}
 
 
+def torch_capability() -> str:
+    """The SIMD level torch's own kernels run at in this process (``ATEN_CPU_CAPABILITY`` caps
+    it); the trainings inherit the environment."""
+    import torch
+
+    return str(torch.backends.cpu.get_cpu_capability())
+
+
+def held_out(folder: Path, n: int, seed: int) -> tuple[dict, np.ndarray]:
+    """The policy in ``folder`` on ``n`` held-out targets drawn with ``seed``: its figures and
+    every episode's signed error [m]."""
+    pol = load_policy(folder)
+    cfg = pol.config
+    res = rollout(pol, fixed_targets(cfg, n, seed), cfg, seed=seed)
+    return figures(res, cfg.tolerance), np.asarray(res["error_m"], float)
+
+
+def criterion_row(r: dict, args: argparse.Namespace) -> dict:
+    return {"success_rate": r["success_rate"], "median_abs_error_m": r["median_abs_error_m"],
+            "p90_abs_error_m": r["p90_abs_error_m"], "detach_rate": r["detach_rate"],
+            "meets_criterion": bool(r["success_rate"] >= args.min_success
+                           and r["median_abs_error_m"] <= args.max_median_m)}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--env", default="MicroConveyor-v1")
@@ -82,9 +116,11 @@ def main() -> None:
                                                        "(-1: not pinned)")
     ap.add_argument("--targets", type=int, default=1000)
     ap.add_argument("--eval-seed", type=int, default=1)
-    ap.add_argument("--bar-success", type=float, default=0.90)
-    ap.add_argument("--bar-median-m", type=float, default=20e-6)
+    ap.add_argument("--min-success", type=float, default=0.90)
+    ap.add_argument("--max-median-m", type=float, default=20e-6)
     ap.add_argument("--note", default="", help="what else ran on the machine")
+    ap.add_argument("--compare-with", type=Path, default=None,
+                    help="a run folder of this script on another CPU code path (module docstring)")
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     cpu = None if args.cpu < 0 else args.cpu
@@ -93,17 +129,23 @@ def main() -> None:
     for seed in args.seeds:
         folder = args.out / f"s{seed}"
         timing = train(args.env, seed, folder, cpu, args.out / f"s{seed}.log")
-        pol = load_policy(folder)
-        r = evaluate(pol, n_targets=args.targets, seed=args.eval_seed)
-        row = {"seed": seed, **timing, "success_rate": r["success_rate"],
-               "median_abs_error_m": r["median_abs_error_m"],
-               "p90_abs_error_m": r["p90_abs_error_m"], "detach_rate": r["detach_rate"],
-               "at_bar": bool(r["success_rate"] >= args.bar_success
-                              and r["median_abs_error_m"] <= args.bar_median_m)}
+        r, errors = held_out(folder, args.targets, args.eval_seed)
+        row = {"seed": seed, **timing, **criterion_row(r, args)}
+        if args.compare_with is not None:
+            other, other_errors = held_out(args.compare_with / f"s{seed}", args.targets,
+                                           args.eval_seed)
+            row["other_path"] = {"run": str(args.compare_with / f"s{seed}"),
+                                 **criterion_row(other, args),
+                                 "same_episodes": bool(np.array_equal(errors, other_errors)),
+                                 "max_error_difference_m": float(np.max(np.abs(
+                                     errors - other_errors)))}
+            row["same_side_of_criterion"] = (row["meets_criterion"]
+                                             == row["other_path"]["meets_criterion"])
         rows.append(row)
         print(f"seed {seed}: {timing['wall_time_s']:.0f} s wall, {timing['cpu_time_s']:.0f} s "
               f"CPU; {row['success_rate']:.1%} within the tolerance, median "
-              f"{row['median_abs_error_m'] * 1e6:.1f} µm{'' if row['at_bar'] else ' (below the bar)'}",
+              f"{row['median_abs_error_m'] * 1e6:.1f} µm"
+              f"{'' if row['meets_criterion'] else ' (below the criterion)'}",
               flush=True)
     success = np.array([r["success_rate"] for r in rows])
     walls = np.array([r["wall_time_s"] for r in rows])
@@ -114,9 +156,10 @@ def main() -> None:
                                     "core, and its policy on held-out targets",
         "recipe": meta.get("hyperparams"), "expert": meta.get("expert"),
         "targets": args.targets, "eval_seed": args.eval_seed,
-        "bar": {"success_rate": args.bar_success, "median_abs_error_m": args.bar_median_m},
+        "criterion": {"success_rate": args.min_success, "median_abs_error_m": args.max_median_m},
         "seeds": rows,
-        "summary": {"seeds": len(rows), "at_bar": int(sum(r["at_bar"] for r in rows)),
+        "summary": {"seeds": len(rows),
+                    "meeting_criterion": int(sum(r["meets_criterion"] for r in rows)),
                     "success_iqm": iqm_interval(success),
                     "worst_seed": {k: worst[k] for k in ("seed", "success_rate",
                                                          "median_abs_error_m")},
@@ -124,10 +167,16 @@ def main() -> None:
                     "slowest_wall_time_s": float(walls.max()),
                     "slowest_seed": int(rows[int(np.argmax(walls))]["seed"]),
                     "median_cpu_time_s": float(np.median([r["cpu_time_s"] for r in rows]))},
+        "compared_with": None if args.compare_with is None else {
+            "run": str(args.compare_with),
+            "same_side_of_criterion": int(sum(r["same_side_of_criterion"] for r in rows)),
+            "same_episodes": int(sum(r["other_path"]["same_episodes"] for r in rows))},
         "machine": {"cpu_count": os.cpu_count(), "processor": platform.processor(),
                     "pinned_cpu": cpu, "load_average_before": load_before,
                     "load_average_after": os.getloadavg(),
-                    "aten_cpu_capability": os.environ.get("ATEN_CPU_CAPABILITY", "default")},
+                    "torch_cpu_capability": torch_capability(),
+                    "env": {k: os.environ[k] for k in ("ATEN_CPU_CAPABILITY", "MKL_CBWR",
+                                                       "OPENBLAS_CORETYPE") if k in os.environ}},
         "note": args.note,
         "date": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
         "command": "python benchmarks/imitate_wall_time.py " + " ".join(sys.argv[1:]),
@@ -137,11 +186,15 @@ def main() -> None:
     if args.json:
         args.json.write_text(text)
     s = out["summary"]
-    print(f"{s['at_bar']}/{s['seeds']} seeds at the bar; success IQM "
+    print(f"{s['meeting_criterion']}/{s['seeds']} seeds meet the criterion; success IQM "
           f"{s['success_iqm']['iqm']:.1%} [{s['success_iqm']['ci95'][0]:.1%}, "
           f"{s['success_iqm']['ci95'][1]:.1%}]; worst seed {worst['seed']} "
           f"{worst['success_rate']:.1%}; wall time median {s['median_wall_time_s']:.0f} s, "
           f"slowest {s['slowest_wall_time_s']:.0f} s (seed {s['slowest_seed']})")
+    if out["compared_with"]:
+        c = out["compared_with"]
+        print(f"against {c['run']}: {c['same_side_of_criterion']}/{len(rows)} seeds on the "
+              f"same side of the criterion, {c['same_episodes']}/{len(rows)} with identical episodes")
 
 
 if __name__ == "__main__":

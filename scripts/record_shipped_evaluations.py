@@ -35,8 +35,7 @@ EVALUATIONS = {"ppo": {"evaluation": "nominal", "evaluation_fresh": "nominal"},
 NEW_RECORDS = {"evaluation": (100, 12345, "trained"),
                "evaluation_nominal": (100, 12345, "nominal"),
                "evaluation_fresh": (1000, 1, "trained")}
-# per (env id, name), where it differs from EVALUATIONS
-POLICY_EVALUATIONS = {("MicroPositioner-v0", "dagger"): {k: v[2] for k, v in NEW_RECORDS.items()}}
+# a policy not in EVALUATIONS re-records the NEW_RECORDS its metadata holds
 EPISODES = "episodes.json"
 
 
@@ -48,7 +47,7 @@ def record(env_id: str, name: str) -> None:
     meta_path.write_text(json.dumps(meta, indent=2) + "\n")
     pol = load_policy(folder)
     episodes = {}
-    plan = POLICY_EVALUATIONS.get((env_id, name)) or EVALUATIONS[name]
+    plan = EVALUATIONS.get(name) or {k: v[2] for k, v in NEW_RECORDS.items() if k in meta}
     for key, which in plan.items():
         old = meta[key]
         # "trained": the scene and randomisation it was trained under; "nominal": randomisation off
@@ -86,7 +85,10 @@ def ship(run: str, env_id: str, name: str) -> None:
     for f in (MODEL, NORMALIZATION, META):
         shutil.copyfile(Path(run) / f, folder / f)
     meta = json.loads((folder / META).read_text())
+    randomised = getattr(policy_scene(meta), "randomised", False)
     for key, (n, seed, _) in NEW_RECORDS.items():
+        if key == "evaluation_nominal" and not randomised:
+            continue   # trained on the nominal scene: "evaluation" is that one
         meta[key] = {"n_targets": n, "seed": seed}
     (folder / META).write_text(json.dumps(meta, indent=2) + "\n")
 

@@ -55,6 +55,11 @@ def _um(x_m: float) -> str:
     return f"{v:.1f} µm" if v < 100 else f"{v:,.0f} µm"
 
 
+def _small_m(x_m: float) -> str:
+    """A length that may be far below a micrometre (a difference between two runs)."""
+    return f"{x_m * 1e9:.1f} nm" if x_m < 1e-6 else _um(x_m)
+
+
 def _ms(x_s: float) -> str:
     return f"{x_s * 1e3:.1f} ms" if x_s < 1 else f"{x_s:.1f} s"
 
@@ -302,6 +307,94 @@ def positioner_seeds_table(data: dict) -> str:
     return "\n".join(lines)
 
 
+def imitate_table(data: dict) -> str:
+    """Training seeds of ``microconveyor imitate`` with their wall time on one core
+    (``benchmarks/imitate_wall_time.py``)."""
+    crit = data["criterion"]
+    lines = ["| seed | wall time | CPU time | within ±50 µm | median \\|error\\| | 90th pct. "
+             "\\|error\\| | detached | meets the criterion |", "|---|---|---|---|---|---|---|---|"]
+    for r in data["seeds"]:
+        lines.append(f"| {r['seed']} | {r['wall_time_s']:.0f} s | {r['cpu_time_s']:.0f} s | "
+                     f"{100 * r['success_rate']:.1f} % | {_um(r['median_abs_error_m'])} | "
+                     f"{_um(r['p90_abs_error_m'])} | {100 * r['detach_rate']:.1f} % | "
+                     f"{'yes' if r['meets_criterion'] else 'no'} |")
+    sm = data["summary"]
+    iq = sm["success_iqm"]
+    w = sm["worst_seed"]
+    lines.append("")
+    lines.append(f"{sm['meeting_criterion']} of {sm['seeds']} seeds meet v1's criterion (≥ "
+                 f"{100 * crit['success_rate']:.0f} % within ±50 µm and a median ≤ "
+                 f"{_um(crit['median_abs_error_m'])}); success IQM **{100 * iq['iqm']:.1f} %** "
+                 f"[95 % bootstrap {100 * iq['ci95'][0]:.1f}, {100 * iq['ci95'][1]:.1f}]; worst "
+                 f"seed {w['seed']}: {100 * w['success_rate']:.1f} %, median "
+                 f"{_um(w['median_abs_error_m'])}. Wall time of the command, median "
+                 f"**{sm['median_wall_time_s']:.0f} s**, slowest {sm['slowest_wall_time_s']:.0f} s "
+                 f"(seed {sm['slowest_seed']}). Final policies on {data['targets']:,} held-out "
+                 f"targets (uniform over 0.5–10 mm, seed {data['eval_seed']}), one episode each; "
+                 f"each training pinned to one core, one after the other ({data['note']}). "
+                 f"`{data['command']}` ({data['date']}, stored in "
+                 "`docs/figures/imitate_v1_seeds.json`).")
+    return "\n".join(lines)
+
+
+def code_paths_table(data: dict) -> str:
+    """The same seeds trained on two of torch's CPU code paths
+    (``benchmarks/imitate_wall_time.py --compare-with``)."""
+    m = data["machine"]
+    here = f"{m['torch_cpu_capability']} ({', '.join(f'{k}={v}' for k, v in m['env'].items())})"
+    lines = [f"| seed | machine default (AVX2): within ±50 µm, median | {here}: within ±50 µm, "
+             "median | same side of the criterion | identical episodes |", "|---|---|---|---|---|"]
+    for r in data["seeds"]:
+        o = r["other_path"]
+        lines.append(f"| {r['seed']} | {100 * o['success_rate']:.1f} %, "
+                     f"{_um(o['median_abs_error_m'])} | {100 * r['success_rate']:.1f} %, "
+                     f"{_um(r['median_abs_error_m'])} | "
+                     f"{'yes' if r['same_side_of_criterion'] else 'no'} "
+                     f"| {'yes' if o['same_episodes'] else 'no'} (largest difference "
+                     f"{_small_m(o['max_error_difference_m'])}) |")
+    lines.append("")
+    lines.append(f"The same command and seeds, {data['targets']:,} held-out targets (seed "
+                 f"{data['eval_seed']}). `{data['command']}` ({data['date']}, stored in "
+                 "`docs/figures/imitate_v1_code_paths.json`).")
+    return "\n".join(lines)
+
+
+# the parts of a training, as benchmarks/train_time_breakdown.py times them
+BREAKDOWN = (("env stepping", ("env_compiled", "env_adapter", "env_monitor", "env_normalize")),
+             ("policy inference", ("inference",)),
+             ("rollout bookkeeping", ("buffer", "callbacks", "rollout_loop")),
+             ("gradient updates", ("updates",)), ("logging", ("logging",)),
+             ("periodic evaluation", ("evaluation",)), ("checkpoints", ("checkpoints",)),
+             ("setup", ("setup",)), ("refinement", ("refinement",)))
+
+
+def breakdown_table(data: dict) -> str:
+    """Where a v1 PPO training's time goes (``benchmarks/train_time_breakdown.py``)."""
+    run, full = data["run"], data["full_recipe_estimate"]
+    lines = ["| part | measured run: wall | CPU | share of CPU | 6 M-step recipe (estimate): "
+             "wall | share |", "|---|---|---|---|---|---|"]
+    cpu_total = sum(run["parts_cpu_s"].values()) - run["parts_cpu_s"].get("env_step", 0) \
+        - run["parts_cpu_s"].get("bookkeeping", 0)
+    wall_total = full["total_s"]
+    for name, keys in BREAKDOWN:
+        w = sum(run["parts_s"].get(k, 0.0) for k in keys)
+        c = sum(run["parts_cpu_s"].get(k, 0.0) for k in keys)
+        fw = sum(full["parts_s"].get(k, 0.0) for k in keys)
+        lines.append(f"| {name} | {w:.1f} s | {c:.1f} s | {100 * c / cpu_total:.1f} % | "
+                     f"{fw / 60:.1f} min | {100 * fw / wall_total:.1f} % |")
+    m = data["machine"]
+    lines.append("")
+    lines.append(f"The measured run: {run['steps']:,} steps of the recipe and "
+                 f"{run['refine_rounds']} refinement round; the estimate scales it to "
+                 f"{full['steps']:,} steps and 8 rounds (the script's docstring). One core "
+                 f"(affinity {m['cpu_affinity']}), torch {m['torch']} on 1 thread; load average "
+                 f"{m['load_average_before'][0]:.1f} before and {m['load_average_after'][0]:.1f} "
+                 "after: on a busy machine the seconds are upper bounds and the CPU shares are "
+                 f"the measure. `{data['command']}` ({data['recorded_utc']}, stored in "
+                 "`docs/figures/train_time_breakdown.json`).")
+    return "\n".join(lines)
+
+
 def generators() -> dict:
     """Region name -> a function returning its text."""
     def load(name: str) -> dict:
@@ -316,7 +409,10 @@ def generators() -> dict:
             "threads": lambda: threads_table(load("sac_threads.json")),
             "positioner_compare": lambda: compare_table(load("compare_positioner.json")),
             "positioner_sizing": lambda: positioner_sizing_table(load("positioner_sizing.json")),
-            "positioner_seeds": lambda: positioner_seeds_table(load("positioner_seeds.json"))}
+            "positioner_seeds": lambda: positioner_seeds_table(load("positioner_seeds.json")),
+            "breakdown": lambda: breakdown_table(load("train_time_breakdown.json")),
+            "imitate_v1": lambda: imitate_table(load("imitate_v1_seeds.json")),
+            "imitate_v1_paths": lambda: code_paths_table(load("imitate_v1_code_paths.json"))}
 
 
 def render(text: str, gens: dict, cache: dict) -> str:

@@ -24,7 +24,9 @@ SHORTER = {
                                                            "--eval-targets", "2"],
     "microconveyor train --env MicroConveyor2D-v0 --out runs/plane": TINY,
     "microconveyor train --algo sac --env MicroConveyorGoal-v1 --out runs/sac": TINY,
-    "microconveyor imitate --out runs/dagger": ["--rounds", "1", "--episodes", "2"],
+    "microconveyor imitate --out runs/v1_dagger": ["--rounds", "1", "--episodes", "2"],
+    "microconveyor imitate --env MicroPositioner-v0 --out runs/dagger": ["--rounds", "1",
+                                                                         "--episodes", "2"],
     "microconveyor evaluate --targets 1000 --seed 1 --json": ["--targets", "10"],
     "microconveyor compare --mpc-prior shipped --plot out/c.png": [
         "--targets", "2", "--budgets", "20", "--mpc-budgets", "20,10", "--noise", "0.003",

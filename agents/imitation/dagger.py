@@ -310,12 +310,12 @@ class Student:
         return pol.action_net(pol.mlp_extractor.policy_net(obs_n))
 
     def fit(self, X: np.ndarray, Y: np.ndarray) -> float:
-        """Fit to the data set (``s.fit``); returns the mean squared error [action units²]:
-        Adam's last batch, L-BFGS's whole set."""
+        """Fit to the data set (``s.fit``); returns the mean squared error per action
+        component [action units²]: Adam's last batch, L-BFGS's whole set."""
         if self.s.fit == "lbfgs":
             from ..rl.refinement.fit import fit
 
-            return fit(_MeanOf(self), X, Y, self.s.fit_iterations)[1]
+            return fit(_MeanOf(self), X, Y, self.s.fit_iterations)[1] / Y.shape[1]
         return self._adam(X, Y)
 
     def _adam(self, X: np.ndarray, Y: np.ndarray) -> float:
@@ -386,7 +386,8 @@ def dagger(out: str | Path, s: DaggerSettings | None = None, progress: Any = pri
         rounds.append(fig)
         progress(f"round {r} ({fig['acting']} acting): {fig['success_rate']:.0%} within "
                  f"±{cfg.tolerance * 1e6:.0f} µm, median {fig['median_abs_error_m'] * 1e6:.1f} µm, "
-                 f"detached {fig['detach_rate']:.0%}; {len(X):,} samples, loss {loss:.2e}, "
+                 f"detached {fig['detach_rate']:.0%}; {len(X):,} samples, fit RMS "
+                 f"{np.sqrt(loss):.4f} action units, "
                  f"{fig['wall_time_s']:.0f} s")
     wall = time.perf_counter() - t0
     env_kwargs = {k: list(v) if isinstance(v, tuple) else v for k, v in s.env_kwargs.items()}

@@ -8,7 +8,10 @@ state after every firing.
   reruns.
 * :mod:`.positioner`: MicroPositioner-v0's one-step model-based controller (every reachable
   actuator, frequency and stroke tried on the model before each firing), with the nominal, an
-  identified or the true model.
+  identified or the true model;
+* :mod:`.seeded`: the conveyor's controller with a horizon of one firing, seeded by a policy
+  (its firings, its last one re-aimed on the model), for many part states at once: DAgger's
+  expert on MicroConveyor-v1.
 """
 from .control import MPC, MPCEpisode, MPCSettings, observed
 from .harness import MPCRollout, mpc_rollout

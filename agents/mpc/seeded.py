@@ -50,7 +50,7 @@ class SeededExpert:
 
     def __init__(self, config: EnvConfig, seed: Any, iterations: int = 6, step: float = 1e-3,
                  max_step: float = 0.2, accept_m: float = 2e-6) -> None:
-        if not isinstance(config, EnvConfig):
+        if type(config) is not EnvConfig:   # the positioner's config is a subclass
             raise ValueError("the seeded expert re-aims the firings of a conveyor "
                              f"(MicroConveyor-v0/-v1), not of {type(config).__name__}")
         self.config = dataclasses.replace(config, action_noise=0.0, num_threads=1,

@@ -1,6 +1,8 @@
-"""DAgger on MicroPositioner-v0: the expert's model is the env's own step (its predicted rest is
-where the nominal env puts the part, bit for bit), its choice brings the part closer, and a
-short DAgger run writes a policy folder that loads as data and acts."""
+"""DAgger: on MicroPositioner-v0 the expert's model is the env's own step (its predicted rest is
+where the nominal env puts the part, bit for bit) and its choice brings the part closer; on
+MicroConveyor-v1 the seeded expert keeps the seed policy's firings and re-aims its last one so
+that the env puts the part on the target; a short run on either writes a policy folder that
+loads as data and acts; each env id's recipe comes from configs/dagger.yml."""
 from __future__ import annotations
 
 import numpy as np
@@ -12,8 +14,9 @@ from microconveyor_env.envs.positioner.part_state import PositionerState
 
 pytest.importorskip("stable_baselines3")
 
-from agents.imitation.dagger import DaggerSettings, dagger  # noqa: E402
+from agents.imitation.dagger import DaggerSettings, dagger, recipe  # noqa: E402
 from agents.mpc.positioner import BatchExpert  # noqa: E402
+from agents.mpc.seeded import SeededExpert  # noqa: E402
 
 
 def test_expert_predicts_the_nominal_env_exactly_and_gets_closer() -> None:
@@ -52,9 +55,25 @@ def test_settings_refused(bad: dict, word: str) -> None:
         DaggerSettings(**bad)
 
 
-def test_dagger_refuses_a_conveyor() -> None:
-    with pytest.raises(ValueError, match="not a positioner"):
+def test_dagger_refuses_what_it_has_no_expert_for() -> None:
+    with pytest.raises(ValueError, match="neither a positioner nor a 1-D conveyor"):
+        DaggerSettings(env_id="MicroConveyor2D-v1", env_kwargs={}).config()
+    with pytest.raises(ValueError, match="seed_policy"):
         DaggerSettings(env_id="MicroConveyor-v1", env_kwargs={}).config()
+    with pytest.raises(ValueError, match="Dict observations"):
+        DaggerSettings(env_id="MicroConveyorGoal-v1", env_kwargs={})
+    for env_id in ("MicroConveyor-v0", "MicroConveyor2D-v0"):
+        with pytest.raises(ValueError, match="no recipe"):
+            recipe(env_id)
+
+
+def test_recipes_are_the_settings_of_configs_dagger_yml() -> None:
+    assert recipe("MicroPositioner-v0") == DaggerSettings()   # the dataclass holds its recipe
+    v1 = recipe("MicroConveyor-v1", seed=3)
+    assert (v1.env_kwargs, v1.seed_policy, v1.fit, v1.net_arch, v1.seed) == (
+        {}, "ppo_refined", "lbfgs", (64, 64), 3)
+    with pytest.raises(ValueError, match="fit"):
+        recipe("MicroConveyor-v1", fit="sgd")
 
 
 def test_short_dagger_run_writes_a_policy_that_loads_as_data(tmp_path) -> None:
@@ -89,3 +108,97 @@ def test_expert_keeps_away_from_what_detaches_a_heavier_part(heavier: float,
         heavy.reset(options={"state": PositionerState(float(x[i]), 0.0, 0, float(target[i]))})
         outcomes.append(heavy.step(acts[i])[4]["outcome"])
     assert outcomes.count("detached") == detached
+
+
+def _v1_states(n_targets: int = 6) -> tuple:
+    """The states the shipped v1 policy visits towards a few targets, before each firing: the
+    observations and the states as arrays (x, v, t, fired, target)."""
+    from microconveyor_env.envs import MicroConveyorVectorEnv, env_config
+    from agents.rl.artefacts.shipped import shipped_path
+    from agents.rl.evaluation.evaluate import load_policy
+
+    cfg = env_config("MicroConveyor-v1")
+    pol = load_policy(shipped_path("ppo_refined", "MicroConveyor-v1"))
+    venv = MicroConveyorVectorEnv(n_targets, config=cfg)   # a finished sub-env is masked
+    obs, _ = venv.reset(seed=0, options={"target": np.linspace(0.7e-3, 9.6e-3, n_targets)})
+    O, S = [], []
+    done = np.zeros(n_targets, bool)
+    while not done.all():
+        p = venv.conveyor.parts
+        O.append(obs[~done].copy())
+        S.append(np.stack([np.array(getattr(p, k), float)[~done]
+                           for k in ("x", "v", "t", "fired", "target")], 1))
+        obs, _, term, trunc, _ = venv.step(pol.act(obs))
+        done |= term | trunc
+    return cfg, pol, np.concatenate(O), np.concatenate(S)
+
+
+def test_seeded_expert_lands_the_last_firing_and_keeps_the_others() -> None:
+    """Where the seed's firing is its last, the re-aimed one puts the part, in the env itself,
+    within accept_m of the target (and at most as far as the seed's own); elsewhere the expert
+    fires what the seed fires."""
+    from types import SimpleNamespace
+
+    from microconveyor_env.envs import MicroConveyorEnv, PartState
+
+    cfg, pol, obs, S = _v1_states()
+    expert = SeededExpert(cfg, pol.act, accept_m=2e-6)
+    parts = SimpleNamespace(x=S[:, 0], v=S[:, 1], t=S[:, 2], fired=S[:, 3].astype(np.int64),
+                            target=S[:, 4])
+    acts, fixed = expert.act(obs, parts)
+    seed = np.clip(pol.act(obs), -1, 1)
+    assert fixed.sum() >= 3 and (~fixed).sum() >= 3
+    assert np.array_equal(acts[~fixed], seed[~fixed].astype(np.float32))
+    env = MicroConveyorEnv(**{"preset": "conveyor", "target_range": (0.5e-3, 10e-3)})
+    for i in np.flatnonzero(fixed):
+        x, v, t, k, target = S[i]
+        state = PartState(float(x), float(v), float(t), int(k), float(target))
+        errors = []
+        for a in (acts[i], seed[i]):
+            env.reset(options={"state": state})
+            _, _, term, _, info = env.step(a)
+            assert term and info["outcome"] == "rest"
+            errors.append(abs(info["position_error_m"]))
+        assert errors[0] <= 2e-6 and errors[0] <= errors[1]
+
+
+def test_seeded_expert_predicts_the_env_bit_for_bit() -> None:
+    """The model's rest is the env's: the same firing then the no-ops, from the same state."""
+    from microconveyor_env.envs import MicroConveyorEnv, PartState
+    from microconveyor_env.physics import dynamics_kernel as kernel
+    from agents.rl.refinement.corrections import NOOP
+
+    cfg, pol, obs, S = _v1_states(3)
+    expert = SeededExpert(cfg, pol.act)
+    a = np.clip(pol.act(obs), -1, 1).astype(np.float64)
+    x_end, code, _ = expert.rest_after(tuple(S[:, j] if j != 3 else S[:, 3].astype(np.int64)
+                                             for j in range(5)), a)
+    env = MicroConveyorEnv(**{"preset": "conveyor", "target_range": (0.5e-3, 10e-3)})
+    assert (code == kernel.REST).sum() >= 5
+    for i in np.flatnonzero(code == kernel.REST):
+        x, v, t, k, target = S[i]
+        env.reset(options={"state": PartState(float(x), float(v), float(t), int(k),
+                                              float(target))})
+        _, _, term, trunc, info = env.step(a[i])
+        while not (term or trunc):
+            _, _, term, trunc, info = env.step(NOOP)
+        assert info["outcome"] == "rest" and env.conveyor.parts.x[0] == x_end[i]
+
+
+def test_seeded_expert_refuses_another_scene() -> None:
+    with pytest.raises(ValueError, match="conveyor"):
+        SeededExpert(PositionerConfig.from_yaml(None), lambda obs: obs)
+
+
+def test_short_v1_dagger_run_writes_a_policy_that_loads_as_data(tmp_path) -> None:
+    from agents.rl.evaluation.evaluate import fixed_targets, load_policy, rollout
+
+    s = recipe("MicroConveyor-v1", rounds=2, episodes=4, fit_iterations=3, seed=2)
+    meta = dagger(tmp_path / "p", s, progress=lambda line: None)
+    assert meta["trained_by"] == "dagger" and meta["env_id"] == "MicroConveyor-v1"
+    assert meta["expert"]["seed_policy"] == "ppo_refined" and meta["env_kwargs"] == {}
+    assert meta["rounds"][0]["success_rate"] >= 0.75   # the seeded expert acting
+    assert all("labels_corrected" in r for r in meta["rounds"])
+    pol = load_policy(tmp_path / "p")
+    res = rollout(pol, fixed_targets(pol.config, 3, 0), pol.config)
+    assert len(res["error_m"]) == 3

@@ -1,5 +1,5 @@
 """Every registered env id on every command that takes one of them (``video``, ``reach``,
-``optimize``, ``demo``, ``place``): each pair works, or is refused with exit status 2 and exactly
+``optimize``, ``demo``, ``place``, ``imitate``): each pair works, or is refused with exit status 2 and exactly
 one line on stderr saying why; never a traceback."""
 from __future__ import annotations
 
@@ -18,10 +18,13 @@ RUNS = {
     "optimize": ["--target", "1e-3", "--budget", "20"],
     "demo": ["--out", "{tmp}/demo", "--targets", "1e-3", "--gif-target", "0"],
     "place": ["--target", "1e-3", "--method", "policy"],
+    "imitate": ["--out", "{tmp}/dagger", "--rounds", "1", "--episodes", "2"],
 }
 # (command, env id) pairs refused, and a word the one line must hold
 REFUSED = {(c, e): "line" for c in ("reach", "optimize", "demo", "place")
            for e in ("MicroConveyor2D-v0", "MicroConveyor2D-v1", "MicroPositioner-v0")}
+REFUSED.update({("imitate", e): "recipe" for e in ("MicroConveyor-v0", "MicroConveyorGoal-v1",
+                                                    "MicroConveyor2D-v0", "MicroConveyor2D-v1")})
 
 
 def test_the_walk_covers_every_registered_id():

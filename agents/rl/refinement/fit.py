@@ -2,11 +2,22 @@
 clipping (:class:`MeanActor`), and fitting it to corrected actions (:func:`fit`)."""
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from ..artefacts.policy_files import Policy
+
+
+class FittedActor(Protocol):
+    """What :func:`fit` fits: a torch module ``net`` holding the parameters, the network's
+    input for raw observations (``features``) and its mean action for that input (``mean``)."""
+
+    net: Any
+
+    def features(self, obs: np.ndarray) -> Any: ...
+
+    def mean(self, x: Any) -> Any: ...
 
 
 class MeanActor:
@@ -39,7 +50,7 @@ class MeanActor:
         return self.raw(obs)
 
 
-def fit(actor: MeanActor, obs: np.ndarray, actions: np.ndarray, iterations: int) -> tuple[float, float]:
+def fit(actor: FittedActor, obs: np.ndarray, actions: np.ndarray, iterations: int) -> tuple[float, float]:
     """Fit the actor's mean to ``actions`` at ``obs`` (rows of a batch) as the env fires them:
     both clipped to the box, so a mean beyond the box whose label is beyond it too costs nothing.
     Full-batch L-BFGS in float64 (the fit must resolve action changes of ~1e-3, which move a far
