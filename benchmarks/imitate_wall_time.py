@@ -22,6 +22,8 @@ machine's default, AVX2 here) are evaluated on the same targets too, and each ro
 the two policies played every episode identically and whether both are on the same side of
 the criterion.
 
+The first seed's policy is also timed acting on one observation at a time (``act_time_s``).
+
 Writes JSON (SI units): per seed the wall and CPU time [s], success, median and 90th percentile
 |error| [m], detachment rate, whether it meets the criterion; over the seeds the IQM of the success
 with its 95 % bootstrap interval, the worst seed, the median and slowest wall time; the machine,
@@ -99,6 +101,20 @@ def held_out(folder: Path, n: int, seed: int) -> tuple[dict, np.ndarray]:
     return figures(res, cfg.tolerance), np.asarray(res["error_m"], float)
 
 
+def act_time(folder: Path, calls: int = 2000) -> float:
+    """Seconds per action of the policy in ``folder`` for one observation at a time (as a
+    controller calls it), the mean over ``calls`` calls after one warm-up call."""
+    from microconveyor_env.envs.versions import vector_class_of
+
+    pol = load_policy(folder)
+    obs, _ = vector_class_of(pol.config)(1, config=pol.config).reset(seed=0)   # a first state
+    pol.act(obs)
+    t = time.perf_counter()
+    for _ in range(calls):
+        pol.act(obs)
+    return (time.perf_counter() - t) / calls
+
+
 def criterion_row(r: dict, args: argparse.Namespace) -> dict:
     return {"success_rate": r["success_rate"], "median_abs_error_m": r["median_abs_error_m"],
             "p90_abs_error_m": r["p90_abs_error_m"], "detach_rate": r["detach_rate"],
@@ -167,6 +183,7 @@ def main() -> None:
                     "slowest_wall_time_s": float(walls.max()),
                     "slowest_seed": int(rows[int(np.argmax(walls))]["seed"]),
                     "median_cpu_time_s": float(np.median([r["cpu_time_s"] for r in rows]))},
+        "act_time_s": act_time(args.out / f"s{args.seeds[0]}"),
         "compared_with": None if args.compare_with is None else {
             "run": str(args.compare_with),
             "same_side_of_criterion": int(sum(r["same_side_of_criterion"] for r in rows)),

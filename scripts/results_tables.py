@@ -126,6 +126,13 @@ def shipped_rows() -> list[dict]:
     return rows
 
 
+def _randomised(meta: dict) -> bool:
+    """Whether the policy was trained under per-episode randomisation (its metadata's scene)."""
+    from agents.rl.artefacts.policy_files import policy_scene
+
+    return bool(getattr(policy_scene(meta), "randomised", False))
+
+
 def shipped_table() -> str:
     lines = ["| env id | policy | evaluation | targets (seed) | within ±50 µm [95 % Wilson] | "
              "median \\|error\\| | trained |", "|---|---|---|---|---|---|---|"]
@@ -134,9 +141,11 @@ def shipped_table() -> str:
         n, rate = ev["n_targets"], ev["success_rate_50um"]
         lo, hi = wilson(round(rate * n), n)
         med = ev.get("median_abs_error_m", ev.get("median_error_m"))
-        config = ("under its training randomisation" if ev.get("config") == "trained"
-                  else EVALUATIONS[r["key"]])
-        trained = f"{meta['steps'] / 1e6:.1f} M steps, {meta['wall_time_s'] / 60:.1f} min"
+        randomised = ev.get("config") == "trained" and _randomised(meta)
+        config = "under its training randomisation" if randomised else EVALUATIONS[r["key"]]
+        trained = (f"DAgger, {len(meta['rounds'])} rounds, {meta['wall_time_s'] / 60:.1f} min"
+                   if meta.get("trained_by") == "dagger" else
+                   f"{meta['steps'] / 1e6:.1f} M steps, {meta['wall_time_s'] / 60:.1f} min")
         lines.append(f"| {r['env_id']} | `{r['name']}` | {config} | {n:,} ({ev['seed']}) | "
                      f"{100 * rate:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}] | {_um(med)} | "
                      f"{trained} |")
@@ -329,7 +338,9 @@ def imitate_table(data: dict) -> str:
                  f"seed {w['seed']}: {100 * w['success_rate']:.1f} %, median "
                  f"{_um(w['median_abs_error_m'])}. Wall time of the command, median "
                  f"**{sm['median_wall_time_s']:.0f} s**, slowest {sm['slowest_wall_time_s']:.0f} s "
-                 f"(seed {sm['slowest_seed']}). Final policies on {data['targets']:,} held-out "
+                 f"(seed {sm['slowest_seed']}). A policy acts in {_ms(data['act_time_s'])} per "
+                 "observation (seed 0's, one observation at a time, fixed-order float64 "
+                 f"inference). Final policies on {data['targets']:,} held-out "
                  f"targets (uniform over 0.5–10 mm, seed {data['eval_seed']}), one episode each; "
                  f"each training pinned to one core, one after the other ({data['note']}). "
                  f"`{data['command']}` ({data['date']}, stored in "
@@ -341,7 +352,9 @@ def code_paths_table(data: dict) -> str:
     """The same seeds trained on two of torch's CPU code paths
     (``benchmarks/imitate_wall_time.py --compare-with``)."""
     m = data["machine"]
-    here = f"{m['torch_cpu_capability']} ({', '.join(f'{k}={v}' for k, v in m['env'].items())})"
+    flags = ", ".join(f"{k}={v}" for k, v in m["env"].items())
+    here = (f"torch without SIMD, MKL on its baseline path ({flags})"
+            if m["torch_cpu_capability"] == "DEFAULT" else f"{m['torch_cpu_capability']} ({flags})")
     lines = [f"| seed | machine default (AVX2): within ±50 µm, median | {here}: within ±50 µm, "
              "median | same side of the criterion | identical episodes |", "|---|---|---|---|---|"]
     for r in data["seeds"]:
