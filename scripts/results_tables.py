@@ -55,6 +55,11 @@ def _um(x_m: float) -> str:
     return f"{v:.1f} µm" if v < 100 else f"{v:,.0f} µm"
 
 
+def _command(data: dict) -> str:
+    """A benchmark's stored command without its ``--note`` (the note is shown on its own)."""
+    return re.sub(r" --note .*$", "", data["command"])
+
+
 def _small_m(x_m: float) -> str:
     """A length that may be far below a micrometre (a difference between two runs)."""
     return f"{x_m * 1e9:.1f} nm" if x_m < 1e-6 else _um(x_m)
@@ -343,7 +348,7 @@ def imitate_table(data: dict) -> str:
                  f"inference). Final policies on {data['targets']:,} held-out "
                  f"targets (uniform over 0.5–10 mm, seed {data['eval_seed']}), one episode each; "
                  f"each training pinned to one core, one after the other ({data['note']}). "
-                 f"`{data['command']}` ({data['date']}, stored in "
+                 f"`{_command(data)}` ({data['date']}, stored in "
                  "`docs/figures/imitate_v1_seeds.json`).")
     return "\n".join(lines)
 
@@ -367,7 +372,8 @@ def code_paths_table(data: dict) -> str:
                      f"{_small_m(o['max_error_difference_m'])}) |")
     lines.append("")
     lines.append(f"The same command and seeds, {data['targets']:,} held-out targets (seed "
-                 f"{data['eval_seed']}). `{data['command']}` ({data['date']}, stored in "
+                 f"{data['eval_seed']}); {data['note']}. `{_command(data)}` ({data['date']}, "
+                 "stored in "
                  "`docs/figures/imitate_v1_code_paths.json`).")
     return "\n".join(lines)
 

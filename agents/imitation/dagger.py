@@ -15,7 +15,8 @@ Each round plays ``episodes`` episodes at once on the batched env (round 0 with 
 acting, later rounds with the policy), asks the expert what it would fire from every state
 visited, adds those pairs to the data set, and fits the policy network to the whole set (mean
 squared error on the action: Adam over ``epochs`` passes, or full-batch L-BFGS in float64 for
-``fit_iterations``, which resolves the 10^-3 action units a conveyor's last firing needs). Ross,
+``fit_iterations``, as ``refine`` fits: a conveyor's far landings move by tens of µm per 10^-3
+action units of the last firing). Ross,
 Gordon and Bagnell's DAgger (2011): the policy learns the expert's answers on its own mistakes,
 which behaviour cloning from the expert's episodes alone never shows it.
 
@@ -59,6 +60,8 @@ FITS = ("adam", "lbfgs")
 # an expert's answers for a batch: (actions (M, 3) float32, whether each has one, whether each
 # was corrected by the model rather than taken from a seed; None: not that kind of expert)
 Labels = tuple[np.ndarray, np.ndarray, "np.ndarray | None"]
+# label(observations, the batched env, which sub-envs are still in their episode) -> Labels
+Labeller = Callable[[np.ndarray, Any, np.ndarray], Labels]
 
 
 @dataclass(frozen=True)
@@ -133,6 +136,8 @@ class DaggerSettings:
     def config(self) -> PositionerConfig | EnvConfig:
         cfg = scene_config(self.env_id, **self.env_kwargs)
         if isinstance(cfg, PositionerConfig):
+            if self.seed_policy is not None:
+                raise ValueError(f"seed_policy: {self.env_id}'s expert is not seeded by a policy")
             return cfg
         if not isinstance(cfg, EnvConfig):
             raise ValueError(f"{self.env_id} is neither a positioner nor a 1-D conveyor: DAgger "
@@ -167,23 +172,25 @@ def recipe(env_id: str, **overrides: Any) -> DaggerSettings:
 
 
 def seed_policy_path(s: DaggerSettings) -> Path:
-    """The folder of ``s.seed_policy``: a shipped policy of ``s.env_id`` by that name, else the
-    path itself."""
+    """The folder of ``s.seed_policy``: an existing path as given, else a shipped policy of
+    ``s.env_id`` by that name."""
     from ..rl.artefacts.shipped import shipped_path
 
     assert s.seed_policy is not None
+    given = Path(s.seed_policy)
+    if given.exists():
+        return given
     shipped = shipped_path(s.seed_policy, s.env_id)
-    return shipped if (shipped / "model.zip").is_file() else Path(s.seed_policy)
+    return shipped if (shipped / "model.zip").is_file() else given
 
 
-def make_expert(s: DaggerSettings, cfg: Any) -> tuple[Callable[[np.ndarray, Any], Labels],
-                                                       dict[str, Any]]:
+def make_expert(s: DaggerSettings, cfg: Any) -> tuple[Labeller, dict[str, Any]]:
     """The expert of ``cfg``'s scene as ``label(obs, venv)`` and its description for the
     metadata."""
     if isinstance(cfg, PositionerConfig):
         grid = BatchExpert(cfg, s.frequencies, s.strokes, s.margin, s.slack_m, s.heavier)
 
-        def positioner(obs: np.ndarray, venv: Any) -> Labels:
+        def positioner(obs: np.ndarray, venv: Any, live: np.ndarray) -> Labels:
             acts, ok = grid.act(venv.x.copy(), venv.t.copy(), venv.target.copy())
             return acts, ok, None
 
@@ -193,14 +200,22 @@ def make_expert(s: DaggerSettings, cfg: Any) -> tuple[Callable[[np.ndarray, Any]
             "frequencies": s.frequencies, "strokes": s.strokes, "margin": s.margin,
             "slack_m": s.slack_m, "heavier": s.heavier}
     from ..rl.artefacts.checkpoint import sha256
-    from ..rl.artefacts.policy_files import load_policy
+    from ..rl.artefacts.policy_files import (PolicyError, load_policy, policy_scene,
+                                            read_policy_meta)
+    from microconveyor_env.envs.versions import scene_differences
 
     folder = seed_policy_path(s)
+    meta = read_policy_meta(folder)
+    diff = scene_differences(policy_scene(meta), cfg) if meta else {"metadata": ("none", "")}
+    if diff:
+        raise PolicyError(f"seed policy {str(folder)!r} was trained in another scene than "
+                          f"{s.env_id} with the env kwargs given (differs in "
+                          f"{', '.join(sorted(diff))}): give a seed policy of this scene")
     policy = load_policy(folder, config=cfg)
     seeded = SeededExpert(cfg, policy.act, s.newton_iterations, accept_m=s.accept_m)
 
-    def conveyor(obs: np.ndarray, venv: Any) -> Labels:
-        acts, fixed = seeded.act(obs, venv.conveyor.parts)
+    def conveyor(obs: np.ndarray, venv: Any, live: np.ndarray) -> Labels:
+        acts, fixed = seeded.act(obs, venv.conveyor.parts, rows=live)
         return acts, np.ones(len(acts), bool), fixed
 
     return conveyor, {
@@ -211,7 +226,7 @@ def make_expert(s: DaggerSettings, cfg: Any) -> tuple[Callable[[np.ndarray, Any]
         "newton_iterations": s.newton_iterations, "accept_m": s.accept_m}
 
 
-def _play(venv: Any, label: Callable[[np.ndarray, Any], Labels], act: Any,
+def _play(venv: Any, label: Labeller, act: Any,
           seed: int) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
     """One episode per sub-env: ``act(obs)`` fires (None: the expert); every state visited
     before a firing is labelled with the expert's action. Returns (observations, labels,
@@ -226,7 +241,7 @@ def _play(venv: Any, label: Callable[[np.ndarray, Any], Labels], act: Any,
     seeded = False
     while not done.all():
         live = ~done
-        lab, ok, fixed = label(obs, venv)
+        lab, ok, fixed = label(obs, venv, live)
         keep = live & ok
         X.append(obs[keep].copy())
         Y.append(lab[keep])

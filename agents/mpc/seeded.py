@@ -21,7 +21,7 @@ and leaves its error in the last one. So, for many part states at once:
 
 The same correction as ``refine``'s (:mod:`agents.rl.refinement.corrections`), made from any
 state the policy being trained reaches rather than from the seed's own episodes. The model is
-nominal; per-episode randomisation is not modelled (v1's bar is on the nominal env).
+nominal; per-episode randomisation is not modelled (v1's criterion is on the nominal env).
 """
 from __future__ import annotations
 
@@ -117,21 +117,28 @@ class SeededExpert:
             a[better], x[better], err[better] = moved[better], xm[better], em[better]
         return a, err
 
-    def act(self, obs: np.ndarray, parts: Any) -> tuple[np.ndarray, np.ndarray]:
+    def act(self, obs: np.ndarray, parts: Any,
+            rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """The expert's actions ``(M, 3)`` (float32, in the box) for parts in the states
         ``parts`` (arrays ``x``, ``v``, ``t``, ``fired``, ``target``: a batched env's
         ``conveyor.parts``) observed as ``obs``; and which of them were re-aimed (the rest are
-        the seed's own)."""
+        the seed's own). ``rows`` (bool ``(M,)``): label only these (the others, e.g. finished
+        episodes, get the seed's action untouched); parts that have fired every actuator are
+        never fired again."""
         a = np.clip(np.asarray(self.seed(obs), np.float64), -1.0, 1.0)
         state = tuple(np.array(getattr(parts, k)) for k in ("x", "v", "t", "fired", "target"))
-        _, _, first = self.rest_after(state, a)
-        last = (first == kernel.REST) | (state[3] == self.config.n_actuators - 1)
-        rows = np.flatnonzero(last)
         fixed = np.zeros(len(a), bool)
-        if len(rows):
-            sub = tuple(s[rows] for s in state)
-            ra, err = self._reaim(sub, a[rows])
-            keep = np.abs(err) <= self.accept_m
-            a[rows[keep]] = ra[keep]
-            fixed[rows[keep]] = True
+        todo = state[3] < self.config.n_actuators
+        if rows is not None:
+            todo &= np.asarray(rows, bool)
+        idx = np.flatnonzero(todo)
+        if len(idx):
+            sub = tuple(s[idx] for s in state)
+            _, _, first = self.rest_after(sub, a[idx])
+            last = idx[(first == kernel.REST) | (sub[3] == self.config.n_actuators - 1)]
+            if len(last):
+                ra, err = self._reaim(tuple(s[last] for s in state), a[last])
+                keep = (np.abs(err) <= self.accept_m) & np.any(ra != a[last], axis=1)
+                a[last[keep]] = ra[keep]
+                fixed[last[keep]] = True
         return a.astype(np.float32), fixed

@@ -49,7 +49,12 @@ def test_expert_refuses_when_nothing_gets_closer() -> None:
 
 @pytest.mark.parametrize("bad, word", [({"rounds": 0}, "rounds"), ({"episodes": 1.5}, "episodes"),
                                        ({"net_arch": ()}, "net_arch"),
-                                       ({"learning_rate": 2.0}, "learning_rate")])
+                                       ({"learning_rate": 2.0}, "learning_rate"),
+                                       ({"fit": "sgd"}, "fit"), ({"fit_iterations": 0},
+                                                                 "fit_iterations"),
+                                       ({"newton_iterations": 0}, "newton_iterations"),
+                                       ({"accept_m": -1e-6}, "accept_m"),
+                                       ({"seed_policy": ""}, "seed_policy")])
 def test_settings_refused(bad: dict, word: str) -> None:
     with pytest.raises(ValueError, match=word):
         DaggerSettings(**bad)
@@ -60,6 +65,12 @@ def test_dagger_refuses_what_it_has_no_expert_for() -> None:
         DaggerSettings(env_id="MicroConveyor2D-v1", env_kwargs={}).config()
     with pytest.raises(ValueError, match="seed_policy"):
         DaggerSettings(env_id="MicroConveyor-v1", env_kwargs={}).config()
+    with pytest.raises(ValueError, match="not seeded"):
+        DaggerSettings(seed_policy="ppo").config()   # the positioner's expert has no seed
+    with pytest.raises(ValueError, match="another scene"):   # a seed of another scene
+        from agents.imitation.dagger import make_expert
+        s = recipe("MicroConveyor-v1", env_kwargs={"tolerance": 1e-5})
+        make_expert(s, s.config())
     with pytest.raises(ValueError, match="Dict observations"):
         DaggerSettings(env_id="MicroConveyorGoal-v1", env_kwargs={})
     for env_id in ("MicroConveyor-v0", "MicroConveyor2D-v0"):
@@ -185,6 +196,25 @@ def test_seeded_expert_predicts_the_env_bit_for_bit() -> None:
         assert info["outcome"] == "rest" and env.conveyor.parts.x[0] == x_end[i]
 
 
+def test_seeded_expert_leaves_finished_and_unasked_rows_alone() -> None:
+    """Rows not asked for (``rows``), and parts that have fired every actuator, get the seed's
+    action as it is: never fired on the model (a part past the last actuator has none)."""
+    from types import SimpleNamespace
+
+    cfg, pol, obs, S = _v1_states(3)
+    expert = SeededExpert(cfg, pol.act)
+    parts = SimpleNamespace(x=S[:, 0], v=S[:, 1], t=S[:, 2], fired=S[:, 3].astype(np.int64),
+                            target=S[:, 4])
+    every, fixed_all = expert.act(obs, parts)
+    assert fixed_all.any()
+    seed = np.clip(pol.act(obs), -1, 1).astype(np.float32)
+    none, fixed_none = expert.act(obs, parts, rows=np.zeros(len(S), bool))
+    assert not fixed_none.any() and np.array_equal(none, seed)
+    done = SimpleNamespace(**{**vars(parts), "fired": np.full(len(S), cfg.n_actuators)})
+    acts, fixed = expert.act(obs, done)
+    assert not fixed.any() and np.array_equal(acts, seed)
+
+
 def test_seeded_expert_refuses_another_scene() -> None:
     with pytest.raises(ValueError, match="conveyor"):
         SeededExpert(PositionerConfig.from_yaml(None), lambda obs: obs)
@@ -198,7 +228,23 @@ def test_short_v1_dagger_run_writes_a_policy_that_loads_as_data(tmp_path) -> Non
     assert meta["trained_by"] == "dagger" and meta["env_id"] == "MicroConveyor-v1"
     assert meta["expert"]["seed_policy"] == "ppo_refined" and meta["env_kwargs"] == {}
     assert meta["rounds"][0]["success_rate"] >= 0.75   # the seeded expert acting
-    assert all("labels_corrected" in r for r in meta["rounds"])
+    # the expert acting in round 0 re-aims the seed's last firings of its own episodes
+    assert meta["rounds"][0]["labels_corrected"] > 0
     pol = load_policy(tmp_path / "p")
     res = rollout(pol, fixed_targets(pol.config, 3, 0), pol.config)
     assert len(res["error_m"]) == 3
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--env", "MicroPositioner-v0", "--seed-policy", "ppo"], "not seeded by a policy"),
+    (["--seed-policy", "no-such-policy"], "no policy at"),
+    (["--env-kwargs", "tolerance:1e-5"], "another scene"),
+    (["--env", "MicroConveyor-v0"], "no recipe")])
+def test_imitate_refuses_in_one_line(argv: list, words: str, tmp_path, capsys) -> None:
+    from microconveyor_env.cli import main
+
+    status = main(["imitate", "--out", str(tmp_path / "p"), "--rounds", "1", "--episodes", "2",
+                   *argv])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 2 and len(err) == 1 and words in err[0] and "Traceback" not in err[0]
+    assert not (tmp_path / "p").exists()
