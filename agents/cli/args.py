@@ -143,6 +143,28 @@ def env_kwargs_of(args: argparse.Namespace) -> dict[str, Any]:
     return out
 
 
+def target_point(text: str) -> list[float]:
+    """A target [m]: one number (a distance along a line) or ``X,Y`` (a point of the plane),
+    each finite."""
+    try:
+        vals = [float(v) for v in text.split(",")]
+    except ValueError:
+        vals = []
+    if len(vals) not in (1, 2) or not all(math.isfinite(v) for v in vals):
+        raise argparse.ArgumentTypeError(f"{text!r}: give a target in m, one number (e.g. 7.5e-3) "
+                                         "or X,Y on the plane (e.g. 1.5e-3,0.5e-3)")
+    return vals
+
+
+def scene_config_of(args: argparse.Namespace, default: str = DEFAULT_ENV_ID,
+                    **fixed: Any) -> Any:
+    """The config of ``--env`` (``default`` if not given) with ``--env-kwargs``, then ``fixed``,
+    of any registered id: the line's EnvConfig, the positioner's or the plane's config."""
+    from microconveyor_env.envs.versions import scene_config
+
+    return scene_config(args.env or default, **{**env_kwargs_of(args), **fixed})
+
+
 def env_config_of(args: argparse.Namespace, default: str = DEFAULT_ENV_ID,
                   **fixed: Any) -> Any:
     """The EnvConfig of ``--env`` (``default`` if not given) with ``--env-kwargs``, then

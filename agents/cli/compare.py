@@ -81,14 +81,17 @@ def add_args(p: argparse.ArgumentParser) -> None:
                         f"{ROBUST_MPC_SETTINGS.first_budget},{ROBUST_MPC_SETTINGS.replan_budget}"
                         ": ~5x the MPC's compute)")
     p.add_argument("--mpc-prior", default=None, metavar="POLICY",
-                   help="a policy folder ('shipped': the env's shipped PPO) whose plan on the "
+                   help="a policy folder ('shipped': the env's default shipped policy) whose "
+                        "plan on the "
                         "model seeds the MPC's searches: adds the method mpc_ppo and seeds the "
                         "robust MPC")
     p.add_argument("--workers", type=count(1, 64), default=Defaults.mpc_workers,
                    help="processes for the MPC's episodes (results do not depend on it)")
     p.add_argument("--policy", default=None,
-                   help="PPO policy folder (default: the shipped one; on the positioner none if "
-                        "none is shipped, '' to skip)")
+                   help="the closed-loop policy's folder (default, 'shipped': the env's default "
+                        f"shipped policy, {_defaults_text()}; on the positioner none if none is "
+                        "shipped, '' to skip); its row is named by how it was trained (ppo, "
+                        "dagger)"),
     p.add_argument("--randomised-policy", default=None,
                    help="PPO trained with randomisation (default: the shipped one; '' to skip)")
     p.add_argument("--policy-seeds", nargs="+", default=(), metavar="DIR",
@@ -148,7 +151,8 @@ def settings_of(args: Any) -> CompareSettings:
     return CompareSettings(
         env_id=args.env, config=_config(args), seed=args.seed,
         methods=[m.strip() for m in args.methods.split(",") if m.strip()],
-        **{k: v for k, v in given.items() if v is not None}, policy=args.policy, randomised_policy=args.randomised_policy,
+        **{k: v for k, v in given.items() if v is not None}, policy=None if args.policy == "shipped" else args.policy,
+        randomised_policy=args.randomised_policy,
         policy_seeds=args.policy_seeds, amortise_over=args.amortise_over,
         mpc=mpc, robust_mpc=_robust(args.robust_mpc, args.seed),
         mpc_prior=_prior(args.mpc_prior, args.env), mpc_workers=args.workers,
@@ -210,18 +214,30 @@ def _prior(given: str | None, env_id: str) -> str | None:
 
     if given is None:
         return None
-    path = require_shipped(env_id, "ppo") if given == "shipped" else Path(given)
+    path = require_shipped(env_id) if given == "shipped" else Path(given)   # the id's default
     if not (Path(path) / "model.zip").is_file():
         raise ValueError(f"--mpc-prior {given!r}: no policy folder (model.zip) there")
     return str(path)
+
+
+def _defaults_text() -> str:
+    """The default shipped policy of every id compare runs on, in words."""
+    from microconveyor_env.env_ids import REGISTRY
+
+    from ..experiments.compare_settings import GEOMETRIES
+    from ..rl.artefacts.shipped import default_policy_name
+
+    return ", ".join(f"{default_policy_name(i)} on {i}" for i, r in REGISTRY.items()
+                     if r.geometry in GEOMETRIES and r.base == i)
 
 
 def _compare_args(p: argparse.ArgumentParser) -> None:
     add_args(p)
 
 
-@command("compare", "closed loop vs open loop on fixed targets: PPO (shipped and trained with "
-                    "randomisation), model-predictive control, DE and CMA-ES, a random policy "
+@command("compare", "closed loop vs open loop on fixed targets: the env's default shipped policy "
+                    "and PPO trained with randomisation, model-predictive control, DE and "
+                    "CMA-ES, a random policy "
                     "and a fixed schedule; accuracy vs compute, success vs tolerance, episodes "
                     "to the tolerance, success vs perturbation (noise, model error, both)",
          _compare_args)

@@ -8,77 +8,92 @@ from typing import Any
 from microconveyor_env.cli.base import command, count, emit
 from microconveyor_env.env_ids import DEFAULT_ENV_ID
 
-from .args import add_env_args, env_config_of, env_kwargs_of, level, line_env
+from .args import add_env_args, env_kwargs_of, level, scene_config_of, target_point
 from .compare import mpc_budgets
 
 
 def _place_args(p: argparse.ArgumentParser) -> None:
-    from ..experiments.place import DE_BUDGET, METHODS
+    from ..experiments.place import DE_BUDGET, METHODS, POSITIONER_DE_BUDGET
     from ..mpc import MPCSettings
 
     mpc = MPCSettings()
-    p.add_argument("--target", type=float, required=True,
-                   help="target [m] beyond actuator 1, e.g. 9e-3")
+    p.add_argument("--target", type=target_point, required=True, metavar="M|X,Y",
+                   help="target [m]: on the line and the positioner the distance beyond "
+                        "actuator 1 (e.g. 9e-3), within the env's target range; on the plane "
+                        "X,Y within the actuator grid's box (e.g. 1.5e-3,0.5e-3)")
     p.add_argument("--method", choices=METHODS, default="policy",
                    help="policy: the env's default shipped policy (or --policy), closed loop; "
-                        "mpc: model-predictive control on the nominal model, its searches seeded "
-                        "by that policy; de: differential evolution's open-loop plan on the "
-                        "nominal model (default: policy)")
+                        "mpc: model-based control on the nominal model (the line: "
+                        "model-predictive control, its searches seeded by that policy's plan; "
+                        "the positioner: its one-step controller, friction identified online); "
+                        "de: differential evolution's open-loop plan on the nominal model (the "
+                        "line: a firing per actuator; the positioner: a few firings of any "
+                        "actuator). The plane (MicroConveyor2D-v0, -v1): policy only "
+                        "(default: policy)")
     p.add_argument("--policy", default=None,
-                   help="policy folder for --method policy or mpc (default: the one shipped for "
-                        "--env by default)")
-    p.add_argument("--seed", type=int, default=0, help="the episode's seed and the searches'")
+                   help="policy folder for --method policy, or the seed of the line's --method "
+                        "mpc (default: the one shipped for --env by default)")
+    p.add_argument("--seed", type=count(0, 2**31 - 1), default=0,
+                   help="the episode's seed and the searches' (an integer >= 0)")
     p.add_argument("--budget", type=count(10, 10_000_000), default=None,
-                   help=f"--method de: episodes of the search (default {DE_BUDGET})")
+                   help=f"--method de: episodes of the search (default {DE_BUDGET} on the line, "
+                        f"{POSITIONER_DE_BUDGET} on the positioner)")
     p.add_argument("--mpc-budgets", type=mpc_budgets, default=None, metavar="FIRST,REPLAN",
-                   help="--method mpc: episodes of the model before the first firing and per "
-                        f"re-plan (default {mpc.first_budget},{mpc.replan_budget})")
+                   help="--method mpc on the line: episodes of the model before the first firing "
+                        f"and per re-plan (default {mpc.first_budget},{mpc.replan_budget})")
     p.add_argument("--noise", type=level, default=0.0, metavar="SIGMA",
                    help="execution noise σ [action units] of the placement (default 0)")
     p.add_argument("--spread", type=level, default=0.0, metavar="R",
                    help="model error: friction and mass factors drawn in [1-r, 1+r] for the "
                         "placement (default 0); the planners plan on the nominal model")
-    add_env_args(p,
-                 what=" (the line's: v0, v1 or the goal variant, which has v1's scene)")
+    add_env_args(p, what=" (the line's, the positioner or the plane)")
 
 
-@command("place", "place one part at one target with the default shipped policy, MPC seeded by "
-                  "it, or DE: the plan (each firing), the rest position, the error and the "
+@command("place", "place one part at one target with the default shipped policy, model-based "
+                  "control or DE: the plan (each firing), the rest position, the error and the "
                   "compute", _place_args)
 def cmd_place(args: argparse.Namespace) -> None:
     from ..experiments.perturb import Level
-    from ..experiments.place import DE_BUDGET, place, place_text
+    from ..experiments.place import (check_method, check_target, de_budget, geometry_of,
+                                     mpc_seed, place, place_text)
     from ..mpc import MPCSettings
 
-    env_id = line_env(args.env, "place")
-    if not 0 < args.target <= 0.1:
-        raise ValueError(f"--target {args.target!r} must be in (0, 0.1] m")
+    env_id = args.env or DEFAULT_ENV_ID
+    cfg = scene_config_of(args)
+    geometry = geometry_of(cfg)
+    check_method(args.method, cfg, env_id)
+    target = check_target(args.target, cfg, env_id)
     if args.method != "de" and args.budget is not None:
         raise ValueError("--budget is DE's search: give it with --method de")
-    if args.method != "mpc" and args.mpc_budgets is not None:
-        raise ValueError("--mpc-budgets is the MPC's: give it with --method mpc")
-    if args.method == "de" and args.policy is not None:
-        raise ValueError("--policy acts (--method policy) or seeds the MPC (--method mpc); DE "
-                         "uses none")
+    if args.mpc_budgets is not None and (args.method != "mpc" or geometry != "line"):
+        raise ValueError("--mpc-budgets is the line's MPC's: give it with --method mpc on a "
+                         "line's env (the positioner's controller tries a fixed grid of firings)")
+    if args.policy is not None and (args.method == "de" or (args.method == "mpc"
+                                                            and geometry != "line")):
+        raise ValueError("--policy acts (--method policy) or seeds the line's MPC (--method "
+                         f"mpc); {args.method} on {env_id} uses none")
     if args.mpc_budgets == (0, 0):
         raise ValueError("--mpc-budgets 0: --method mpc needs budgets (FIRST,REPLAN)")
-    cfg = env_config_of(args)
     real = Level(args.noise, args.spread).config(cfg) if args.noise or args.spread else cfg
     policy, actor = None, "differential evolution on the nominal model"
-    if args.method in ("policy", "mpc"):
+    if args.method == "policy":
         from ..experiments.demo import load_demo_policy
 
-        policy = load_demo_policy(args.policy, cfg, env_id)
-        actor = f"policy {policy.path}" + (", seeding the MPC" if args.method == "mpc" else "")
+        policy = load_demo_policy(args.policy, cfg, env_id)   # another scene is refused
+        actor = f"policy {policy.path}"
+    elif args.method == "mpc" and geometry == "line":
+        policy, actor = mpc_seed(args.policy, cfg, env_id)
+    elif args.method == "mpc":
+        actor = "the one-step controller on its model, friction identified online"
     mpc = None
     if args.mpc_budgets is not None:
         mpc = MPCSettings(first_budget=args.mpc_budgets[0], replan_budget=args.mpc_budgets[1],
                           seed=args.seed)
     if not args.json:
         print(f"placing with {args.method} ...", file=sys.stderr, flush=True)
-    res: dict[str, Any] = place(args.target, args.method, real, policy=policy, seed=args.seed,
-                                budget=args.budget or DE_BUDGET, mpc=mpc)
-    res.update(env_id=env_id or DEFAULT_ENV_ID, env_kwargs=env_kwargs_of(args), actor=actor,
+    res: dict[str, Any] = place(target, args.method, real, policy=policy, seed=args.seed,
+                                budget=args.budget or de_budget(cfg), mpc=mpc)
+    res.update(env_id=env_id, env_kwargs=env_kwargs_of(args), actor=actor,
                noise=args.noise, spread=args.spread,
                policy=None if policy is None else str(policy.path))
     emit(args, res, place_text(res))

@@ -36,7 +36,8 @@ from ..mpc import mpc_rollout
 from ..openloop.target import Rollouts, solve_target
 from ..rl.evaluation.evaluate import fixed_targets, load_policy, rollout
 from ..rl.evaluation.seeds import iqm_interval
-from .compare_rows import TOLERANCES, closed_loop_row, episodes_to, result_row, reusing
+from .compare_rows import (TOLERANCES, closed_loop_row, episodes_to, policy_row_name, result_row,
+                           reusing)
 from .compare_settings import CompareSettings
 from .perturb import (Level, axes_table, perturbation_levels, plan_rollout, policy_rollout,
                       unique_levels)
@@ -97,14 +98,14 @@ def compare(settings: CompareSettings | None = None) -> dict:
     units)."""
     from ..rl.artefacts.shipped import require_shipped, shipped_path
 
-    s = settings or CompareSettings()
+    s = settings or CompareSettings()   # the policy row: s.policy, else the id's default shipped
     if REGISTRY[s.env_id].geometry == "positioner":
         from .compare_positioner import compare_positioner
 
         return compare_positioner(s)
     cfg = s.config or env_config(s.env_id)
     targets = fixed_targets(cfg, s.n_targets, s.seed)
-    ppo = load_policy(s.policy or require_shipped(s.env_id, "ppo"), cfg)
+    ppo = load_policy(s.policy or require_shipped(s.env_id), cfg)   # the id's default
     rand_path: Path | None = None
     if s.randomised_policy is None:
         cand = shipped_path("ppo_randomised", s.env_id)
@@ -127,15 +128,16 @@ def _compare(stack: contextlib.ExitStack, s: CompareSettings, cfg: EnvConfig,
     rollout(ppo, targets[:1], cfg, seed=seed)
     for method in s.methods:
         solve_target(float(targets[0]), method, 40, seed, rollouts=Rollouts(cfg))
-    rows = [closed_loop_row("ppo", ppo, targets, cfg, seed, train_wall_s=train_wall,
-                         train_steps=train_steps)]
+    name = policy_row_name(meta)
+    rows = [closed_loop_row(name, ppo, targets, cfg, seed, train_wall_s=train_wall,
+                            train_steps=train_steps)]
     robust = None
     if rand_path is not None:
         robust = load_policy(rand_path, cfg)
         rows.append(closed_loop_row("ppo_randomised", robust, targets, cfg, seed,
                                  train_wall_s=float(robust.metadata.get("wall_time_s", np.nan)),
                                  train_steps=int(robust.metadata.get("steps", 0))))
-    runners: dict[str, Callable] = {"ppo": policy_rollout(ppo)}
+    runners: dict[str, Callable] = {name: policy_rollout(ppo)}
     if robust is not None:
         runners["ppo_randomised"] = policy_rollout(robust)
     mpc_runs = _mpc_rows(stack, s, cfg, targets, rows, runners)

@@ -33,7 +33,8 @@ from microconveyor_env.envs.versions import scene_config
 from ..mpc.positioner import PositionerMPCRollout, PositionerMPCSettings
 from ..openloop.positioner import PlanRollouts, nominal_rollouts, plans_rollout, solve_plan
 from ..rl.evaluation.evaluate import fixed_targets, load_policy, rollout
-from .compare_rows import TOLERANCES, closed_loop_row, episodes_to, result_row, reusing
+from .compare_rows import (TOLERANCES, closed_loop_row, episodes_to, policy_row_name, result_row,
+                           reusing)
 from .compare_settings import CompareSettings
 from .perturb import axes_table, perturbation_levels, policy_rollout, unique_levels
 
@@ -114,7 +115,7 @@ def compare_positioner(settings: CompareSettings) -> dict:
         ppo = load_policy(path, cfg)
         rollout(ppo, targets[:1], cfg, seed=seed)   # warm-up: nothing below times a first call
         meta = ppo.metadata
-        name = str(meta.get("trained_by", "ppo"))   # "dagger": imitation, not PPO's updates
+        name = policy_row_name(meta)   # "dagger": imitation, not PPO's updates
         rows.append(closed_loop_row(name, ppo, targets, cfg, seed,
                                     train_wall_s=float(meta.get("wall_time_s", np.nan)),
                                     train_steps=int(meta.get("steps", 0))))

@@ -20,6 +20,11 @@ from .perturb import Level
 TOLERANCES = tuple(float(t) for t in np.geomspace(1e-8, 1e-3, 51))
 
 
+def policy_row_name(metadata: dict) -> str:
+    """The name of a policy's row: how it was trained (``ppo``; ``dagger``: by imitation)."""
+    return str(metadata.get("trained_by", "ppo"))
+
+
 def result_row(name: str, res: dict, targets: np.ndarray, tol: float, **extra: Any) -> dict:
     """A method's row: success within ``tol`` [m] at rest, median |error|, detach rate, median
     travel time of the parts at rest, every |error| and rest flag, and ``extra`` (SI units)."""

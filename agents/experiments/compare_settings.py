@@ -92,8 +92,10 @@ class CompareSettings:
     from the config's target range (``seed`` also seeds every search and episode).
 
     The methods: the open-loop ``methods`` (``"de"``, ``"cmaes"``), each at every budget of
-    ``budgets`` [episodes per target, >= 10]; ``policy``, the PPO policy folder (None: the one
-    shipped for ``env_id``); ``randomised_policy``, the PPO trained under randomisation (None:
+    ``budgets`` [episodes per target, >= 10]; ``policy``, the closed-loop policy's folder (None:
+    ``env_id``'s default shipped policy, :func:`agents.rl.artefacts.shipped.default_policy_name`:
+    ``ppo_refined`` on MicroConveyor-v1; its row is named by how it was trained, ``ppo`` or
+    ``dagger``); ``randomised_policy``, the PPO trained under randomisation (None:
     ``env_id``'s shipped ``ppo_randomised`` if there is one; ``""``: none); ``policy_seeds``,
     folders of PPO trained with other seeds on the same recipe (their IQM, nominal and
     perturbed); ``amortise_over`` [targets], over which PPO's training is amortised; ``mpc``,
@@ -102,8 +104,8 @@ class CompareSettings:
     results do not depend on them); ``mpc_prior``, a policy folder whose plan on the model seeds
     the searches (adds the method ``mpc_ppo`` with ``mpc``'s settings and seeds ``mpc_robust``).
 
-    On the positioner (:mod:`.compare_positioner`): ``policy`` (None: the shipped ``ppo`` if
-    there is one, else no PPO row; ``""``: none); ``mpc_models``, the one-step controller's
+    On the positioner (:mod:`.compare_positioner`): ``policy`` (None: its default shipped
+    policy, ``dagger``, if there is one, else no policy row; ``""``: none); ``mpc_models``, the one-step controller's
     models, one row each (``"identified"``, ``"nominal"``, and ``"oracle"``, the reference that
     knows each episode's hidden factors: :mod:`agents.mpc.positioner`); ``plan_firings`` [-],
     the firings of each open-loop plan. ``mpc``, ``robust_mpc``, ``mpc_prior``,

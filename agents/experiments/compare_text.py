@@ -24,8 +24,8 @@ def summary_table(result: dict) -> str:
             f"{1e3 * r['wall_s_per_target']:>10.2f} ms{r['episodes_per_target']:>10.0f}"
             f"{'' if cross is None else f'{cross:.0f}':>13}")
     ppo = result["rows"][0]
-    lines.append(f"PPO training: {ppo['train_wall_s']:.0f} s, {ppo['train_steps']:,} env steps "
-                 "(firings); "
+    lines.append(f"policy {result.get('policy') or ppo['method']}: training "
+                 f"{ppo['train_wall_s']:.0f} s, {ppo['train_steps']:,} env steps (firings); "
                  f"amortised over {result['ppo_amortised']['over_targets']} targets: "
                  f"{result['ppo_amortised']['wall_s_per_target']:.2f} s per target")
     for r in result["rows"]:

@@ -36,8 +36,9 @@ def demo_text(summary: dict) -> str:
              f"{f['outcome']}",
              "feasible window: " + (f"{show('w_hz', window[0])} to {show('w_hz', window[1])}"
                                     if window else "none"),
-             f"{e['env_id']} episode, a fixed schedule to 1 mm: {e['outcome']}, error "
-             f"{show('e_m', e['position_error_m'])}"]
+             f"{e['env_id']} episode, a fixed schedule ({e.get('schedule', 'to 1 mm')}): "
+             f"{e['outcome']}, {'distance' if 'distance_m' in e else 'error'} "
+             f"{show('e_m', e.get('error_m', e['position_error_m']))}"]
     lines += [f"wrote {c}" for c in summary["charts"] + [summary["summary_json"]]]
     return "\n".join(lines)
 
@@ -78,32 +79,74 @@ def demo_summary(args) -> dict:
     return summary
 
 
+FIXED_FREQUENCY_HZ, FIXED_STROKE_M = 950.0, 200e-6   # the demo's fixed schedule's firing
+PLANE_FREQUENCY_HZ, PLANE_STROKE_M = 600.0, 150e-6   # the plane's (950 Hz, 200 um detaches)
+SCENE_FIRINGS = 4   # the positioner's and the plane's fixed schedule: this many firings
+
+
 def _demo_episode(path, env_id=DEFAULT_ENV_ID, env_kwargs=None):
-    """One episode of ``env_id`` (with ``env_kwargs``) with a fixed schedule: every actuator
-    fires 950 Hz, 200 um, no delay; rendered."""
+    """One episode of ``env_id`` (with ``env_kwargs``) with a fixed schedule, rendered: on the
+    line every actuator fires 950 Hz, 200 um, no delay, towards 1 mm; on the positioner
+    actuators 1 to 4 fire in turn so (towards 1 mm); on the plane :data:`SCENE_FIRINGS` firings
+    (600 Hz, 150 um, no delay) of the actuator one pitch along +x of the part, towards two pitches along +x of the start."""
     import warnings
 
     import gymnasium as gym
+    import numpy as np
 
+    from ..env_ids import REGISTRY
     from ..envs.core import actions
     from ..plots import save_frames
 
     with warnings.catch_warnings():  # v0 when asked for: no "out of date" notice
         warnings.filterwarnings("ignore", message=".*is out of date", category=DeprecationWarning)
         env = gym.make(env_id, render_mode="rgb_array", **(env_kwargs or {}))
-    env.reset(seed=0, options={"target": 1e-3})
-    action = actions.encode_actions(950.0, 200e-6, 0.0, env.unwrapped.config)
-    frames, total = [env.render()], 0.0
+    u = env.unwrapped
+    cfg = u.config
+    geometry = REGISTRY[env_id].geometry if env_id in REGISTRY else "line"
+    fh = actions.encode_actions(FIXED_FREQUENCY_HZ, FIXED_STROKE_M, 0.0, cfg)
+    if geometry == "plane":
+        fh = actions.encode_actions(PLANE_FREQUENCY_HZ, PLANE_STROKE_M, 0.0, cfg)
+        (_, x1), _ = cfg.grid_box
+        target = (min(x1, cfg.start[0] + 2 * cfg.spacing), cfg.start[1])
+        aim = min(1.0, cfg.spacing / cfg.pick_reach) if cfg.pick_reach else 0.0
+
+        def act(_k):
+            return np.array([aim, 0.0, *fh], np.float32)
+        what = f"{SCENE_FIRINGS} firings one pitch +x of the part, 600 Hz, 150 µm"
+        where = f"target ({target[0] * 1e3:g}, {target[1] * 1e3:g}) mm"
+    elif geometry == "positioner":
+        target = 1e-3
+
+        def act(k):
+            aim = (u.positions[k] - u.x) / cfg.pick_reach if cfg.pick_reach else 0.0
+            return np.array([np.clip(aim, -1.0, 1.0), fh[0], fh[1]], np.float32)
+        what = f"actuators 1 to {SCENE_FIRINGS} fire in turn, 950 Hz, 200 µm"
+        where = "target 1 mm"
+    else:
+        target = 1e-3
+
+        def act(_k):
+            return fh
+        what = "every actuator fires 950 Hz, 200 µm, no delay"
+        where = "target 1 mm"
+    env.reset(seed=0, options={"target": target})
+    frames, total, k = [env.render()], 0.0, 0
     while True:
-        _, r, term, trunc, info = env.step(action)
+        _, r, term, trunc, info = env.step(act(k))
         total += r
+        k += 1
         frames.append(env.render())
-        if term or trunc:
+        if term or trunc or (geometry != "line" and k >= SCENE_FIRINGS):
             break
-    title = (f"{env_id}: a fixed schedule, not a policy (every actuator fires 950 Hz, 200 µm, "
-             f"no delay); target 1 mm, {info['outcome']}, error {info['position_error_m'] * 1e6:.0f} µm")
-    return {"chart": save_frames(frames, path, title=title), "env_id": env_id, "env_kwargs": env_kwargs or {},
-            "return": total, **info}
+    if geometry == "positioner" and info["outcome"] == "moving":
+        info = {**info, "outcome": "rest"}   # every firing ends at rest; the schedule ended
+    error = info.get("distance_m", info["position_error_m"])
+    title = (f"{env_id}: a fixed schedule, not a policy ({what}); {where}, {info['outcome']}, "
+             f"{'distance' if 'distance_m' in info else 'error'} {error * 1e6:.0f} µm")
+    return {"chart": save_frames(frames, path, title=title), "env_id": env_id,
+            "env_kwargs": env_kwargs or {}, "schedule": what, "target_m": target,
+            "error_m": float(error), "return": total, **info}
 
 
 ARGS["demo"] = _demo_args

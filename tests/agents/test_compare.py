@@ -119,3 +119,19 @@ def test_compare_rejects_bad_arguments(argv, message):
     r = subprocess.run([sys.executable, "-m", "microconveyor_env.cli", "compare", *argv,
                         "--json"], capture_output=True, text=True, timeout=300)
     assert r.returncode == 2 and message in json.loads(r.stdout)["error"]
+
+
+def test_the_shipped_policy_is_the_ids_default_one():
+    """On MicroConveyor-v1 the policy row and ``--mpc-prior shipped`` are its default shipped
+    policy (ppo_refined), as in every other command."""
+    from agents.cli.compare import _prior
+    from agents.experiments.compare import compare
+    from agents.experiments.compare_settings import CompareSettings
+
+    assert _prior("shipped", "MicroConveyor-v1").endswith("MicroConveyor-v1/ppo_refined")
+    res = compare(CompareSettings(env_id="MicroConveyor-v1", n_targets=1, methods=("de",),
+                                  budgets=(10,), mpc=None, randomised_policy="",
+                                  noise_ladder=(0.0,), spread_ladder=(0.0,), diagonal=(),
+                                  progress=False))
+    assert res["policy"].endswith("MicroConveyor-v1/ppo_refined")
+    assert res["rows"][0]["method"] == "ppo"   # trained by PPO, refined on the simulator

@@ -41,10 +41,10 @@ def test_demo_on_two_targets_shows_v1_and_its_default_policy(tmp_path):
     assert "2 of 2 targets within ±50 µm" in r.stderr
 
 
-def test_demo_refuses_the_plane_in_one_line(tmp_path):
-    r = run("--env", "MicroConveyor2D-v0", "--out", str(tmp_path))
+def test_demo_refuses_a_plane_target_that_is_not_a_point_in_one_line(tmp_path):
+    r = run("--env", "MicroConveyor2D-v0", "--targets", "1e-3", "--out", str(tmp_path))
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
-    assert "line" in r.stderr and "MicroConveyor2D-v0" in r.stderr
+    assert "x,y pairs" in r.stderr and "MicroConveyor2D-v0" in r.stderr
     assert not any(tmp_path.iterdir())
 
 

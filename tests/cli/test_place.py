@@ -69,7 +69,7 @@ def test_place_under_perturbation_plays_the_perturbed_episode(capsys):
     (["--target", "1e-3", "--method", "de", "--policy", "x"], "--policy"),
     (["--target", "1e-3", "--mpc-budgets", "30,10"], "--mpc-budgets"),
     (["--target", "1e-3", "--noise", "-1"], "--noise"),
-    (["--target", "1e-3", "--env", "MicroConveyor2D-v0"], "line"),
+    (["--target", "1e-3", "--env", "MicroConveyor2D-v0"], "X,Y"),   # a point of the plane
 ])
 def test_place_refuses_in_one_line(capsys, args, msg):
     status, out, err = place(capsys, *args)
