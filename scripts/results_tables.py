@@ -9,7 +9,7 @@ A generated table sits between two markers, ``<!-- results:NAME -->`` and
 * ``shipped``: every shipped policy's recorded evaluations, from its ``metadata.json``
   (``scripts/record_shipped_evaluations.py`` records them);
 * ``compare``: the comparison of every method on MicroConveyor-v1 under perturbation, from
-  ``docs/figures/compare_v1_mpc_ppo.json`` (``microconveyor compare --mpc-prior shipped``);
+  ``docs/figures/compare_v1_mpc_ppo.json`` (``microconveyor compare --mpc-prior .../ppo``);
 * ``plane``: the shipped plane policy against DE, from ``docs/figures/plane_v0_errors.json``;
 * ``threads``: SB3's SAC with torch's default threads and with one, from
   ``docs/figures/sac_threads.json`` (``scripts/sac_threads.py``);
