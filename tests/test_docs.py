@@ -1,6 +1,7 @@
 """The documentation site (mkdocs.yml) builds with warnings as errors, its CLI reference covers
-every command, and the Python examples of docs/examples.md and docs/getting-started.md run as
-written (each block in a fresh interpreter, as tests/test_readme.py runs the README's)."""
+every command, and the Python examples of docs/examples.md, docs/getting-started.md and
+docs/env.md run as written (each block in a fresh interpreter, as tests/test_readme.py runs the
+README's)."""
 import importlib.util
 import os
 import re
@@ -13,7 +14,7 @@ from support.scripts import load_script
 from support.snippets import assert_snippet_runs
 
 ROOT = Path(__file__).resolve().parents[1]
-EXAMPLE_PAGES = ("examples.md", "getting-started.md")
+EXAMPLE_PAGES = ("examples.md", "getting-started.md", "env.md")
 BLOCKS = [(page, code) for page in EXAMPLE_PAGES
           for code in re.findall(r"```python\n(.*?)```", (ROOT / "docs" / page).read_text(),
                                  flags=re.S)]
@@ -79,6 +80,7 @@ def test_role_hook_shortens_as_sphinx_does():
 
 def test_examples_are_there():
     assert sum(page == "examples.md" for page, _ in BLOCKS) >= 4
+    assert sum(page == "env.md" for page, _ in BLOCKS) >= 7
 
 
 @pytest.mark.parametrize("page, code", BLOCKS, ids=[f"{p}-{i}" for i, (p, _) in enumerate(BLOCKS)])

@@ -293,8 +293,22 @@ def attach_negative_values(argv: list[str]) -> list[str]:
     return out
 
 
+EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE, the shells' status of a writer whose reader has gone
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line (``argv``: the arguments, default ``sys.argv[1:]``); exit status."""
+    """Run the command line (``argv``: the arguments, default ``sys.argv[1:]``); exit status.
+    A reader of stdout that goes away (``microconveyor ... | head``) ends the command quietly
+    (:func:`stdout_closed`)."""
+    try:
+        status = _run(argv)
+        sys.stdout.flush()  # a reader gone shows here, not as a traceback at exit
+        return status
+    except BrokenPipeError:
+        return stdout_closed()
+
+
+def _run(argv: list[str] | None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     command = ""
     undo_latch = _install_sigint_latch()
@@ -304,9 +318,40 @@ def main(argv: list[str] | None = None) -> int:
         args.func(args)
     except KeyboardInterrupt:
         return interrupted(argv, command)
+    except BrokenPipeError as exc:
+        if reader_gone():
+            raise  # stdout's: main ends quietly
+        return fail(argv, command, exc)  # another pipe's
     except Exception as exc:  # noqa: BLE001 - the error contract covers every failure
         return fail(argv, command, exc)
     finally:
         undo_latch()
     return 0
 
+
+def reader_gone() -> bool:
+    """Whether stdout is a pipe whose reader has closed it (where ``poll`` can tell; elsewhere a
+    broken pipe is taken to be stdout's)."""
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, OSError, ValueError):  # stdout replaced (captured): not a pipe
+        return False
+    import select
+
+    if not hasattr(select, "poll"):
+        return True
+    poller = select.poll()
+    poller.register(fd, select.POLLOUT)
+    return any(events & select.POLLERR for _, events in poller.poll(0))
+
+
+def stdout_closed() -> int:
+    """The end of a command whose stdout's reader has gone (the Python docs' "Note on
+    SIGPIPE"): what is left of stdout goes to devnull, so the flush at exit fails no more, and
+    nothing is printed; exit status :data:`EXIT_BROKEN_PIPE`."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (AttributeError, OSError, ValueError):  # stdout replaced: nothing left to flush
+        pass
+    return EXIT_BROKEN_PIPE

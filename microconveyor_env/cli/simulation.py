@@ -8,11 +8,17 @@ from typing import Any
 from .base import ARGS, command, count, emit, plot_path, preset_arg
 
 
+# what ``sweep`` sweeps when no parameter is given as a range or list: the frequency [Hz]
+DEFAULT_SWEEP = ("freq", "200:1500:25")
+
+
 def _scene_args(p: argparse.ArgumentParser, sweep: bool = False) -> None:
     preset_arg(p)
     num = str if sweep else float
     p.add_argument("--freq", type=num, default=None if sweep else 950.0,
-                   help="stroke frequency f [Hz] (stroke lasts 1/f)")
+                   help="stroke frequency f [Hz] (stroke lasts 1/f)" + (
+                       f"; swept over {DEFAULT_SWEEP[1]} when no parameter is given as "
+                       "start:stop:step or a list" if sweep else ""))
     p.add_argument("--stroke", type=num, default=None if sweep else 200e-6, help="stroke height h [m]")
     p.add_argument("--x0", type=num, default=None if sweep else 0.125e-3,
                    help="start position [m] (actuator at 0)")
@@ -126,9 +132,13 @@ def cmd_sweep(args: argparse.Namespace) -> None:
     swept = [k for k, v in given.items() if k != "profile" and (":" in v or "," in v)]
     if "profile" in given and "," in given["profile"]:
         swept.append("profile")
+    if not swept and DEFAULT_SWEEP[0] not in given:  # frequency by default
+        given[DEFAULT_SWEEP[0]] = DEFAULT_SWEEP[1]
+        swept = [DEFAULT_SWEEP[0]]
     if len(swept) != 1:
+        fixed = "" if swept else ", and --freq is fixed, so the frequency is not swept"
         raise ValueError(f"give exactly one swept parameter as start:stop:step or a list "
-                         f"(got {swept or 'none'}); e.g. --freq 200:1500:25")
+                         f"(got {swept or 'none'}{fixed}); e.g. --freq 200:1500:25")
     param = swept[0]
     base: dict[str, Any] = {}
     for k, v in given.items():

@@ -177,9 +177,9 @@ QUICK_LEVELS = {"dgamma_J_m2": (1.0,), "sigma_m": (20e-9, 30e-9), "stroke_m": (1
 
 def _sensitivity_args(p: argparse.ArgumentParser) -> None:
     _engine_args(p, "sensitivity.csv")
-    p.add_argument("--n-freq", type=int, default=None,
+    p.add_argument("--n-freq", type=count(1, 10_000), default=None,
                    help="design frequencies per combination (default 8, --quick 4)")
-    p.add_argument("--sobol-n", type=int, default=None,
+    p.add_argument("--sobol-n", type=count(0), default=None,
                    help="Sobol' base sample size N (power of 2; N (2D+2) runs); 0: skip "
                         "(default 128, --quick 4)")
     p.add_argument("--quick", action="store_true",
@@ -292,7 +292,8 @@ def _engage(args: argparse.Namespace, kw: dict[str, Any]) -> None:
 # ----------------------------------------------------------------------------- fidelity
 def _fidelity_args(p: argparse.ArgumentParser) -> None:
     _engine_args(p, "fidelity.csv")
-    p.add_argument("--repeats", type=int, default=3, help="timed repeats per level")
+    p.add_argument("--repeats", type=count(1, 10_000), default=3,
+                   help="timed repeats per level")
     p.add_argument("--scenes", default="single,episode_near,episode_far",
                    help="comma-separated scenes: single (the reference firing), episode_near and "
                         "episode_far (5 firings ending near the start and ~2 mm downstream)")
@@ -332,8 +333,9 @@ def _stretch_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--wavelength", type=float, default=0.6e-3, help="wavelength WL [m]")
     p.add_argument("--kinematics", default="reduced", choices=("reduced", "exact", "seed"),
                    help="reduced (the dissertation's model) or exact; 'seed' is the former name")
-    p.add_argument("--repeats", type=int, default=3, help="timed repeats per run")
-    p.add_argument("--n-sigma", type=int, default=21, help="sigma nodes of the stretch tables")
+    p.add_argument("--repeats", type=count(1, 10_000), default=3, help="timed repeats per run")
+    p.add_argument("--n-sigma", type=count(2, 1000), default=21,
+                   help="sigma nodes of the stretch tables")
 
 
 def cmd_stretch(args: argparse.Namespace) -> None:

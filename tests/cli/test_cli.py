@@ -170,3 +170,20 @@ def test_simulate_exports_its_trajectory(tmp_path):
     np.testing.assert_array_equal(table.column("x_m").to_numpy(), data[:, 1])  # same float64s
     r = run("simulate", "--trajectory", str(tmp_path / "firing.txt"), "--json")
     assert r.returncode == 2 and ".csv or .parquet" in json.loads(r.stdout)["error"]
+
+
+def test_sweep_without_a_swept_parameter_sweeps_frequency_as_its_help_says():
+    from microconveyor_env.cli.simulation import DEFAULT_SWEEP
+
+    r = run("sweep", "--help")
+    assert r.returncode == 0 and "frequency by default" in r.stdout
+    assert DEFAULT_SWEEP == ("freq", "200:1500:25") and "200:1500:25" in r.stdout
+    r = run("sweep", "--stroke", "150e-6", "--json", "--no-progress")
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["param"] == "freq" and out["stroke_m"] == 150e-6
+    assert out["freq_hz"][0] == 200.0 and out["freq_hz"][-1] == 1500.0
+    assert len(out["freq_hz"]) == 53
+    # a fixed --freq and nothing else swept: nothing to sweep, said in one line
+    r = run("sweep", "--freq", "700", "--json")
+    assert r.returncode == 2 and "--freq is fixed" in json.loads(r.stdout)["error"]

@@ -99,3 +99,35 @@ def test_batched_env_refuses_human_render_mode_and_the_single_env_unknown_ones()
     for bad in (0, 2.5, True, "3"):
         with pytest.raises(ValueError, match="num_envs"):
             MicroConveyorVectorEnv(bad)
+
+
+@pytest.mark.parametrize("argv, shown", [
+    (("stretch", "--repeats", "0"), "--repeats: must be an integer in [1, 10000], got 0"),
+    (("fidelity", "--repeats", "0"), "--repeats: must be an integer in [1, 10000], got 0"),
+    (("fidelity", "--repeats", "-2"), "--repeats: must be an integer in [1, 10000], got -2"),
+    (("stretch", "--n-sigma", "1"), "--n-sigma: must be an integer in [2, 1000], got 1"),
+    (("sensitivity", "--n-freq", "0"), "--n-freq: must be an integer in [1, 10000], got 0"),
+    (("sensitivity", "--sobol-n", "-1"), "--sobol-n: must be an integer in [0, ...], got -1"),
+])
+def test_counts_outside_their_range_are_refused_before_any_work(capsys, argv, shown):
+    rc, out, err = _run(capsys, *argv, "--json")
+    assert rc == 2
+    e = json.loads(out)
+    assert e["error_type"] == "UsageError" and shown in e["error"]
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_every_repeats_option_needs_at_least_one():
+    """Every command's ``--repeats`` (the agents' too) refuses 0: no run times nothing."""
+    import argparse
+
+    from microconveyor_env.cli import UsageError, build_parser
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    with_repeats = [name for name, p in sub.choices.items()
+                    if any("--repeats" in a.option_strings for a in p._actions)]
+    assert {"stretch", "fidelity", "accuracy", "bench"} <= set(with_repeats)
+    for name in with_repeats:
+        with pytest.raises(UsageError, match="--repeats: must be an integer in \\[1, "):
+            parser.parse_args([name, "--repeats", "0"])

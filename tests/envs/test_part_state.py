@@ -214,3 +214,33 @@ def test_json_without_env_id_and_scene_is_refused_state_built_in_code_is_taken()
         PartState.from_dict(old)
     obs, _ = env.reset(options={"state": PartState(**old)})  # code vouches for its scene
     assert env.unwrapped.get_state().velocity_m_s == state.velocity_m_s
+
+
+def test_state_of_another_env_id_of_the_same_scene_is_refused_naming_both():
+    """The env id a state names must be the env's: a state of MicroConveyor-v1 is not taken by
+    MicroConveyorGoal-v1 (its scene) nor by MicroConveyor-v0 made with v1's scene, and a dict
+    whose env_id was edited is refused, in the single and the batched env."""
+    from microconveyor_env.env_ids import overrides
+
+    state = _saved()
+    edited = {**state.to_dict(), "env_id": "MicroConveyor-v0"}
+    cases = [(gym.make("MicroConveyorGoal-v1"), state, "MicroConveyor-v1", "MicroConveyorGoal-v1"),
+             (gym.make("MicroConveyor-v0", **overrides("MicroConveyor-v1")), state,
+              "MicroConveyor-v1", "MicroConveyor-v0"),
+             (gym.make("MicroConveyor-v1"), edited, "MicroConveyor-v0", "MicroConveyor-v1")]
+    vec = gym.make_vec("MicroConveyor-v1", num_envs=2, vectorization_mode="vector_entry_point")
+    cases.append((vec, [state, edited], "MicroConveyor-v0", "MicroConveyor-v1"))
+    for env, given, saved, here in cases:
+        env.reset(seed=0)
+        with pytest.raises(ValueError, match=f"saved in {saved} cannot start an episode in "
+                                             f"{here}") as e:
+            env.reset(options={"state": given})
+        assert "\n" not in str(e.value)
+    # its own id takes it; an env made without an id (and a state saved in one) checks the scene
+    for env in (gym.make("MicroConveyor-v1"), MicroConveyorEnv(config=env_config())):
+        env.reset(options={"state": state})
+        assert env.unwrapped.get_state().position_m == state.position_m
+    no_id = MicroConveyorEnv(config=env_config())
+    no_id.reset(seed=1, options={"target": 5e-3})
+    no_id.step(GENTLE)
+    gym.make("MicroConveyor-v1").reset(options={"state": no_id.get_state().to_dict()})

@@ -31,7 +31,8 @@ def _bad_state(good: PartState) -> PartState:
     return PartState(good.position_m, math.nan, good.time_s, good.fired, good.target_m)
 
 
-@pytest.mark.parametrize("bad", ["nan velocity", "nan target", "state and target"])
+@pytest.mark.parametrize("bad", ["nan velocity", "nan target", "state and target",
+                                 "misspelled option"])
 def test_refused_single_reset_continues_the_old_episode(bad):
     env, twin = MicroConveyorEnv(config=CFG), MicroConveyorEnv(config=CFG)
     for e in (env, twin):
@@ -39,7 +40,8 @@ def test_refused_single_reset_continues_the_old_episode(bad):
         e.step(GENTLE[0])
     s = env.get_state()
     opts = {"nan velocity": {"state": _bad_state(s)}, "nan target": {"target": math.nan},
-            "state and target": {"state": s, "target": 2e-3}}[bad]
+            "state and target": {"state": s, "target": 2e-3},
+            "misspelled option": {"targt": 2e-3}}[bad]
     with pytest.raises(ValueError):
         env.reset(seed=123, options=opts)
     assert env.get_state() == s
@@ -50,7 +52,8 @@ def test_refused_single_reset_continues_the_old_episode(bad):
     _same_steps(env.step(GENTLE[0]), twin.step(GENTLE[0]))
 
 
-@pytest.mark.parametrize("bad", ["state 3 of 3", "target 2 of 3", "target shape"])
+@pytest.mark.parametrize("bad", ["state 3 of 3", "target 2 of 3", "target shape",
+                                 "misspelled option"])
 def test_refused_batched_reset_changes_no_sub_env(bad):
     vec, twin = (MicroConveyorVectorEnv(3, config=CFG) for _ in range(2))
     for v in (vec, twin):
@@ -59,7 +62,8 @@ def test_refused_batched_reset_changes_no_sub_env(bad):
     before = [vec.get_state(i) for i in range(3)]
     opts = {"state 3 of 3": {"state": [before[0], before[1], _bad_state(before[2])]},
             "target 2 of 3": {"target": [1e-3, math.nan, 2e-3]},
-            "target shape": {"target": [1e-3, 2e-3]}}[bad]
+            "target shape": {"target": [1e-3, 2e-3]},
+            "misspelled option": {"state": before, "targets": [1e-3, 2e-3, 3e-3]}}[bad]
     with pytest.raises(ValueError):
         vec.reset(seed=500, options=opts)
     assert [vec.get_state(i) for i in range(3)] == before

@@ -1,8 +1,8 @@
-"""Checks every scene's envs apply to what a user passes: actions, render modes, configs; the
-id an env was made with."""
+"""Checks every scene's envs apply to what a user passes: actions, reset options, render modes,
+configs; the id an env was made with."""
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -47,6 +47,26 @@ def _what(n: int | None, components: Sequence[str]) -> str:
     k, names = len(components), ", ".join(components)
     return (f"one action of {k} components ({names})" if n is None else
             f"{n} actions of {k} components ({names})")
+
+
+# the keys of ``reset(options=...)`` every env of every scene knows
+RESET_OPTIONS = ("state", "target")
+
+
+def check_reset_options(options: object) -> dict[str, Any]:
+    """``options`` of ``reset`` as a dict (None: empty), refused in one ValueError naming the
+    known keys when it is not a mapping or holds a key no env reads: a misspelled option would
+    otherwise be ignored and the episode drawn at random."""
+    if options is None:
+        return {}
+    if not isinstance(options, Mapping):
+        raise ValueError(f"reset options must be a dict with the keys {list(RESET_OPTIONS)}, "
+                         f"got {type(options).__name__}")
+    unknown = sorted((k for k in options if k not in RESET_OPTIONS), key=repr)
+    if unknown:
+        raise ValueError(f"reset options: unknown keys {unknown} (known keys: "
+                         f"{list(RESET_OPTIONS)})")
+    return dict(options)
 
 
 def check_render_mode(render_mode: str | None, supported: Sequence[str]) -> None:

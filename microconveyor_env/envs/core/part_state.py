@@ -11,7 +11,11 @@ for an env made without ``gym.make``) and ``scene`` (the env's config fields tha
 As data it is a plain JSON-safe dict of SI numbers with unit-suffixed keys
 (:meth:`SavedState.to_dict`, :meth:`SavedState.from_dict`). An env refuses a state saved in
 another scene in one line naming the fields that differ (:func:`check_scene`): a position or a
-firing count means something else with other actuators, surfaces or time limits. A dict without
+firing count means something else with other actuators, surfaces or time limits. It refuses a
+state saved in another env id too, naming both (:func:`check_saved_in`), even one of the same
+scene (an interface variant, or an id made with overrides that give another id's scene): the
+label and the scene must agree, so an edited or mixed-up state is never taken. An env made
+without an id (``env_id`` None) and a state saved in one check the scene alone. A dict without
 ``env_id`` and ``scene`` is refused too, saying how to go on: nothing can check it, and a state
 taken into the wrong scene runs without error and silently means something else. A state built
 in code without a scene (as a controller builds the state it observed) is taken as the env's
@@ -167,6 +171,16 @@ def check_scene(state: SavedState, config: Any) -> None:
         raise ValueError(f"part state saved in {where} is of another scene than this env's: "
                          f"{'; '.join(diff)} (a state starts an episode only in its own scene; "
                          "randomisation and runtime knobs may differ)")
+
+
+def check_saved_in(state: SavedState, env_id: str | None) -> None:
+    """A one-line ValueError if ``state`` names an env id other than ``env_id`` (the id of the
+    env it starts an episode in); a state or an env without an id passes (its scene is checked:
+    :func:`check_scene`)."""
+    saved = state.env_id
+    if saved is not None and env_id is not None and saved != env_id:
+        raise ValueError(f"part state saved in {saved} cannot start an episode in {env_id}: a "
+                         "state starts an episode only in the env id it was saved in")
 
 
 def reset_state(options: dict[str, Any] | None) -> Any:

@@ -19,8 +19,8 @@ import numpy as np
 from ...physics.contact_table import TableRangeError
 from ...physics.simulator import Simulator
 from . import randomisation
-from .checks import check_actions
-from .part_state import SavedState, reset_state
+from .checks import check_actions, check_reset_options
+from .part_state import SavedState, check_saved_in, reset_state
 from .threads import ThreadChooser, threads
 
 T = TypeVar("T")
@@ -193,21 +193,30 @@ class PartsBase:
         """Part ``i``'s state now, naming ``env_id`` and the config's scene."""
         raise NotImplementedError
 
-    def check_reset(self, options: dict[str, Any] | None, batched: bool) -> Resets:
+    def check_reset(self, options: dict[str, Any] | None, batched: bool,
+                    env_id: str | None = None) -> Resets:
         """Every part's reset from reset ``options``, all checked before any part changes (a
-        refused reset leaves every part as it was): ``"target"`` (:meth:`check_targets`),
-        ``"state"`` a saved part state (:meth:`check_state`), not both. ``batched``: a state may
-        also be one per part (a sequence of ``n``); otherwise the one given is every part's."""
+        refused reset leaves every part as it was): only the keys ``"target"``
+        (:meth:`check_targets`) and ``"state"`` (a saved part state: :meth:`check_state`, and
+        saved in ``env_id``, the id the env was made with: :func:`.part_state.check_saved_in`),
+        not both. ``batched``: a state may also be one per part (a sequence of ``n``);
+        otherwise the one given is every part's."""
+        options = check_reset_options(options)
         state = reset_state(options)
         n = self.n
+
+        def checked(s: Any) -> SavedState:
+            saved = self.check_state(s)
+            check_saved_in(saved, env_id)
+            return saved
+
         if state is not None:
             if batched and isinstance(state, (list, tuple)):
                 if len(state) != n:
                     raise ValueError(f"{len(state)} part states for {n} envs")
-                return Resets(None, [for_part(i, self.check_state, s)
-                                     for i, s in enumerate(state)])
-            return Resets(None, [self.check_state(state)] * n)
-        if options and "target" in options:
+                return Resets(None, [for_part(i, checked, s) for i, s in enumerate(state)])
+            return Resets(None, [checked(state)] * n)
+        if "target" in options:
             return Resets(self.check_targets(options["target"], batched), None)
         return Resets(None, None)
 

@@ -26,7 +26,8 @@ class SingleEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
-        resets = self.conveyor.check_reset(options, batched=False)  # before anything changes
+        # every option checked before anything changes
+        resets = self.conveyor.check_reset(options, batched=False, env_id=spec_id(self))
         super().reset(seed=seed)
         self.conveyor.reset_part(0, self.np_random, *resets.of(0))
         self._done = False

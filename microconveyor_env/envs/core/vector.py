@@ -99,7 +99,8 @@ class BatchedEnv(VectorEnv):
 
     def reset(self, *, seed: int | list | None = None,
               options: dict | None = None) -> tuple[np.ndarray, dict]:
-        resets = self.conveyor.check_reset(options, batched=True)  # before anything changes
+        # every option checked before anything changes
+        resets = self.conveyor.check_reset(options, batched=True, env_id=spec_id(self))
         if seed is not None:
             seeds = ([int(seed) + i for i in range(self.num_envs)]
                      if isinstance(seed, (int, np.integer)) else [int(s) for s in seed])

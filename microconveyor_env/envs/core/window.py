@@ -1,7 +1,15 @@
 """The ``human`` render mode's window: pygame, from the ``render`` extra
-(``pip install "microconveyor-env[render]"``), imported only when the mode is asked for."""
+(``pip install "microconveyor-env[render]"``), imported only when the mode is asked for.
+
+Without pygame an env's own ``metadata["render_modes"]`` leaves ``human`` out
+(:func:`installed_modes`): the modes it lists are those this install renders, so Gymnasium's
+``check_env``, which renders in each listed mode, passes. The class's modes still name
+``human``, so ``gym.make(id, render_mode="human")`` reaches the env, which refuses it at once,
+naming the extra (:func:`require_pygame`).
+"""
 from __future__ import annotations
 
+import importlib.util
 import os
 from collections.abc import Sequence
 from typing import Any
@@ -22,6 +30,11 @@ def require_pygame() -> Any:
         raise DependencyNotInstalled(f'render_mode="human" needs pygame, which is not installed: '
                                      f"{EXTRA} (the render extra)") from exc
     return pygame
+
+
+def installed_modes(modes: Sequence[str]) -> list[str]:
+    """``modes`` less ``human`` when pygame is not installed (found without importing it)."""
+    return [m for m in modes if m != "human" or importlib.util.find_spec("pygame") is not None]
 
 
 class Window:

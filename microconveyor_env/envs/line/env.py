@@ -13,6 +13,7 @@ from ..core import actions
 from . import task
 from ..core.checks import check_render_mode, config_of
 from ..core.single import SingleEnv
+from ..core.window import installed_modes
 from .part_state import PartState
 from .config import EnvConfig
 from .frames import EnvRenderer, check_frames_per_stroke
@@ -149,6 +150,9 @@ class MicroConveyorEnv(OwnsConveyor, SingleEnv):
         self.render_mode = render_mode
         n_frames = check_frames_per_stroke(render_frames_per_stroke, render_mode)
         self.render_frames_per_stroke = n_frames
+        # the modes this install renders (human: with pygame; core/window.py)
+        self.metadata = {**self.metadata,
+                         "render_modes": installed_modes(self.metadata["render_modes"])}
         if n_frames > 1:  # each phase of a firing (n frames) lasts 1/4 s, as a firing at n = 1
             self.metadata = {**self.metadata, "render_fps": 4 * n_frames}
         # the part's state, randomisation and compiled step (state.py), N = 1, always serial

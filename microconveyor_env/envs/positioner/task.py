@@ -4,9 +4,9 @@ episode's end.
 Which actuator fires (:func:`pick`): action 0 in [-1, 1] (clipped) times ``pick_reach`` is an
 offset from the part; the actuator nearest that aim point fires (ties to the lower index; an aim
 point off the array fires the nearest end actuator; halfway between two, the downstream one),
-as the plane picks its actuator. A resting
-part moves towards and past the actuator that fires (``../shared/physics.md`` §6), so aiming
-ahead of the part carries it downstream and aiming behind it carries it back.
+as the plane picks its actuator. A resting part moves towards and past the actuator that fires
+(docs/physics.md §5, "One actuator"), so aiming ahead of the part carries it downstream and
+aiming behind it carries it back.
 
 Start, target, reward and success are the line's (:mod:`..line.task`, :mod:`..core.reward`):
 the potential ``-min(|x - target|, H) / progress_scale``, the time cost, the success bonus when
