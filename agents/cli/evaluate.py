@@ -18,35 +18,40 @@ def _evaluate_args(p: argparse.ArgumentParser) -> None:
                    help="success tolerance [m] (default: the env's, 50 um)")
     add_env_args(p, default=None, default_text="the policy's own, from its metadata",
                  what=": refused if it differs from the scene the policy was trained in "
-                      "(randomisation aside); the plane's targets lie on its grid's box and its "
-                      "errors are Euclidean")
+                      "(randomisation aside); needed for a policy without metadata.json; the "
+                      "plane's targets lie on its grid's box and its errors are Euclidean")
 
 
 @command("evaluate", "evaluate a policy (PPO, SAC, TQC, TD3) on a fixed seeded set of targets, "
-                     "in the scene it was trained in", _evaluate_args)
+                     "in the env it was trained on (its per-episode randomisation included)",
+         _evaluate_args)
 def cmd_evaluate(args: argparse.Namespace) -> None:
+    """``env_kwargs`` in the result are the ones evaluated with (the policy's own updated by
+    ``--env-kwargs``), ``trained_env_kwargs`` the policy's own."""
     from microconveyor_env.env_ids import DEFAULT_ENV_ID
     from microconveyor_env.envs.versions import scene_config
 
-    from ..rl.artefacts.policy_files import FIRST_ENV_ID, policy_env_kwargs, read_policy_meta
+    from ..rl.artefacts.policy_files import policy_env_kwargs, read_policy_meta
     from ..rl.artefacts.shipped import require_shipped
     from ..rl.evaluation.evaluate import evaluate, load_policy
 
     if args.tolerance is not None and not 0 < args.tolerance < 1:
         raise ValueError(f"--tolerance {args.tolerance!r} must be in (0, 1) m")
     path = args.policy or require_shipped(args.env or DEFAULT_ENV_ID)
+    meta = read_policy_meta(path)
+    trained_kwargs = policy_env_kwargs(meta)
+    kwargs = {**trained_kwargs, **env_kwargs_of(args)}
     asked = None
     if args.env or args.env_kwargs:
-        # the scene asked for: the policy's own kwargs updated by --env-kwargs, on --env (or
-        # the policy's env id); load_policy refuses it if it is another scene
-        meta = read_policy_meta(path)
-        env_id = args.env or meta.get("env_id", FIRST_ENV_ID)
-        kwargs = {**policy_env_kwargs(meta), **env_kwargs_of(args)}
-        asked = scene_config(env_id, **kwargs)
-    pol = load_policy(path, asked)
+        # the env asked for: the policy's own kwargs updated by --env-kwargs, on --env (or
+        # the policy's env id); load_policy refuses another scene, or a policy that names no
+        # env id when --env does not either
+        env_id = args.env or meta.get("env_id")
+        asked = scene_config(env_id, **kwargs) if env_id else None
+    pol = load_policy(path, asked, env_id=args.env)
     res = evaluate(pol, args.targets, args.seed, args.tolerance, config=asked)
-    res.update(policy=str(pol.path), env_id=pol.env_id,
-               env_kwargs=policy_env_kwargs(pol.metadata))
+    res.update(policy=str(pol.path), env_id=pol.env_id, env_kwargs=kwargs,
+               trained_env_kwargs=trained_kwargs)
     emit(args, res)
 
 

@@ -109,7 +109,8 @@ def test_evaluate_cli_missing_or_incompatible_policy(tmp_path):
     from stable_baselines3 import PPO
 
     PPO("MlpPolicy", gym.make("Pendulum-v1"), n_steps=64, batch_size=64).save(tmp_path / "pend")
-    r = run("evaluate", "--policy", str(tmp_path / "pend.zip"), "--json")
+    r = run("evaluate", "--policy", str(tmp_path / "pend.zip"), "--env", "MicroConveyor-v1",
+            "--json")
     assert r.returncode == 2 and "trained for observations (3,)" in r.stdout, r.stdout
     assert len(r.stderr.strip().splitlines()) == 1
     with pytest.raises(PolicyError):

@@ -137,9 +137,11 @@ def test_off_policy_zips_load_as_data_and_act_as_trained(tmp_path, algo):
                                policy_kwargs={"net_arch": [16]})
     model.learn(40)
     model.save(tmp_path / "model.zip")
+    from agents.rl.artefacts.checkpoint import sha256
+
     (tmp_path / "metadata.json").write_text(json.dumps({
         "env_id": "MicroConveyor-v1", "algo": algo.lower(), "env_kwargs": {},
-        "hyperparams": {"normalize": None}}))
+        "hyperparams": {"normalize": None}, "files": {"model.zip": sha256(tmp_path / "model.zip")}}))
     pol = load_policy(tmp_path)
     obs = np.stack([env.reset(seed=s)[0] for s in range(4)])
     # act computes each row alone (Policy.act): the model's own prediction, row by row

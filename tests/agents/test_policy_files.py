@@ -40,7 +40,8 @@ def _cli(*args):
 
 
 def _rewrite_data(zip_path, edit):
-    """Rewrite the ``data`` JSON inside an SB3 zip with ``edit(dict)``."""
+    """Rewrite the ``data`` JSON inside an SB3 zip with ``edit(dict)`` (and its recorded hash,
+    as whoever crafts a folder would)."""
     with zipfile.ZipFile(zip_path) as zf:
         items = {n: zf.read(n) for n in zf.namelist()}
     data = json.loads(items["data"])
@@ -49,11 +50,18 @@ def _rewrite_data(zip_path, edit):
     with zipfile.ZipFile(zip_path, "w") as zf:
         for n, b in items.items():
             zf.writestr(n, b)
+    if (zip_path.parent / "metadata.json").is_file():
+        _rehash(zip_path.parent)
 
 
-def _drop_hashes(folder):
+def _rehash(folder):
+    """Record the sha256 of the policy files now in ``folder`` in its metadata (what a folder
+    edited on purpose carries), so that the check under test is the one that answers."""
+    from agents.rl.artefacts.checkpoint import sha256
+
     meta = json.loads((folder / "metadata.json").read_text())
-    meta.pop("files")
+    meta["files"] = {n: sha256(folder / n) for n in ("model.zip", "normalization.json")
+                     if (folder / n).is_file()}
     (folder / "metadata.json").write_text(json.dumps(meta))
 
 
@@ -68,7 +76,7 @@ def test_shipped_folders_hold_no_pickle_and_load():
 def test_malicious_vecnormalize_pickle_is_never_loaded(tmp_path):
     folder = _copy_shipped(tmp_path)
     (folder / "normalization.json").unlink()
-    _drop_hashes(folder)
+    _rehash(folder)
     marker = tmp_path / "pwned-by-pickle"
     (folder / "vecnormalize.pkl").write_bytes(pickle.dumps(_Payload(marker)))
     with pytest.raises(PolicyError, match="is a pickle.*convert-stats"):
@@ -87,7 +95,6 @@ def test_malicious_entry_in_model_zip_is_never_unpickled(tmp_path):
     evil = {":type:": "<class 'function'>",
             ":serialized:": base64.b64encode(pickle.dumps(_Payload(marker))).decode()}
     folder = _copy_shipped(tmp_path)
-    _drop_hashes(folder)
     _rewrite_data(folder / "model.zip", lambda d: d.update(evil_entry=evil))
     with pytest.raises(PolicyError, match="'evil_entry' holds a pickled Python object"):
         load_policy(folder)
@@ -107,7 +114,6 @@ def test_known_pickled_entries_are_replaced_not_unpickled(tmp_path):
     evil = {":type:": "<class 'function'>",
             ":serialized:": base64.b64encode(pickle.dumps(_Payload(marker))).decode()}
     folder = _copy_shipped(tmp_path)
-    _drop_hashes(folder)
     _rewrite_data(folder / "model.zip", lambda d: d.update(learning_rate=evil, lr_schedule=evil))
     pol = load_policy(folder)
     assert pol.act(pol.normalizer.mean[None, :]).shape == (1, 3)
@@ -142,18 +148,21 @@ def test_a2c_zip_is_never_evaluated_as_ppo(tmp_path):
     A2C("MlpPolicy", MicroConveyorEnv(), n_steps=5, device="cpu").save(folder / "model.zip")
     with pytest.raises(PolicyError, match="not the file metadata.json describes"):
         load_policy(folder)                                   # the recorded hash catches it
-    _drop_hashes(folder)
+    _rehash(folder)
     with pytest.raises(PolicyError, match="says PPO, but .* is an A2C model"):
         load_policy(folder)
     bare = tmp_path / "bare"
     bare.mkdir()
     shutil.copy(folder / "model.zip", bare / "model.zip")
-    with pytest.raises(PolicyError, match="has no normalization.json"):
+    with pytest.raises(PolicyError, match="has no metadata.json: nothing says which env"):
         load_policy(bare / "model.zip")
+    with pytest.raises(PolicyError, match="has no normalization.json"):
+        load_policy(bare / "model.zip", env_id="MicroConveyor-v0")
     # said to be raw-observation A2C, it is read as A2C: its pickled policy_kwargs (A2C's
     # RMSprop optimizer class) are read by name, never unpickled, and it acts as A2C's actor
-    (bare / "metadata.json").write_text(json.dumps({"algo": "a2c",
+    (bare / "metadata.json").write_text(json.dumps({"algo": "a2c", "env_id": "MicroConveyor-v0",
                                                     "hyperparams": {"normalize": None}}))
+    _rehash(bare)
     pol = load_policy(bare / "model.zip")
     assert pol.actor.algo == "a2c" and pol.actor.activation == "Tanh"
     model = A2C.load(bare / "model.zip", device="cpu")     # the test's own file: trusted here
@@ -179,7 +188,6 @@ def test_a2c_zip_is_never_evaluated_as_ppo(tmp_path):
 ])
 def test_damaged_or_mismatched_folder_is_one_clear_error(tmp_path, damage, message):
     folder = _copy_shipped(tmp_path)
-    _drop_hashes(folder)
     stats_path = folder / "normalization.json"
     stats = json.loads(stats_path.read_text())
     if damage == "pickled_dict":
@@ -193,7 +201,8 @@ def test_damaged_or_mismatched_folder_is_one_clear_error(tmp_path, damage, messa
         stats_path.write_text(json.dumps(stats))
     elif damage == "missing":
         stats_path.unlink()
-    else:
+    _rehash(folder)
+    if damage == "metadata":
         (folder / "metadata.json").write_text("{ truncated")
     with pytest.raises(PolicyError, match=message):
         load_policy(folder)
@@ -263,9 +272,9 @@ def test_policy_with_observation_history_loads_and_evaluates(tmp_path):
     assert r.returncode == 2 and "observe_history: trained 2, asked 1" in json.loads(
         r.stdout)["error"], r.stdout
     # metadata edited to another history length: the zip's observation shape disagrees
-    _drop_hashes(folder)
     meta = json.loads((folder / "metadata.json").read_text())
     meta["env_kwargs"]["observe_history"] = 1
+    meta["hyperparams"]["env_kwargs"]["observe_history"] = 1
     (folder / "metadata.json").write_text(json.dumps(meta))
     with pytest.raises(PolicyError, match=r"observation"):
         load_policy(folder)
@@ -325,10 +334,10 @@ def test_rl_zoo3_layout_loads_after_convert_stats(tmp_path):
     pkl = run / "MicroConveyor-v0" / "vecnormalize.pkl"
     vn.save(str(pkl))
     with pytest.raises(PolicyError, match="is a pickle.*convert-stats"):
-        load_policy(run / "MicroConveyor-v0.zip")
+        load_policy(run / "MicroConveyor-v0.zip", env_id="MicroConveyor-v0")
     r = _cli("convert-stats", str(pkl), "--json")
     assert r.returncode == 0, r.stderr
-    pol = load_policy(run / "MicroConveyor-v0.zip")
+    pol = load_policy(run / "MicroConveyor-v0.zip", env_id="MicroConveyor-v0")
     assert pol.normalizer is not None
     r = _cli("evaluate", "--policy", str(run / "MicroConveyor-v0.zip"), "--env",
              "MicroConveyor-v0", "--targets", "2", "--json")

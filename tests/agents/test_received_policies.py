@@ -31,7 +31,19 @@ def _sac_folder(tmp_path, name="sac", dict_obs=False):
         device="cpu").save(folder / "model.zip")
     (folder / "metadata.json").write_text(json.dumps(
         {"algo": "sac", "env_id": "MicroConveyor-v1", "hyperparams": {"normalize": None}}))
+    _rehash(folder)
     return folder
+
+
+def _rehash(folder):
+    """Record the sha256 of the model (and statistics) now in ``folder`` in its metadata, as
+    whoever crafts a folder would, so that the check under test is the one that answers."""
+    from agents.rl.artefacts.checkpoint import sha256
+
+    meta = json.loads((folder / "metadata.json").read_text())
+    meta["files"] = {n: sha256(folder / n) for n in ("model.zip", "normalization.json")
+                     if (folder / n).is_file()}
+    (folder / "metadata.json").write_text(json.dumps(meta))
 
 
 def _edit_zip(path, edit=None, add=None, replace=None):
@@ -47,6 +59,8 @@ def _edit_zip(path, edit=None, add=None, replace=None):
     with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zf:
         for n, b in {**items, **(add or {})}.items():
             zf.writestr(n, b)
+    if (path.parent / "metadata.json").is_file():
+        _rehash(path.parent)
 
 
 def _cli(*args, cwd=None, timeout=120):
@@ -195,8 +209,7 @@ def test_names_that_leave_the_folder_are_refused(tmp_path):
         with pytest.raises(PolicyError, match="is not a plain file name") as exc:
             load_policy(folder)
         assert "missing" not in str(exc.value)     # says nothing of what exists outside
-    (folder / "metadata.json").write_text(json.dumps({k: v for k, v in meta.items()
-                                                      if k != "files"}))
+    (folder / "metadata.json").write_text(json.dumps(meta))
     _edit_zip(folder / "model.zip", add={"../escape": b"x"})
     with pytest.raises(PolicyError, match="entry '../escape' is not a plain file name"):
         load_policy(folder)

@@ -42,3 +42,22 @@ def test_the_stored_plane_record_maps_onto_the_contract():
     mapped = plane_evaluation(stored)
     assert mapped["median_abs_error_m"] == stored["median_error_m"]
     assert mapped["p90_abs_error_m"] == stored["p90_error_m"]
+
+
+def test_evaluate_reports_the_env_kwargs_it_ran_with(capsys):
+    """``env_kwargs`` are the kwargs of the env evaluated (the policy's own updated by
+    ``--env-kwargs``); ``trained_env_kwargs`` the policy's own."""
+    from agents.rl.artefacts.shipped import shipped_path
+
+    policy = str(shipped_path("ppo_randomised", "MicroConveyor-v1"))
+    capsys.readouterr()
+    assert main(["evaluate", "--policy", policy, "--targets", "2", "--json",
+                 "--env-kwargs", "action_noise:0.0"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["env_kwargs"]["action_noise"] == 0.0
+    assert res["trained_env_kwargs"]["action_noise"] == 0.003
+    assert res["env_kwargs"]["friction_factor_range"] == [0.95, 1.05]   # the rest: its own
+    assert main(["evaluate", "--policy", policy, "--targets", "2", "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["env_kwargs"] == res["trained_env_kwargs"]
+    assert res["env_kwargs"]["action_noise"] == 0.003

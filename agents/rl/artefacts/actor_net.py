@@ -19,6 +19,15 @@ actor gives the bit-identical action of SB3's ``predict(obs, deterministic=True)
 
 Dict observations (the goal-conditioned env) are flattened key by key in the observation space's
 order and concatenated, as SB3's ``CombinedExtractor`` does for Box sub-spaces.
+
+The tensors must be the network the model's own ``policy_kwargs`` describe: the actor's hidden
+widths are compared with its ``net_arch`` (SB3's default for the algorithm when none is given; not
+checked when ``policy_kwargs`` is a pickle), so a layer added to or removed from ``policy.pth`` is
+refused (:func:`actor_widths`, :func:`check_net_arch`). The network is a float32 network: both
+forward passes, float32 (:meth:`ActorNet.predict`) and portable float64
+(:meth:`ActorNet.predict_portable`), refuse an observation on which a layer's output leaves
+float32's finite range (:class:`ActorOverflowError`) instead of acting on an overflow, so the two
+agree on which observations a network can act on (up to rounding at the edge of the range).
 """
 from __future__ import annotations
 
@@ -36,10 +45,40 @@ from .sb3_files import ALGOS, check_spaces, custom_objects, pickled_globals
 MAX_WIDTH = 4096     # units in one layer
 MAX_LAYERS = 16      # hidden layers
 DEFAULT_ACTIVATION = {"ppo": "Tanh", "a2c": "Tanh", "sac": "ReLU", "tqc": "ReLU", "td3": "ReLU"}
+# SB3 2.x's actor widths when policy_kwargs name no net_arch
+DEFAULT_NET_ARCH = {"ppo": [64, 64], "a2c": [64, 64], "sac": [256, 256], "tqc": [256, 256],
+                    "td3": [400, 300]}
+FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 
 class ActorFileError(ValueError):
     """Saved tensors that do not form the actor of the algorithm named."""
+
+
+class ActorOverflowError(ActorFileError):
+    """A layer's output outside float32's finite range on an observation: the network cannot
+    act on it (both forward passes refuse it rather than act on inf or NaN)."""
+
+
+def actor_widths(net_arch: Any) -> list[int] | None:
+    """The actor's hidden widths a ``net_arch`` describes (a list: shared by actor and critic;
+    a dict: its ``pi``), or None when ``net_arch`` is not one of SB3's forms."""
+    if isinstance(net_arch, dict):
+        net_arch = net_arch.get("pi", [])
+    if isinstance(net_arch, list) and all(isinstance(w, int) and not isinstance(w, bool)
+                                          for w in net_arch):
+        return list(net_arch)
+    return None
+
+
+def check_net_arch(actor: ActorNet, net_arch: Any, where: str) -> None:
+    """ActorFileError when ``actor``'s hidden widths are not those ``net_arch`` describes
+    (``where`` names the setting in the message); a ``net_arch`` of no known form is not
+    compared."""
+    want = actor_widths(net_arch)
+    if want is not None and want != actor.hidden_widths:
+        raise ActorFileError(f"holds an actor with hidden layers {actor.hidden_widths}, but "
+                             f"{where} says {want}: the network is not the one described")
 
 
 @dataclass(frozen=True)
@@ -123,6 +162,7 @@ class ActorNet:
         self.algo, self.layout, self.activation = algo, layout, name
         self.obs_keys, self.obs_dim = obs_keys, obs_dim
         self.squash = layout.squashed or squash
+        self.hidden_widths = [int(w.shape[0]) for _, w, _ in layers[:-1]]
         self.low = np.asarray(action_low, np.float32)
         self.high = np.asarray(action_high, np.float32)
         self.module = _Module(layers, act_cls, final_tanh=self.squash)
@@ -160,12 +200,31 @@ class ActorNet:
         import torch
 
         with torch.no_grad():
-            a = self.mean(self.features(obs)).cpu().numpy()
+            a = self._checked_forward(self.features(obs)).cpu().numpy()
         a = a.reshape((-1, *self.low.shape))
         if self.squash:
             return self.low + (0.5 * (a + 1.0) * (self.high - self.low))
         return np.clip(a, self.low, self.high)
 
+    def _checked_forward(self, x: Any) -> Any:
+        """:meth:`mean` operation for operation (the same bits), refusing a layer output that
+        is not finite in float32 (:class:`ActorOverflowError`)."""
+        import torch
+
+        m = self.module
+        for k, name in enumerate(m.names):
+            x = getattr(m, name)(x)
+            if not bool(torch.isfinite(x).all()):
+                raise self._overflow(name.replace("__", "."))
+            if k < len(m.names) - 1:
+                x = m.act(x)
+        return torch.tanh(x) if self.squash else x
+
+    @staticmethod
+    def _overflow(layer: str) -> ActorOverflowError:
+        return ActorOverflowError(f"layer {layer} leaves float32's finite range (|output| > "
+                                  f"{FLOAT32_MAX:.3g}) on this observation: the network cannot "
+                                  "act on it")
 
     def predict_portable(self, obs: Any) -> np.ndarray:
         """:meth:`predict` computed in float64 with IEEE operations in a fixed order only (each
@@ -174,7 +233,9 @@ class ActorNet:
         kernels differ by a few ULP between CPU code paths; a policy whose episodes amplify such
         differences (closed loop over many firings, each landing sensitive to where the part
         rested) is evaluated this way (its metadata's ``inference: "portable"``). Tanh and ReLU
-        activations, Box observations."""
+        activations, Box observations. A layer output beyond float32's finite range (where the
+        float32 network overflows) is refused as :meth:`predict` refuses it
+        (:class:`ActorOverflowError`)."""
         from microconveyor_env.physics.portable_math import exp, ordered_dot
 
         if self.obs_keys is not None or self.activation not in ("Tanh", "ReLU"):
@@ -191,6 +252,8 @@ class ActorNet:
         for x in np.asarray(obs, np.float64).reshape(len(obs), -1):
             for k, (w, b) in enumerate(self._layers64):
                 x = ordered_dot(w, x) + b
+                if not np.all(np.abs(x) <= FLOAT32_MAX):   # NaN fails the comparison too
+                    raise self._overflow(self.module.names[k].replace("__", "."))
                 if k < len(self._layers64) - 1:
                     x = act(x)
             rows.append(act(x) if self.squash and self.activation == "Tanh" else
@@ -298,11 +361,16 @@ def load_actor(path: Path, algo: str, observation_space: Any, action_space: Any,
     squash = bool(data.get("use_sde")) and bool(kwargs.get("squash_output"))
     state = read_weights(path, "policy.pth", zf)
     obs_dim, keys = flat_obs(observation_space)
+    pickled = isinstance(data.get("policy_kwargs"), dict) and SERIALIZED in data["policy_kwargs"]
     try:
-        return ActorNet(algo, state, obs_dim, action_space.low, action_space.high, keys,
-                        activation, squash)
+        actor = ActorNet(algo, state, obs_dim, action_space.low, action_space.high, keys,
+                         activation, squash)
+        if not pickled:   # a pickle's net_arch is not read; its tensors are still chained
+            check_net_arch(actor, kwargs.get("net_arch", DEFAULT_NET_ARCH.get(algo)),
+                           "its data's policy_kwargs.net_arch")
     except ActorFileError as exc:
         raise ModelFileError(f"{str(path)!r}: policy.pth {exc}") from None
+    return actor
 
 
 def actor_of_model(model: Any) -> ActorNet:

@@ -122,11 +122,19 @@ def from_plane_record(record: dict) -> dict:
 def evaluate(policy: Actor, n_targets: int = 100, seed: int = 0, tolerance: float | None = None,
              config: EnvConfig | PlaneEnvConfig | None = None) -> dict:
     """Success and errors of ``policy`` on ``n_targets`` fixed targets drawn with ``seed``
-    (:func:`fixed_targets`) in ``config`` (default: the scene a loaded :class:`Policy` was
-    trained in, randomisation off; else MicroConveyor-v0's defaults); ``tolerance`` [m] of the
-    success figure (default: the config's). The keys of :func:`figures`, the ``seed`` and the
-    targets' ``target_range_m`` (line) or ``target_box_m`` (plane)."""
-    cfg = config or getattr(policy, "config", None) or EnvConfig.from_yaml()
+    (:func:`fixed_targets`) in ``config``; ``tolerance`` [m] of the success figure (default:
+    the config's). The keys of :func:`figures`, the ``seed`` and the targets' ``target_range_m``
+    (line) or ``target_box_m`` (plane).
+
+    ``config`` defaults to the env a loaded :class:`Policy` was trained on, **its per-episode
+    randomisation included** (``Policy.trained_config``: its metadata's env id and env kwargs),
+    as ``microconveyor evaluate --policy DIR`` does and as the shipped policies' recorded
+    ``evaluation`` and ``evaluation_fresh`` were computed; pass ``config=policy.config`` for the
+    same scene with randomisation off. An actor that names no env (not a loaded policy) needs
+    ``config``."""
+    cfg = config or getattr(policy, "trained_config", None) or getattr(policy, "config", None)
+    if cfg is None:
+        raise ValueError("evaluate: the policy names no env it was trained on; pass config=")
     res = rollout(policy, fixed_targets(cfg, n_targets, seed), cfg, seed=seed)
     out = figures(res, cfg.tolerance if tolerance is None else tolerance)
     out["seed"] = seed
