@@ -11,6 +11,18 @@ from microconveyor_env.env_ids import DEFAULT_ENV_ID, ENV_IDS
 
 from .args import add_env_args, env_kwargs_of, minutes
 
+SEED_MAX = 2**31 - 1   # the largest training seed (numpy, torch and every env seed take it)
+
+
+def seed_arg(text: str) -> int:
+    """A training seed option: a whole number in [0, :data:`SEED_MAX`]."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if not 0 <= v <= SEED_MAX:
+        raise argparse.ArgumentTypeError(f"a seed is a whole number in [0, {SEED_MAX}], got {v}")
+    return v
 
 def _train_args(p: argparse.ArgumentParser) -> None:
     from ..rl.training.algos import ALGO_NAMES
@@ -23,7 +35,7 @@ def _train_args(p: argparse.ArgumentParser) -> None:
                    help="run folder (model, stats, checkpoints, logs) (default: runs/ALGO)")
     p.add_argument("--steps", type=count(1), default=None,
                    help="total environment steps (default: n_timesteps of the conf file)")
-    p.add_argument("--seed", type=int, default=None,
+    p.add_argument("--seed", type=seed_arg, default=None,
                    help="training seed (default 0); --resume continues the run's own seed and "
                         "refuses another")
     p.add_argument("--conf-file", default=None,
@@ -34,7 +46,7 @@ def _train_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--allow-config-change", action="store_true",
                    help="with --resume: continue under a different config (recorded in the "
                         "metadata)")
-    p.add_argument("--fork-seed", type=int, default=None,
+    p.add_argument("--fork-seed", type=seed_arg, default=None,
                    help="with --resume: continue the checkpoint under this seed instead of the "
                         "run's (a fork: the same state, other samples; recorded in the metadata)")
     p.add_argument("--checkpoint-freq", type=count(1), default=200_000,
@@ -94,8 +106,9 @@ def _refine_folder(policy: str, out: Any, settings: Any, eval_targets: int) -> d
         torch.set_num_threads(threads)
     before = pol.metadata.get("evaluation") or {}
     ev = evaluate(pol, eval_targets, int(before.get("seed", 12345))) if eval_targets else None
-    write_refined(pol, report, out, ev)
-    return {"out": str(out), "refinement": report, "evaluation": ev, "evaluation_before": before}
+    written = write_refined(pol, report, out, ev)
+    return {"out": str(written), "refinement": report, "evaluation": ev,
+            "evaluation_before": before}
 
 
 def _success_line(ev: dict[str, Any]) -> str:
@@ -182,14 +195,15 @@ def _refine_args(p: argparse.ArgumentParser) -> None:
 def cmd_refine(args: argparse.Namespace) -> None:
     from pathlib import Path
 
-    from ..rl.artefacts.folders import check_new_folder
+    from ..rl.artefacts.folders import NewPolicyFolder
     from ..rl.refinement.settings import RefineSettings
 
     out = Path(args.out)
-    check_new_folder(out)   # before the refinement's minutes, not after them
     settings = RefineSettings(targets=args.targets, rounds=args.rounds,
                               fit_iterations=args.fit_iterations, seed=args.seed)
-    res = _refine_folder(args.policy, out, settings, args.eval_targets)
+    # checked and held before the refinement's minutes, not after them
+    with NewPolicyFolder(args.out) as folder:
+        res = _refine_folder(args.policy, folder, settings, args.eval_targets)
     report, ev = res["refinement"], res["evaluation"]
     text = f"refined policy -> {out} ({report['wall_time_s']:.0f} s, kept round {report['kept_round']})"
     if ev:

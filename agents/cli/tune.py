@@ -9,6 +9,7 @@ from microconveyor_env.env_ids import DEFAULT_ENV_ID
 
 from .args import add_env_args, env_kwarg, env_kwargs_of, minutes
 from .evaluate import iqm_lines
+from .rl import seed_arg
 
 
 def _budget_args(p: argparse.ArgumentParser, steps_help: str) -> None:
@@ -42,8 +43,9 @@ def _tune_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--study", default=DEFAULT_STUDY, help=f"study name (default: {DEFAULT_STUDY})")
     p.add_argument("--trial-minutes", type=minutes, default=None,
                    help="wall budget of one trial [min] (default: none, --steps only)")
-    p.add_argument("--seed", type=int, default=0, help="training seed of every trial")
-    p.add_argument("--sampler-seed", type=int, default=None,
+    p.add_argument("--seed", type=seed_arg, default=0,
+                   help="training seed of every trial")
+    p.add_argument("--sampler-seed", type=seed_arg, default=None,
                    help="seed of the TPE sampler (worker i uses SEED + i; default: random)")
     p.add_argument("--fix", type=env_kwarg, nargs="+", default=None, metavar="KEY:VALUE",
                    help=f"do not tune KEY, use VALUE; keys: {', '.join(SPACE)}")
@@ -65,16 +67,19 @@ def _tune_args(p: argparse.ArgumentParser) -> None:
          _tune_args)
 def cmd_tune(args: argparse.Namespace) -> None:
     from ..rl.tuning.settings import TuneSettings
+    from ..rl.tuning.storage import default_storage, masked, secrets_masked
     from ..rl.tuning.tune import tune
 
-    res = tune(TuneSettings(
-        out=args.out, n_trials=args.trials, workers=args.workers, storage=args.storage,
-        study_name=args.study, env_id=args.env, env_kwargs=env_kwargs_of(args) or None,
-        conf_file=args.conf_file, trial_steps=args.steps or 1_000_000,
-        trial_minutes=args.trial_minutes, eval_freq=args.eval_freq,
-        eval_targets=args.eval_targets, seed=args.seed, fixed=dict(args.fix or []),
-        prune=not args.no_prune, sampler_seed=args.sampler_seed, best_file=args.best,
-        verbose=not args.quiet, heartbeat_s=args.heartbeat))
+    url = args.storage or default_storage(args.out)
+    with secrets_masked(url):   # in errors and the result, the storage's secrets never shown
+        res = masked(tune(TuneSettings(
+            out=args.out, n_trials=args.trials, workers=args.workers, storage=args.storage,
+            study_name=args.study, env_id=args.env, env_kwargs=env_kwargs_of(args) or None,
+            conf_file=args.conf_file, trial_steps=args.steps or 1_000_000,
+            trial_minutes=args.trial_minutes, eval_freq=args.eval_freq,
+            eval_targets=args.eval_targets, seed=args.seed, fixed=dict(args.fix or []),
+            prune=not args.no_prune, sampler_seed=args.sampler_seed, best_file=args.best,
+            verbose=not args.quiet, heartbeat_s=args.heartbeat)), url)
     emit(args, res, tune_text(res))
     failed = res["failed"]
     if failed or res["died"]:
@@ -120,7 +125,8 @@ def tune_text(res: dict) -> str:
 def _seeds_args(p: argparse.ArgumentParser) -> None:
     from ..rl.training.algos import ALGO_NAMES
 
-    p.add_argument("--seeds", type=int, nargs="+", required=True, help="training seeds")
+    p.add_argument("--seeds", type=seed_arg, nargs="+", required=True,
+                   help="training seeds")
     p.add_argument("--out", default="runs/seeds",
                    help="folder of the runs, one OUT/seed-S per seed (default: runs/seeds)")
     p.add_argument("--algo", choices=ALGO_NAMES, default="ppo", help="algorithm (default: ppo)")

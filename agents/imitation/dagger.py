@@ -268,12 +268,24 @@ def _play(venv: Any, label: Labeller, act: Any,
 
 def dagger(out: str | Path, s: DaggerSettings | None = None, progress: Any = print,
            command: str | None = None) -> dict:
-    """Train by DAgger (module docstring) into the policy folder ``out``; returns its metadata.
-    ``progress(line)`` is told each round's figures; ``command``: the command line that ran it
-    (recorded in the metadata)."""
+    """Train by DAgger (module docstring) into the new policy folder ``out``; returns its
+    metadata. ``progress(line)`` is told each round's figures; ``command``: the command line
+    that ran it (recorded in the metadata). ``out`` is checked and held before any work (an
+    empty name, an existing non-empty folder, a file, a symbolic link, an unwritable place or
+    another writer of it: one ValueError) and written at the end at once
+    (:class:`agents.rl.artefacts.folders.NewPolicyFolder`)."""
+    from ..rl.artefacts.folders import NewPolicyFolder
+
+    with NewPolicyFolder(out) as folder:
+        student, meta = _train(s or DaggerSettings(), progress, command)
+        student.save(folder, meta)
+    return meta
+
+
+def _train(s: DaggerSettings, progress: Any, command: str | None) -> tuple[Student, dict]:
+    """The DAgger rounds of :func:`dagger`: the fitted student and the folder's metadata."""
     import torch
 
-    s = s or DaggerSettings()
     cfg = s.config()
     torch.set_num_threads(1)
     t0 = time.perf_counter()
@@ -314,5 +326,4 @@ def dagger(out: str | Path, s: DaggerSettings | None = None, progress: Any = pri
             "note": "A policy network trained by DAgger to imitate a model-based expert on the "
                     "nominal model (it never sees an episode's friction, mass or noise), in "
                     "the scene of env_id with env_kwargs; one forward pass per firing."}
-    student.save(Path(out), meta)
-    return meta
+    return student, meta

@@ -4,11 +4,13 @@ full-batch L-BFGS in float64 through :func:`agents.rl.refinement.fit.fit`), and 
 ordinary PPO policy folder that loads as data."""
 from __future__ import annotations
 
-import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from ..rl.artefacts.folders import NewPolicyFolder
 
 
 class _MeanOf:
@@ -107,12 +109,21 @@ class Student:
             a = self.forward(torch.as_tensor(self.normalise(obs))).numpy()
         return np.clip(a, -1.0, 1.0)
 
-    def save(self, out: Path, meta: dict[str, Any]) -> None:
+    def write_files(self, folder: Path) -> None:
+        """Write the policy's model zip and observation statistics into ``folder``."""
         from ..rl.artefacts import normalization
-        from ..rl.artefacts.checkpoint import META, MODEL, NORMALIZATION, sha256
+        from ..rl.artefacts.checkpoint import MODEL, NORMALIZATION
 
-        out.mkdir(parents=True, exist_ok=True)
-        self.model.save(out / MODEL)
-        normalization.write(self.venv, out / NORMALIZATION)
-        meta = {**meta, "files": {n: sha256(out / n) for n in (MODEL, NORMALIZATION)}}
-        (out / META).write_text(json.dumps(meta, indent=2, default=str) + "\n")
+        self.model.save(folder / MODEL)
+        normalization.write(self.venv, folder / NORMALIZATION)
+
+    def save(self, out: str | Path | NewPolicyFolder, meta: dict[str, Any]) -> Path:
+        """Write the policy as the new policy folder ``out`` (or one already held) with
+        ``meta`` and the files' sha256 in its metadata, atomically
+        (:func:`agents.rl.artefacts.folders.write_policy_folder`)."""
+        from ..rl.artefacts.folders import write_policy_folder
+
+        def files(folder: Path) -> dict[str, Any]:
+            self.write_files(folder)
+            return meta
+        return write_policy_folder(out, files)

@@ -8,9 +8,10 @@ new one is in place. A kill at any moment therefore leaves the newest complete g
 (at most one checkpoint interval of training is lost), and a full disk fails the write of the new
 generation without touching the old. :func:`latest` picks the newest generation that verifies.
 
-The final policy files in ``OUT`` are replaced one by one with atomic renames, ``metadata.json``
-(with the hashes) last, so a folder caught between two versions is detected by
-:func:`verify_files` instead of being loaded half old, half new.
+The final policy files in ``OUT`` are replaced one by one with atomic renames, the model removed
+first and put in place last (after ``metadata.json`` with the hashes), so a folder caught between
+two versions holds no model and loads as no policy instead of half old, half new
+(:func:`replace_files`).
 """
 from __future__ import annotations
 
@@ -215,14 +216,33 @@ def prune(root: Path) -> None:
 
 
 def replace_files(src: Path, dst: Path, names: tuple[str, ...]) -> None:
-    """Copy ``names`` from ``src`` into ``dst``, each through a temporary file and an atomic
-    rename, in the order given (put ``metadata.json`` last)."""
-    for name in names:
-        tmp = dst / f".{name}.tmp-{os.getpid()}"
-        shutil.copyfile(src / name, tmp)
-        _fsync_file(tmp)
-        os.replace(tmp, dst / name)
+    """Make ``dst``'s policy files ``src``'s ``names`` (the model, its statistics, the metadata
+    with their sha256). The model is removed first and put in place last, so a folder caught in
+    between has no model and loads as no policy, never as one model with another's statistics
+    or metadata; a policy file of ``dst`` that ``names`` lacks is removed. Each file goes
+    through a new temporary file (never through a symbolic link) and an atomic rename."""
+    _remove(dst / MODEL)
     _fsync_dir(dst)
+    for name in (MODEL, NORMALIZATION, META):
+        if name not in names:
+            _remove(dst / name)
+    for name in sorted(names, key=lambda n: n == MODEL):   # the model last
+        tmp = dst / f".{name}.tmp-{os.getpid()}"
+        _remove(tmp)
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0),
+                     0o644)
+        with os.fdopen(fd, "wb") as fh, open(src / name, "rb") as fin:
+            shutil.copyfileobj(fin, fh)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, dst / name)
+        _fsync_dir(dst)
+
+
+def _remove(path: Path) -> None:
+    """Remove the file (or link) ``path`` if it is there."""
+    with contextlib.suppress(FileNotFoundError):
+        os.unlink(path)
 
 
 @contextlib.contextmanager
@@ -231,9 +251,16 @@ def folder_lock(out: Path) -> Iterator[Path]:
     host and start time). The kernel drops the lock when the process ends, even on kill -9, so a
     stale lock file never blocks a later run. A second training into ``out`` gets a
     :class:`CheckpointError` naming the owner."""
+    if out.is_symlink():
+        raise CheckpointError(f"{str(out)!r} is a symbolic link; give the run folder itself")
     out.mkdir(parents=True, exist_ok=True)
     path = out / LOCK
-    fh = open(path, "a+")
+    try:   # never through a symbolic link
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0), 0o644)
+    except OSError as exc:
+        raise CheckpointError(f"the lock {str(path)!r} cannot be opened ({exc.strerror or exc}; "
+                              "a symbolic link there is never followed)") from None
+    fh = os.fdopen(fd, "r+")
     try:
         try:
             import fcntl

@@ -1,54 +1,45 @@
 """Writing a refined policy folder (:mod:`.refine`) beside its source, atomically."""
 from __future__ import annotations
 
-import os
 from pathlib import Path
 from typing import Any
 
+from ..artefacts.folders import NewPolicyFolder
 from ..artefacts.policy_files import Policy
 
 CURVE = "evaluations.jsonl"   # a train run's learning curve (agents.rl.training)
 CURVE_LIMIT = 64 << 20        # bytes of it read from a source folder
 
 
-def write_refined(policy: Policy, report: dict[str, Any], out: str | Path,
+def write_refined(policy: Policy, report: dict[str, Any], out: str | Path | NewPolicyFolder,
                   evaluation: dict[str, Any] | None = None) -> Path:
-    """Write the refined ``policy`` as a policy folder ``out`` (which must not exist or be
-    empty): its model zip with the new actor's tensors in ``policy.pth`` (every other tensor and
-    entry copied unchanged; the optimizer state is the training's and is not used by
-    evaluation), its ``normalization.json`` unchanged, and ``metadata.json`` with
+    """Write the refined ``policy`` as the new policy folder ``out`` (a path, which must not
+    exist or be empty, or a :class:`~..artefacts.folders.NewPolicyFolder` the caller holds
+    during the refinement): its model zip with the new actor's tensors in ``policy.pth`` (every
+    other tensor and entry copied unchanged; the optimizer state is the training's and is not
+    used by evaluation), its ``normalization.json`` unchanged, and ``metadata.json`` with
     ``refinement`` (``report``), ``refined_from`` (the source's evaluation and file hashes) and
     ``evaluation``; a train run's ``evaluations.jsonl`` is copied with the refined evaluation
     appended. The source's files are read as a received folder's are (regular files within
-    limits, plain entry names). Written in a temporary folder beside ``out``, verified and
-    renamed into place: a kill leaves no half folder, and a later write removes what a killed
-    one left."""
+    limits, plain entry names). Written at once (staged beside ``out``, verified, renamed into
+    place: :func:`~..artefacts.folders.write_policy_folder`): a kill leaves no half folder, and
+    a later write removes what a killed one left."""
     import io
     import json
-    import shutil
     import zipfile
 
     import torch
 
     from microconveyor_env.safe_files import read_bytes, read_text
 
-    from ..artefacts.checkpoint import (
-        META,
-        MODEL,
-        NORMALIZATION,
-        read_meta,
-        sha256,
-        verify_files,
-    )
-    from ..artefacts.folders import check_new_folder, stale_temporaries
+    from ..artefacts.checkpoint import MODEL, NORMALIZATION
+    from ..artefacts.folders import check_new_folder, write_policy_folder
     from ..artefacts.normalization import NORMALIZATION_LIMIT
     from ..artefacts.sb3_files import open_model, read_weights
 
-    out = Path(out)
-    check_new_folder(out)
+    if not isinstance(out, NewPolicyFolder):
+        check_new_folder(out)   # before reading the source
     src = Path(policy.path)
-    for old_tmp in stale_temporaries(out.parent, f".{out.name}.tmp-"):
-        shutil.rmtree(old_tmp, ignore_errors=True)
     zin = open_model(src / MODEL)
     state = read_weights(src / MODEL, "policy.pth", zin)
     fitted = policy.actor.sb3_state()
@@ -63,10 +54,8 @@ def write_refined(policy: Policy, report: dict[str, Any], out: str | Path,
         curve = read_text(CURVE, CURVE_LIMIT, src)
     norm = (read_bytes(NORMALIZATION, NORMALIZATION_LIMIT, src)
             if (src / NORMALIZATION).exists() or (src / NORMALIZATION).is_symlink() else None)
-    tmp = out.parent / f".{out.name}.tmp-{os.getpid()}"
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir(parents=True)
-    try:
+
+    def write_files(tmp: Path) -> dict[str, Any]:
         with zipfile.ZipFile(tmp / MODEL, "w") as zout:
             for name, item in zin.infos.items():
                 zout.writestr(item, weights.getvalue() if name == "policy.pth" else zin.read(name))
@@ -80,19 +69,11 @@ def write_refined(policy: Policy, report: dict[str, Any], out: str | Path,
                    + float(report["wall_time_s"])}
             (tmp / CURVE).write_text(curve.rstrip("\n") + "\n" + json.dumps(row) + "\n")
         old = dict(policy.metadata)
-        for key in ("note", "evaluation_fresh", "evaluation_provenance"):
+        for key in ("note", "evaluation_fresh", "evaluation_provenance", "files"):
             old.pop(key, None)   # they describe the weights before refinement
-        meta = {**old, "refinement": report,
+        return {**old, "refinement": report,
                 "refined_from": {"path": str(src), "files": policy.metadata.get("files"),
                                  "evaluation": policy.metadata.get("evaluation")},
-                "evaluation": evaluation,
-                "files": {p.name: sha256(p) for p in sorted(tmp.iterdir()) if p.is_file()}}
-        (tmp / META).write_text(json.dumps(meta, indent=2, default=str) + "\n")
-        verify_files(tmp, read_meta(tmp))
-        if out.exists():
-            out.rmdir()
-        os.rename(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    return out
+                "evaluation": evaluation}
+
+    return write_policy_folder(out, write_files)

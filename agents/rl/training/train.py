@@ -11,7 +11,8 @@ so a kill loses at most one interval) and an evaluation on a fixed seeded target
 :mod:`.callbacks`). At the end ``OUT`` holds the final ``model.zip``, ``normalization.json`` and
 ``metadata.json``.
 
-A folder is used by one training at a time (``OUT/.lock``). ``resume`` refuses what it cannot
+A folder is used by one training at a time (``OUT/.lock``); one that is or holds a symbolic
+link is refused (nothing is written through one). ``resume`` refuses what it cannot
 honour: nothing to resume, damaged checkpoints only, a config other than the checkpoint's (unless
 ``allow_config_change``, which the metadata records).
 """
@@ -33,6 +34,7 @@ from microconveyor_env.envs.versions import GOAL_ENV_IDS, check_env_id, scene_co
 
 from ..artefacts import checkpoint
 from ..artefacts.checkpoint import META, MODEL, NORMALIZATION
+from ..artefacts.folders import refuse_links
 from . import hyperparams, phases, resume, wrappers
 from .algos import algo_class
 from .callbacks import Periodic
@@ -111,6 +113,7 @@ def train(out: str | Path, settings: TrainSettings | None = None, config: Any | 
     s = settings or TrainSettings()
     torch.set_num_threads(1)  # small nets: one thread is fastest, and 2 cores are shared with the env
     out = Path(out)
+    refuse_links(out)   # every file of the run is written as a real file inside it
     with checkpoint.folder_lock(out):
         hp, cfg = recipe(s, config)
         chash = config_hash(cfg, hp, s.algo)

@@ -10,6 +10,7 @@ from ..training import hyperparams
 from ..training.settings import check_budgets
 
 DEFAULT_STUDY = "microconveyor-ppo"
+SEED_MAX = 2**31 - 1   # the largest seed (a worker's sampler takes sampler_seed + its index)
 
 
 @dataclass(frozen=True)
@@ -58,6 +59,11 @@ class TuneSettings:
         hb = self.heartbeat_s
         if hb is not None and (isinstance(hb, bool) or not isinstance(hb, int) or hb < 1):
             raise ValueError(f"heartbeat_s must be a whole number of seconds >= 1, got {hb!r}")
+        for name in ("seed", "eval_seed", "sampler_seed"):
+            v = getattr(self, name)
+            given = v is not None or name != "sampler_seed"
+            if given and (isinstance(v, bool) or not isinstance(v, int) or not 0 <= v <= SEED_MAX):
+                raise ValueError(f"{name} must be a whole number in [0, {SEED_MAX}], got {v!r}")
         check_budgets(self.trial_steps, self.trial_minutes, 1, self.eval_freq, self.eval_targets)
         if self.eval_targets < 1:
             raise ValueError("eval_targets must be >= 1: the objective is the final evaluation")

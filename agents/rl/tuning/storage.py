@@ -1,10 +1,12 @@
-"""The Optuna storage a study lives in: its URL (default, shown without password, its driver
-checked), opening it (heartbeats, timeouts, the schema race) and its errors as one line."""
+"""The Optuna storage a study lives in: its URL (default, shown with its secrets masked wherever
+it is printed, its driver checked), opening it (heartbeats, timeouts, the schema race) and its
+errors as one line."""
 from __future__ import annotations
 
 import contextlib
 import os
 import random
+import re
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -24,14 +26,85 @@ def default_storage(out: str | Path) -> str:
     return os.environ.get(STORAGE_ENV) or f"sqlite:///{Path(out) / 'optuna.db'}"
 
 
+# a query parameter or key=value pair that holds a secret (password=, passwd=, sslpassword=,
+# pwd=, secret=, token=, ...) and its value, quoted or not
+# (ending before a separator, or before a colon, comma, full stop or bracket that ends a clause)
+_SECRET_PAIR = re.compile(r"(?i)\b([\w.-]*(?:pass(?:word|wd)?|pwd|secret|token)[\w.-]*)"
+                          r"(\s*=\s*)('[^']*'|\"[^\"]*\"|[^&;\s#]+?(?=[:,.)]{0,2}(?:[&;\s#]|$)))")
+# a URL's userinfo password: USER:PASSWORD@ (with or without a scheme before it)
+_USERINFO = re.compile(r"([^\s:/@?#]*:)([^\s@/?#]*)@")
+MASK = "***"
+
+
+def _secrets(url: str) -> set[str]:
+    """The secrets a storage URL holds (as written and percent-decoded): its userinfo password
+    and the values of its password-like query parameters, found whether it parses or not."""
+    from urllib.parse import unquote
+
+    found = {m.group(2) for m in _USERINFO.finditer(url)}
+    found |= {m.group(3).strip("'\"") for m in _SECRET_PAIR.finditer(url)}
+    try:
+        from sqlalchemy.engine import make_url
+
+        u = make_url(url)
+        found.add(str(u.password or ""))
+        for key, value in u.query.items():
+            if _SECRET_PAIR.match(f"{key}=x"):
+                found |= {value} if isinstance(value, str) else set(value)
+    except Exception:  # noqa: BLE001 - a URL sqlalchemy cannot parse: the patterns found them
+        pass
+    found |= {unquote(f) for f in found}
+    return {f for f in found if len(f) >= 3 and f != MASK}
+
+
+def mask(text: str, url: str | None = None) -> str:
+    """``text`` with every secret masked: URL passwords (``USER:PASSWORD@``), password-like
+    parameters (``password=...``) and, given the storage ``url``, its secrets wherever they
+    appear (an error message that quotes one)."""
+    out = _USERINFO.sub(lambda m: f"{m.group(1)}{MASK}@", text)
+    out = _SECRET_PAIR.sub(lambda m: f"{m.group(1)}{m.group(2)}{MASK}", out)
+    for secret in sorted(_secrets(url) if url else (), key=len, reverse=True):
+        out = out.replace(secret, MASK)
+    return out
+
+
 def shown(url: str) -> str:
-    """``url`` as printed: its password masked."""
+    """``url`` as printed: its secrets masked (the userinfo password, password-like query
+    parameters), also in a URL that does not parse."""
     from sqlalchemy.engine import make_url
 
     try:
-        return make_url(url).render_as_string(hide_password=True)
+        text = make_url(url).render_as_string(hide_password=True)
     except Exception:  # noqa: BLE001 - not a URL sqlalchemy parses: check_storage says so
-        return url
+        text = url
+    return mask(text, url)
+
+
+def masked(value: Any, url: str) -> Any:
+    """``value`` (a result: dicts, lists, strings) with :func:`mask` applied to every string."""
+    if isinstance(value, str):
+        return mask(value, url)
+    if isinstance(value, dict):
+        return {masked(k, url): masked(v, url) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [masked(v, url) for v in value]
+    return value
+
+
+@contextlib.contextmanager
+def secrets_masked(url: str) -> Iterator[None]:
+    """Re-raise any error raised inside whose message shows a secret of ``url`` as a ValueError
+    with the secret masked (another error's type is named in the message)."""
+    try:
+        yield
+    except Exception as exc:
+        text = str(exc)
+        safe = mask(text, url)
+        if safe == text:
+            raise
+        if isinstance(exc, ValueError):
+            raise ValueError(safe) from None
+        raise ValueError(f"{type(exc).__name__}: {safe}") from None
 
 
 # database drivers a storage URL may need: module -> what to pip install
@@ -58,6 +131,11 @@ def check_storage(url: str) -> None:
     password masked): not a database URL, SQLite in memory (the workers are other processes and
     the study would end with the command), a database driver that is not installed (naming the
     package to install)."""
+    with secrets_masked(url):
+        _check_storage(url)
+
+
+def _check_storage(url: str) -> None:
     from sqlalchemy import create_engine
     from sqlalchemy.engine import make_url
 
@@ -187,7 +265,7 @@ def storage_errors(url: str, opening: bool = False) -> Iterator[None]:
         err = _db_error(exc)
         if err is None:
             raise
-        what = f"{type(err).__name__}: {_first_line(err)}"
+        what = mask(f"{type(err).__name__}: {_first_line(err)}", url)
         if opening:
             raise ValueError(f"cannot open the Optuna storage {shown(url)}: {what}") from None
         raise ValueError(f"lost the Optuna storage {shown(url)} ({what}); the study is kept "

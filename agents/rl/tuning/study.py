@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from ..artefacts.folders import write_file
 from ..training import hyperparams
 from . import space as tune_space
 from .settings import DEFAULT_STUDY
@@ -163,5 +164,4 @@ def write_best(best: dict, path: str | Path, env_id: str = hyperparams.ENV_ID,
             f"({best['run']})\ntuned: {json.dumps(best['params'])}")
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(tune_space.config_yaml(env_id, hp, note))
-    return path
+    return write_file(path, tune_space.config_yaml(env_id, hp, note))  # whole, never via a link

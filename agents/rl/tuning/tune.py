@@ -12,10 +12,11 @@ Periodic evaluations report the same value and Optuna's median pruner stops tria
 median of earlier ones at the same step.
 
 Every setting is checked before the storage is touched (the env and its kwargs make a config,
-one trial's hyperparameters make a model, the budgets, the out folder, the storage URL and its
-driver). Commands that create the storage's tables at the same moment retry (Optuna's first-time
-schema creation is not safe against a concurrent one). Failed trials are recorded with their
-error (trial attribute ``error``) and the worker goes on. A local worker process that dies fails
+one trial's hyperparameters make a model, the budgets and seeds, the out folder, the best file,
+the storage URL and its driver). A storage's secrets (its URL's password, password parameters)
+are masked in everything printed. Commands that create the storage's tables at the same
+moment retry (Optuna's first-time schema creation is not safe against a concurrent one). Failed
+trials are recorded with their error (trial attribute ``error``) and the worker goes on. A local worker process that dies fails
 its own trial at once (the command's other workers go on, and a new worker takes the rest of its
 share); a worker whose command dies fails its trial and stops; a trial whose worker vanished
 with its machine is failed once its heartbeat is ``3 x heartbeat_s`` old, by the next worker of
@@ -32,6 +33,7 @@ import sys
 import time
 from pathlib import Path
 
+from ..artefacts.folders import check_file_target
 from ..training import hyperparams
 from ..training.parallel import run_local
 from . import space as tune_space
@@ -85,6 +87,7 @@ def _check_out(out: Path) -> None:
     probe.write_text("")
     probe.unlink()
 
+
 def tune(settings: TuneSettings) -> dict:
     """Run ``settings.n_trials`` trials of the study in ``settings.workers`` local processes
     (module docstring); every trial trains with the same seed and is evaluated on the same
@@ -100,6 +103,8 @@ def tune(settings: TuneSettings) -> dict:
     job = s.job(url)
     check_settings(job)     # nothing of the storage touched yet
     _check_out(Path(out))
+    best_file = Path(s.best_file) if s.best_file else Path(out) / study_name / "best.yml"
+    check_file_target(best_file, "--best")
     check_storage(url)
     study, db = _open_study(job)  # created once here: workers only load it
     with storage_errors(url):
@@ -124,9 +129,8 @@ def tune(settings: TuneSettings) -> dict:
                died=[r["died"] for r in runs if r["died"] is not None],
                heartbeat_s=job["heartbeat_s"], failed_stale=stale)
     if res["best"] is not None:
-        path = Path(s.best_file) if s.best_file else Path(out) / study_name / "best.yml"
-        write_best(res["best"], path, s.env_id, s.conf_file, s.env_kwargs, study_name)
-        res["best_file"] = str(path)
+        write_best(res["best"], best_file, s.env_id, s.conf_file, s.env_kwargs, study_name)
+        res["best_file"] = str(best_file)
     res["wall_time_s"] = time.monotonic() - t0
     return res
 

@@ -14,7 +14,7 @@ from typing import Any
 from ..training import hyperparams
 from ..training.parallel import Died, WorkerDied, exit_status, exit_with_parent
 from . import space as tune_space
-from .storage import StorageLost, _db_error, open_storage, storage_errors
+from .storage import StorageLost, _db_error, mask, open_storage, storage_errors
 from .study import _fail_trial, _study, fail_stale
 
 
@@ -104,7 +104,7 @@ def _worker(task: dict) -> dict:
 
     job, i = task["job"], int(task["index"])
     worker = f"{socket.gethostname()}:{os.getpid()}"
-    log = _log(i) if task.get("verbose") else None
+    log = _log(i, job["storage"]) if task.get("verbose") else None
     seed = None if job["sampler_seed"] is None else int(job["sampler_seed"]) + i
     name = job["study_name"]
     with storage_errors(job["storage"], opening=True):
@@ -150,8 +150,9 @@ def _worker(task: dict) -> dict:
     return {"rows": rows, "died": None}
 
 
-def _log(i: int) -> Callable[[str], None]:
-    return lambda line: print(f"worker {i}: {line}", file=sys.stderr, flush=True)
+def _log(i: int, url: str) -> Callable[[str], None]:
+    """Worker ``i``'s progress lines on stderr, the storage ``url``'s secrets masked."""
+    return lambda line: print(mask(f"worker {i}: {line}", url), file=sys.stderr, flush=True)
 
 
 def _worker_died(task: dict, err: WorkerDied) -> Died[dict, dict]:
@@ -186,7 +187,7 @@ def _worker_died(task: dict, err: WorkerDied) -> Died[dict, dict]:
     instead = ({**task, "index": int(task["index"]) + int(task["of"]), "n_trials": left}
                if mine and left > 0 else None)
     if task.get("verbose"):
-        _log(int(task["index"]))(
+        _log(int(task["index"]), job["storage"])(
             f"died ({how})" + (f" in trial {failed}, marked failed" if failed is not None
                                else "") +
             (f"; a new worker runs its {left} remaining trial(s)" if instead else
