@@ -7,13 +7,21 @@ from typing import Any
 
 from microconveyor_env.cli.base import command, count, emit, plot_path
 
-from .args import add_env_args, env_kwargs_of
+from .args import add_env_args, env_kwargs_of, floats
 
 
 def _evaluate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--policy", default=None, help="policy folder or model zip (default: shipped)")
-    p.add_argument("--targets", type=count(1, 100000), default=100, help="number of targets")
-    p.add_argument("--seed", type=int, default=0, help="seed of the fixed target set")
+    p.add_argument("--targets", type=count(1, 100000), default=None,
+                   help="number of targets drawn uniformly over the target range (default 100)")
+    p.add_argument("--at", type=floats, default=None, metavar="D[,D...]",
+                   help="evaluate at these distances [m] instead (the line's and the "
+                        "positioner's), --per-distance targets over each d ± 0.1 mm, a row each; "
+                        "e.g. 1e-3,3e-3,5e-3,7e-3,9e-3")
+    p.add_argument("--per-distance", type=count(1, 10000), default=None,
+                   help="with --at: targets per distance (default 5)")
+    p.add_argument("--seed", type=count(0, 2**31 - 1), default=0,
+                   help="seed of the fixed target set (and of the episodes)")
     p.add_argument("--tolerance", type=float, default=None,
                    help="success tolerance [m] (default: the env's, 50 um)")
     add_env_args(p, default=None, default_text="the policy's own, from its metadata",
@@ -33,7 +41,7 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
 
     from ..rl.artefacts.policy_files import policy_env_kwargs, read_policy_meta
     from ..rl.artefacts.shipped import require_shipped
-    from ..rl.evaluation.evaluate import evaluate, load_policy
+    from ..rl.evaluation.evaluate import evaluate, evaluate_at, load_policy
 
     if args.tolerance is not None and not 0 < args.tolerance < 1:
         raise ValueError(f"--tolerance {args.tolerance!r} must be in (0, 1) m")
@@ -49,10 +57,35 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
         env_id = args.env or meta.get("env_id")
         asked = scene_config(env_id, **kwargs) if env_id else None
     pol = load_policy(path, asked, env_id=args.env)
-    res = evaluate(pol, args.targets, args.seed, args.tolerance, config=asked)
+    if args.at is None:
+        if args.per_distance is not None:
+            raise ValueError("--per-distance goes with --at (the distances to evaluate at)")
+        res = evaluate(pol, args.targets or 100, args.seed, args.tolerance, config=asked)
+    else:
+        if args.targets is not None:
+            raise ValueError("--targets draws targets over the range; --at evaluates at given "
+                             "distances: give one of them")
+        res = evaluate_at(pol, args.at, args.per_distance or 5, args.seed, args.tolerance,
+                          config=asked)
     res.update(policy=str(pol.path), env_id=pol.env_id, env_kwargs=kwargs,
                trained_env_kwargs=trained_kwargs)
-    emit(args, res)
+    emit(args, res, "" if args.at is None else _per_distance_text(res))
+
+
+def _per_distance_text(res: dict[str, Any]) -> str:
+    """The per-distance rows of :func:`~agents.rl.evaluation.evaluate.evaluate_at` as a table in
+    mm, µm and %, then every target together."""
+    within = f"within ±{res['tolerance_m'] * 1e6:g} µm"
+    lines = [f"{res['env_id']}, policy {res['policy']}; {res['targets_per_distance']} targets "
+             f"per distance over d ± 0.1 mm, seed {res['seed']}",
+             f"{'distance':>9}  {within:>14}  {'median |error|':>14}  "
+             f"{'p90 |error|':>11}  {'detached':>8}"]
+    for r in [*res["per_distance"], {**res, "distance_m": None}]:
+        d = "all" if r["distance_m"] is None else f"{r['distance_m'] * 1e3:g} mm"
+        lines.append(f"{d:>9}  {r['success_rate']:>14.0%}  "
+                     f"{r['median_abs_error_m'] * 1e6:>11.1f} µm  "
+                     f"{r['p90_abs_error_m'] * 1e6:>8.1f} µm  {r['detach_rate']:>8.0%}")
+    return "\n".join(lines)
 
 
 def _seeds_args(p: argparse.ArgumentParser) -> None:

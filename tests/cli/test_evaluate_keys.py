@@ -61,3 +61,49 @@ def test_evaluate_reports_the_env_kwargs_it_ran_with(capsys):
     res = json.loads(capsys.readouterr().out)
     assert res["env_kwargs"] == res["trained_env_kwargs"]
     assert res["env_kwargs"]["action_noise"] == 0.003
+
+
+@pytest.mark.parametrize("env_id", ["MicroConveyor-v1", "MicroPositioner-v0"])
+def test_evaluate_at_distances_gives_a_row_per_distance(capsys, env_id):
+    """``--at``: per-distance targets over d ± 0.1 mm on the line and the positioner; each row's
+    figures are its own targets', the overall figures every target's."""
+    capsys.readouterr()
+    assert main(["evaluate", "--env", env_id, "--at", "1e-3,9e-3", "--per-distance", "3",
+                 "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert [r["distance_m"] for r in res["per_distance"]] == [1e-3, 9e-3]
+    assert res["n_targets"] == 6 and res["targets_per_distance"] == 3
+    for r in res["per_distance"]:
+        assert r["n_targets"] == 3
+        assert r["targets_m"] == pytest.approx(
+            [r["distance_m"] - 1e-4, r["distance_m"], r["distance_m"] + 1e-4], abs=1e-12)
+        assert 0 <= r["success_rate"] <= 1 and r["median_abs_error_m"] <= r["p90_abs_error_m"]
+    assert res["success_rate"] == pytest.approx(
+        sum(r["success_rate"] for r in res["per_distance"]) / 2)
+    assert main(["evaluate", "--env", env_id, "--at", "1e-3,9e-3", "--per-distance", "3"]) == 0
+    text = capsys.readouterr().out
+    assert "1 mm" in text and "9 mm" in text and "µm" in text and "all" in text
+
+
+def test_distance_targets_stay_in_the_range():
+    from agents.rl.evaluation.evaluate import distance_targets
+    from microconveyor_env.envs import env_config
+
+    cfg = env_config("MicroConveyor-v1")
+    lo, hi = cfg.target_range
+    grid = distance_targets(cfg, [lo, hi], 3)
+    assert grid.shape == (2, 3) and grid.min() == lo and grid.max() == hi
+    assert distance_targets(cfg, [5e-3], 1).tolist() == [[5e-3]]
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--at", "20e-3"], "target range"),
+    (["--at", "1e-3", "--targets", "5"], "give one of them"),
+    (["--per-distance", "3"], "goes with --at"),
+    (["--env", "MicroConveyor2D-v1", "--at", "1e-3"], "points of its grid box"),
+])
+def test_evaluate_at_refuses_in_one_line(capsys, argv, words):
+    capsys.readouterr()
+    assert main(["evaluate", *argv]) != 0
+    err = capsys.readouterr().err.strip()
+    assert words in err and len(err.splitlines()) == 1

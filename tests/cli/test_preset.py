@@ -70,4 +70,6 @@ def test_evaluate_refuses_a_policy_on_another_preset(capsys):
     err = json.loads(out)["error"]
     assert rc == 2 and "differs in preset" in err and "another scene is refused" in err
     rc, out = _run(capsys, "evaluate", "--targets", "2", "--preset", "conveyor", "--json")
-    assert rc == 0 and json.loads(out)["env_kwargs"] == {"num_threads": 1}
+    res = json.loads(out)   # what ran (its own preset, named), and what the policy trained on
+    assert rc == 0 and res["env_kwargs"] == {"num_threads": 1, "preset": "conveyor"}
+    assert res["trained_env_kwargs"] == {"num_threads": 1}

@@ -16,13 +16,15 @@ from microconveyor_env.envs.plane.config import PlaneEnvConfig
 
 from ..artefacts.policy_files import Policy, PolicyError, load_policy
 
-__all__ = ["Policy", "PolicyError", "load_policy", "fixed_targets", "rollout", "summarize",
-           "evaluate", "TOLERANCES", "PLANE_TARGET_SEED"]
+__all__ = ["Policy", "PolicyError", "load_policy", "fixed_targets", "distance_targets", "rollout",
+           "summarize", "evaluate", "evaluate_at", "TOLERANCES", "PLANE_TARGET_SEED",
+           "DISTANCE_SPREAD_M"]
 
 TOLERANCES = (50e-6, 100e-6, 250e-6)   # [m] success radii reported
 PLANE_TARGET_SEED = 2026   # the plane's default target seed (its shipped policy's record)
 # the plane's stored records name two figures for the Euclidean error they are
 PLANE_RECORD_NAMES = {"median_abs_error_m": "median_error_m", "p90_abs_error_m": "p90_error_m"}
+DISTANCE_SPREAD_M = 0.1e-3   # [m] the targets of one distance d lie on d +- this (the answer table's)
 
 
 def fixed_targets(config: EnvConfig | PlaneEnvConfig, n: int, seed: int) -> np.ndarray:
@@ -36,6 +38,29 @@ def fixed_targets(config: EnvConfig | PlaneEnvConfig, n: int, seed: int) -> np.n
         return np.stack([rng.uniform(x0, x1, n), rng.uniform(y0, y1, n)], 1)
     lo, hi = config.target_range
     return rng.uniform(lo, hi, n)
+
+
+def distance_targets(config: EnvConfig | PlaneEnvConfig, distances: Any,
+                     per_distance: int) -> np.ndarray:
+    """``per_distance`` targets [m] for each distance [m] of ``distances``, evenly spaced over
+    d ± :data:`DISTANCE_SPREAD_M` and kept inside the target range (one target: d itself), shape
+    ``(len(distances), per_distance)``. The line's and the positioner's targets only (a distance
+    along the line); a distance outside the target range is a ValueError naming the range."""
+    if isinstance(config, PlaneEnvConfig):
+        raise ValueError("per-distance targets are distances along a line: the plane's targets "
+                         "are points of its grid box (evaluate it on drawn targets)")
+    if isinstance(per_distance, bool) or not isinstance(per_distance, (int, np.integer)) \
+            or per_distance < 1:
+        raise ValueError(f"per_distance = {per_distance!r}: must be a whole number >= 1")
+    d = np.asarray(distances, float).reshape(-1)
+    lo, hi = (float(v) for v in config.target_range)
+    bad = d[~(np.isfinite(d) & (d >= lo) & (d <= hi))]
+    if not len(d) or len(bad):
+        raise ValueError(f"distances {[float(v) for v in bad] or '(none)'} m: each must lie in "
+                         f"the target range, {lo * 1e3:g} to {hi * 1e3:g} mm")
+    offsets = (np.linspace(-DISTANCE_SPREAD_M, DISTANCE_SPREAD_M, per_distance)
+               if per_distance > 1 else np.zeros(1))
+    return np.clip(d[:, None] + offsets[None, :], lo, hi)
 
 
 def batched_env(config: EnvConfig | PlaneEnvConfig, n: int) -> Any:
@@ -143,3 +168,27 @@ def evaluate(policy: Actor, n_targets: int = 100, seed: int = 0, tolerance: floa
     else:
         out["target_range_m"] = list(cfg.target_range)
     return out
+
+
+def evaluate_at(policy: Actor, distances: Any, per_distance: int = 5, seed: int = 0,
+                tolerance: float | None = None,
+                config: EnvConfig | PlaneEnvConfig | None = None) -> dict:
+    """:func:`evaluate` on targets at given distances [m] (:func:`distance_targets`:
+    ``per_distance`` targets over each d ± 0.1 mm), in the same env by default. The figures of
+    every target together, and ``per_distance``: one row per distance with ``distance_m``, its
+    ``targets_m`` and the figures of its targets. Sub-env ``i`` is seeded ``seed + i``."""
+    cfg = config or getattr(policy, "trained_config", None) or getattr(policy, "config", None)
+    if cfg is None:
+        raise ValueError("evaluate: the policy names no env it was trained on; pass config=")
+    grid = distance_targets(cfg, distances, per_distance)
+    assert isinstance(cfg, EnvConfig)   # distance_targets refuses the plane
+    tol = cfg.tolerance if tolerance is None else tolerance
+    res = rollout(policy, grid.reshape(-1), cfg, seed=seed)
+    n = grid.shape[1]
+    rows = []
+    for k, d in enumerate(np.asarray(distances, float).reshape(-1)):
+        part = {key: np.asarray(v)[k * n:(k + 1) * n] for key, v in res.items()
+                if key in ("error_m", "outcome", "firings")}
+        rows.append({"distance_m": float(d), "targets_m": grid[k].tolist(), **figures(part, tol)})
+    return {**figures(res, tol), "seed": seed, "targets_per_distance": n,
+            "target_range_m": list(cfg.target_range), "per_distance": rows}
