@@ -22,9 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.experiments.compare import MPC_SETTINGS
+from agents.experiments.compare_settings import MPC_SETTINGS
 from agents.experiments.perturb import Level, perturbation_table, plan_rollout, policy_rollout
-from agents.mpc.controller import mpc_rollout
+from agents.mpc.harness import mpc_rollout
 from agents.openloop.target import Rollouts, solve_target
 from agents.rl.artefacts.shipped import require_shipped
 from agents.rl.evaluation.evaluate import load_policy
