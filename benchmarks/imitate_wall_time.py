@@ -40,7 +40,7 @@ import resource
 import subprocess
 import sys
 import time
-from datetime import datetime, timezone
+from datetime import datetime, UTC
 from pathlib import Path
 
 import numpy as np
@@ -195,7 +195,7 @@ def main() -> None:
                     "env": {k: os.environ[k] for k in ("ATEN_CPU_CAPABILITY", "MKL_CBWR",
                                                        "OPENBLAS_CORETYPE") if k in os.environ}},
         "note": args.note,
-        "date": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        "date": datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC"),
         "command": "python benchmarks/imitate_wall_time.py " + " ".join(sys.argv[1:]),
     }
     text = json.dumps(out, indent=1) + "\n"

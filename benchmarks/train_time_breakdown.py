@@ -64,7 +64,7 @@ import sys
 import tempfile
 import time
 from collections import defaultdict
-from datetime import datetime, timezone
+from datetime import datetime, UTC
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
@@ -456,7 +456,7 @@ def main() -> None:
                     "torch_threads": torch.get_num_threads(), "torch": torch.__version__,
                     "load_average_before": list(load_before),
                     "load_average_after": list(load_after)},
-        "recorded_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "recorded_utc": datetime.now(UTC).isoformat(timespec="seconds"),
         "command": prefix + shlex.join(["python", *sys.argv]),
     }
     Path(args.json).parent.mkdir(parents=True, exist_ok=True)

@@ -81,7 +81,7 @@ REGISTRY: dict[str, Registration] = {r.env_id: r for r in (
                  "MicroPositioner-v0", False, POSITIONER_MAX_FIRINGS, NOT_SCENE),
 )}
 DEFAULT_ENV_ID = "MicroConveyor-v1"   # what every command and function uses unless told
-FIRST_ENV_ID = "MicroConveyor-v0"     # what a policy whose metadata names no env id was trained on
+FIRST_ENV_ID = "MicroConveyor-v0"     # the first registered id: chapter 3's line
 
 # views of the registry
 ALL_ENV_IDS = tuple(REGISTRY)

@@ -114,7 +114,7 @@ def main() -> None:
            "seed": args.seed, "noise": noise_in_si(args.sigma, cfg), "methods": methods,
            "provenance": {"machine": f"{platform.machine()}, {__import__('os').cpu_count()} cores",
                           "python": platform.python_version(),
-                          "recorded_utc": datetime.datetime.now(datetime.timezone.utc)
+                          "recorded_utc": datetime.datetime.now(datetime.UTC)
                           .isoformat(timespec="seconds"),
                           "command": "nice python scripts/answer_table.py "
                                      f"--per-distance {args.per_distance} "

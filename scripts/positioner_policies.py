@@ -20,7 +20,7 @@ import os
 import platform
 import sys
 import time
-from datetime import datetime, timezone
+from datetime import datetime, UTC
 from pathlib import Path
 
 import numpy as np
@@ -78,7 +78,7 @@ def main() -> None:
                    for c in ("perturbed", "nominal")},
            "machine": {"cpu_count": os.cpu_count(), "processor": platform.machine(),
                        "load_average": os.getloadavg()},
-           "date": datetime.now(timezone.utc).strftime("%Y-%m-%d"),
+           "date": datetime.now(UTC).strftime("%Y-%m-%d"),
            "command": "python scripts/positioner_policies.py " + " ".join(sys.argv[1:]),
            "wall_time_s": time.perf_counter() - t0}
     text = json.dumps(out, indent=1)

@@ -20,7 +20,7 @@ import json
 import os
 import sys
 import time
-from datetime import datetime, timezone
+from datetime import datetime, UTC
 from pathlib import Path
 
 import numpy as np
@@ -89,7 +89,7 @@ def main() -> None:
                   f"{row['ends']}", file=sys.stderr)
     out = {"targets": args.targets, "target_seed": args.seed, "span_m": SPAN, "rows": rows,
            "machine": {"cpu_count": os.cpu_count(), "load_average": os.getloadavg()},
-           "date": datetime.now(timezone.utc).strftime("%Y-%m-%d"),
+           "date": datetime.now(UTC).strftime("%Y-%m-%d"),
            "command": "python scripts/positioner_sizing.py " + " ".join(sys.argv[1:]),
            "wall_time_s": time.perf_counter() - t0}
     if args.out:

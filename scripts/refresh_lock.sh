@@ -14,4 +14,7 @@ python3 -m venv "$tools/venv"
 "$tools/venv/bin/pip-compile" --quiet --all-extras --strip-extras --allow-unsafe \
     --no-emit-index-url --no-emit-find-links --upgrade-package 'torch==2.13.0' \
     --output-file requirements-lock.txt "$@" pyproject.toml
+# the pin names the release, not the build: `torch==2.13.0` takes the CPU wheel where one lies
+# beside pip (the project's machines), PyPI's build elsewhere (a `+cpu` label is not on PyPI)
+sed -i 's/^torch==\([^+]*\)+cpu$/torch==\1/' requirements-lock.txt
 echo "wrote requirements-lock.txt: $(grep -c '==' requirements-lock.txt) pinned packages"

@@ -47,7 +47,7 @@ def main() -> None:
            "speedup_1_thread": best["1 thread"] / best[f"default ({default} threads)"],
            "provenance": {"machine": f"{platform.machine()}, {os.cpu_count()} cores",
                           "torch": torch.__version__,
-                          "recorded_utc": datetime.datetime.now(datetime.timezone.utc)
+                          "recorded_utc": datetime.datetime.now(datetime.UTC)
                           .isoformat(timespec="seconds"),
                           "command": f"nice python scripts/sac_threads.py --steps {args.steps} "
                                      f"--repeats {args.repeats}"}}

@@ -100,7 +100,7 @@ def count(lo: int, hi: int | None = None) -> Callable[[str], int]:
             raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
         if v < lo or (hi is not None and v > hi):
             raise argparse.ArgumentTypeError(f"must be an integer in [{lo}, "
-                                             f"{'...' if hi is None else f'{hi:g}'}], got {v}")
+                                             f"{'...' if hi is None else hi}], got {v}")
         return v
     return parse
 

@@ -34,7 +34,7 @@ def check_scheduler(address: str, timeout: float = SCHEDULER_TIMEOUT_S) -> dict[
     _check_address(address)
     try:
         ident = _in_thread(_identity(address, timeout))
-    except (asyncio.TimeoutError, TimeoutError) as exc:
+    except TimeoutError as exc:
         raise SchedulerConnectionError(no_answer(address, timeout)) from exc
     except OSError as exc:  # refused/unreachable until the timeout, or the peer hung up
         if "Timed out" in str(exc):

@@ -101,7 +101,7 @@ def dask_client(workers: int | None = None, scheduler: str | None = None,
         check_scheduler(scheduler, timeout)
         try:
             client = Client(scheduler, timeout=timeout)
-        except (OSError, asyncio.TimeoutError) as exc:
+        except (TimeoutError, OSError) as exc:
             raise SchedulerConnectionError(dask_connect.no_answer(scheduler, timeout, exc)) from exc
         try:
             yield client

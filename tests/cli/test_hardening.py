@@ -131,3 +131,12 @@ def test_every_repeats_option_needs_at_least_one():
     for name in with_repeats:
         with pytest.raises(UsageError, match="--repeats: must be an integer in \\[1, "):
             parser.parse_args([name, "--repeats", "0"])
+
+
+def test_an_integer_bound_is_printed_whole(capsys):
+    """A count's bound reads as the integer it is (not 2.14748e+09, which the refused value
+    seems to lie within)."""
+    capsys.readouterr()
+    assert main(["evaluate", "--seed", "2147483648"]) == 2
+    err = capsys.readouterr().err
+    assert "[0, 2147483647], got 2147483648" in err and "e+09" not in err

@@ -90,7 +90,7 @@ def provenance() -> dict:
             "table_format": contact_table.TABLE_FORMAT, "table_sha256": table_hash(),
             "numpy": np.__version__, "machine": platform.machine(),
             "processor": platform.processor() or platform.machine(),
-            "recorded_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+            "recorded_utc": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
             "command": "python tests/data/make_rollouts_v0.py"}
 
 

@@ -276,7 +276,7 @@ def folder_lock(out: Path) -> Iterator[Path]:
         fh.seek(0)
         fh.truncate()
         fh.write(f"pid {os.getpid()} on {socket.gethostname()}, since "
-                 f"{datetime.datetime.now(datetime.timezone.utc).isoformat(timespec='seconds')}")
+                 f"{datetime.datetime.now(datetime.UTC).isoformat(timespec='seconds')}")
         fh.flush()
         yield path
     finally:

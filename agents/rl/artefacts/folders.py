@@ -254,7 +254,7 @@ class NewPolicyFolder:
         else:
             raise ValueError(f"{self.option} {str(self.path)!r} is being written by another "
                              "command; wait for it to finish or give another folder")
-        stamp = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+        stamp = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
         os.ftruncate(fd, 0)
         os.pwrite(fd, f"pid {os.getpid()} on {socket.gethostname()}, since {stamp}".encode(), 0)
         self._fd = fd

@@ -69,6 +69,6 @@ def provenance(command: str = "python scripts/record_shipped_evaluations.py") ->
     return {"package_version": version("microconveyor-env"), "torch": torch.__version__,
             "stable_baselines3": stable_baselines3.__version__, "numpy": np.__version__,
             "machine": platform.machine(), "python": platform.python_version(),
-            "recorded_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(
+            "recorded_utc": datetime.datetime.now(datetime.UTC).isoformat(
                 timespec="seconds"),
             "command": command}
