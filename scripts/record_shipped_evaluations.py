@@ -9,21 +9,26 @@ evaluation with these records within tolerances derived in tests/test_shipped_po
 
 ``--ship``: copies the run folder's ``model.zip``, ``normalization.json`` and ``metadata.json``
 (loaded first as a user loads them: data only, hashes verified) into
-``agents/policies/ENV_ID/NAME`` and records its evaluations (:data:`NEW_RECORDS`).
+``agents/policies/ENV_ID/NAME`` (staged and loaded there before it replaces anything) and
+records its evaluations (:data:`NEW_RECORDS`).
 
-Also records the sha256 of ``model.zip`` and ``normalization.json`` in the metadata (the loader
-refuses a folder whose files do not match) and the folder format.
+A folder is loaded as a user loads it before anything in it changes (one that does not load is
+refused untouched); the records and the metadata, with the sha256 of the files the loader reads
+(``files``: without them it refuses the folder) and the folder format, are written whole and the
+folder loaded again.
 """
 from __future__ import annotations
 
-import json
 import sys
+from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))   # ship_plane_policy beside it
 
-from agents.rl.artefacts.checkpoint import MODEL, NORMALIZATION, sha256
-from agents.rl.artefacts.policy_files import PLANE_ENV_IDS, policy_scene
-from agents.rl.evaluation.evaluate import fixed_targets, load_policy, rollout, summarize
-from agents.rl.artefacts.shipped import provenance, shipped_path
+from agents.rl.artefacts.policy_files import PLANE_ENV_IDS, policy_scene  # noqa: E402
+from agents.rl.evaluation.evaluate import fixed_targets, rollout, summarize  # noqa: E402
+from agents.rl.artefacts.shipped import provenance, shipped_path  # noqa: E402
+from microconveyor_env.envs import EnvConfig  # noqa: E402
+from ship_plane_policy import loaded_metadata, place_policy, write_records  # noqa: E402
 
 # policy name -> {evaluation key: which env config ("nominal": the trained scene without
 # randomisation, "trained": with the run's randomisation)}
@@ -40,18 +45,18 @@ EPISODES = "episodes.json"
 
 
 def record(env_id: str, name: str) -> None:
+    """Re-record the evaluations of the shipped ``env_id/name``: the folder is loaded as a user
+    loads it (a folder that does not load is refused untouched), and its records and metadata
+    (``files`` recomputed) are written whole (``ship_plane_policy.write_records``)."""
     folder = shipped_path(name, env_id)
-    meta_path = folder / "metadata.json"
-    meta = json.loads(meta_path.read_text())
-    meta.pop("files", None)                      # re-hashed below
-    meta_path.write_text(json.dumps(meta, indent=2) + "\n")
-    pol = load_policy(folder)
+    pol, meta = loaded_metadata(folder)
     episodes = {}
     plan = EVALUATIONS.get(name) or {k: v[2] for k, v in NEW_RECORDS.items() if k in meta}
     for key, which in plan.items():
         old = meta[key]
         # "trained": the scene and randomisation it was trained under; "nominal": randomisation off
         cfg = policy_scene(meta) if which == "trained" else pol.config
+        assert isinstance(cfg, EnvConfig), f"{folder} holds no policy of the line"
         targets = fixed_targets(cfg, old["n_targets"], old["seed"])
         res = rollout(pol, targets, cfg, seed=old["seed"])
         summary = summarize(res, cfg.tolerance)
@@ -64,33 +69,23 @@ def record(env_id: str, name: str) -> None:
               f"{summary['median_abs_error_m'] * 1e6:.4f} um", file=sys.stderr)
     meta["format"] = 2
     meta["evaluation_provenance"] = provenance()
-    meta["files"] = {n: sha256(folder / n) for n in (MODEL, NORMALIZATION)}
-    (folder / EPISODES).write_text(json.dumps(episodes, indent=0) + "\n")
-    meta_path.write_text(json.dumps(meta, indent=2) + "\n")
+    write_records(folder, pol, meta, episodes)
 
 
 def ship(run: str, env_id: str, name: str) -> None:
     """Copy the policy of the training run folder ``run`` to ``agents/policies/env_id/name``,
-    with the records to make (:data:`NEW_RECORDS`) named in its metadata."""
-    import shutil
-    from pathlib import Path
-
-    from agents.rl.artefacts.checkpoint import META
-
-    pol = load_policy(run)   # a complete, consistent policy folder, loaded as data
-    if pol.metadata.get("env_id") != env_id:
-        raise SystemExit(f"{run} holds a policy of {pol.metadata.get('env_id')!r}, not {env_id}")
-    folder = shipped_path(name, env_id)
-    folder.mkdir(parents=True, exist_ok=True)
-    for f in (MODEL, NORMALIZATION, META):
-        shutil.copyfile(Path(run) / f, folder / f)
-    meta = json.loads((folder / META).read_text())
+    with the records to make (:data:`NEW_RECORDS`) named in its metadata. The run is loaded
+    first (a complete, consistent policy folder, loaded as data); the new folder is staged and
+    loaded before it replaces anything (``ship_plane_policy.place_policy``)."""
+    pol, meta = loaded_metadata(Path(run))
+    if meta.get("env_id") != env_id:
+        raise SystemExit(f"{run} holds a policy of {meta.get('env_id')!r}, not {env_id}")
     randomised = getattr(policy_scene(meta), "randomised", False)
     for key, (n, seed, _) in NEW_RECORDS.items():
         if key == "evaluation_nominal" and not randomised:
             continue   # trained on the nominal scene: "evaluation" is that one
         meta[key] = {"n_targets": n, "seed": seed}
-    (folder / META).write_text(json.dumps(meta, indent=2) + "\n")
+    place_policy(Path(run), meta, pol.metadata["files"], shipped_path(name, env_id))
 
 
 if __name__ == "__main__":
@@ -106,8 +101,10 @@ if __name__ == "__main__":
     for item in wanted:
         env_id, _, name = item.partition("/")
         if env_id in PLANE_ENV_IDS:   # the plane's record: scripts/ship_plane_policy.py
-            from ship_plane_policy import record as record_plane
+            from ship_plane_policy import ENV_ID as PLANE_ID, record as record_plane, \
+                record_randomised
 
-            print(f"{item}: {record_plane(shipped_path(name, env_id))}", file=sys.stderr)
+            plane = record_plane if env_id == PLANE_ID else record_randomised
+            print(f"{item}: {plane(shipped_path(name, env_id))}", file=sys.stderr)
             continue
         record(env_id, name)

@@ -195,13 +195,35 @@ def seeds_table() -> str:
 
 COMPARE_NAMES = {"ppo": "the shipped `ppo`", "ppo_randomised": "the shipped `ppo_randomised`",
                  "mpc": "MPC (re-plans after every firing)", "mpc_ppo": "MPC seeded by `ppo`",
-                 "mpc_robust": "robust adaptive MPC seeded by `ppo`", "random": "random actions",
+                 "mpc_robust": "robust adaptive MPC", "random": "random actions",
                  "fixed_schedule": "a fixed schedule (950 Hz, 200 µm, no delay)",
                  "de": "DE per target (open loop)", "cmaes": "CMA-ES per target (open loop)",
                  "mpc_identified": "one-step model-based control, friction identified online",
                  "mpc_nominal": "one-step model-based control, nominal model",
                  "mpc_oracle": "reference: the same, knowing each episode's friction and mass",
                  "dagger": "the shipped policy `dagger`"}
+
+
+def compare_label(data: dict, row: dict) -> str:
+    """How the compare table names a row: an MPC seeded by a policy's plan after that policy's
+    folder (``prior``: MPC seeded by `ppo_refined`), a policy's row after its folder (the
+    shipped `ppo_refined`; the policy `NAME` outside ``agents/policies``), the others by
+    :data:`COMPARE_NAMES`."""
+    name = row["method"]
+    if row.get("prior"):
+        what = "robust adaptive MPC" if name == "mpc_robust" else "MPC"
+        return f"{what} seeded by `{Path(row['prior']).name}`"
+    policy = row.get("policy")
+    if policy is None and "train_steps" in row:   # a row without its folder: the result's
+        policy = (data.get("randomised_policy") if name == "ppo_randomised" else
+                  data.get("policy") if row is data["rows"][0] else None)
+    if policy and "train_steps" in row:
+        folder = Path(policy)
+        if folder.parent.parent.name == "policies":
+            return f"the shipped `{folder.name}`"
+        return f"the policy `{folder.name}`" + (", trained with randomisation"
+                                                if name == "ppo_randomised" else "")
+    return COMPARE_NAMES.get(name, name)
 
 
 def compare_table(data: dict, level: tuple[float, float] = (3e-3, 0.05)) -> str:
@@ -218,8 +240,8 @@ def compare_table(data: dict, level: tuple[float, float] = (3e-3, 0.05)) -> str:
                 if (x["action_noise"], x["spread"]) == level]
         n = row["n_targets"]
         lo, hi = wilson(round(row["success_rate"] * n), n)
-        label = COMPARE_NAMES.get(name, name) + (f", {row['budget']:,} episodes"
-                                                 if "budget" in row else "")
+        label = compare_label(data, row) + (f", {row['budget']:,} episodes"
+                                            if "budget" in row else "")
         at = (f"{100 * pert[0]['success_rate']:.0f} % ({100 * pert[0]['detach_rate']:.0f} %)"
               if pert else "–")
         med = row.get("median_abs_error_m")
@@ -455,7 +477,8 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--check", action="store_true", help="write nothing; exit 1 if a region differs")
     args = ap.parse_args(argv)
-    gens, cache, stale = generators(), {}, []
+    gens, stale = generators(), []
+    cache: dict[str, str] = {}
     for page in PAGES:
         text = page.read_text()
         new = render(text, gens, cache)

@@ -17,16 +17,25 @@ seed s seeds its sub-envs s, s + 1, ...), under the randomisation it was trained
 from __future__ import annotations
 
 import argparse
+import copy
 import json
+import os
 import shutil
 import sys
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from agents.rl.artefacts.checkpoint import META, MODEL, NORMALIZATION, sha256  # noqa: E402
-from agents.rl.artefacts.policy_files import load_policy, policy_env_kwargs  # noqa: E402
+from agents.rl.artefacts.checkpoint import META, replace_files, sha256  # noqa: E402
+from agents.rl.artefacts.folders import fsync_dir, occupied, write_file  # noqa: E402
+from agents.rl.artefacts.policy_files import (  # noqa: E402
+    Policy,
+    load_policy,
+    policy_env_kwargs,
+    required_files,
+)
 from agents.rl.artefacts.shipped import provenance, shipped_path  # noqa: E402
 from agents.rl.evaluation.evaluate import (  # noqa: E402
     PLANE_TARGET_SEED,
@@ -36,6 +45,7 @@ from agents.rl.evaluation.evaluate import (  # noqa: E402
     rollout,
 )
 
+from microconveyor_env.envs.plane.config import PlaneEnvConfig  # noqa: E402
 from microconveyor_env.envs.versions import PLANE_ENV_IDS, scene_config  # noqa: E402
 
 ENV_ID = "MicroConveyor2D-v0"
@@ -48,21 +58,80 @@ NOTE = ("PPO on the plane (configs/ppo.yml's MicroConveyor2D-v0 recipe, one core
         "one forward pass per firing (README, 'In the plane').")
 
 
+def loaded_metadata(folder: Path) -> tuple[Policy, dict[str, Any]]:
+    """The policy at ``folder`` loaded as a user loads it (its files verified against its
+    metadata; a folder that does not load is refused before anything is changed) and a copy of
+    its metadata to record into."""
+    pol = load_policy(folder)
+    return pol, copy.deepcopy(pol.metadata)
+
+
+def _listed(folder: Path, meta: dict[str, Any], verified: dict[str, Any]) -> dict[str, str]:
+    """``files`` for ``meta``: the sha256 of every file the loader needs (and of any other file
+    the verified metadata listed), each still the file that was verified (SystemExit if one
+    changed meanwhile)."""
+    files = {}
+    for name in dict.fromkeys([*required_files(meta), *verified]):
+        digest = sha256(folder / name)
+        if name in verified and verified[name] != digest:
+            raise SystemExit(f"{str(folder / name)!r} changed while it was evaluated; nothing "
+                             "recorded")
+        files[name] = digest
+    return files
+
+
+def write_records(folder: Path, pol: Policy, meta: dict[str, Any],
+                  episodes: dict[str, Any]) -> None:
+    """Write ``episodes.json`` and ``meta`` (``files`` recomputed) into the policy folder that
+    ``pol`` was loaded from, each file whole (a temporary file and an atomic rename), the
+    metadata last; then load the folder again (it must load as it did)."""
+    meta["files"] = _listed(folder, meta, pol.metadata["files"])
+    write_file(folder / EPISODES, json.dumps(episodes, indent=0) + "\n")
+    write_file(folder / META, json.dumps(meta, indent=2) + "\n")
+    load_policy(folder)
+
+
+def place_policy(run: Path, meta: dict[str, Any], verified: dict[str, Any],
+                 folder: Path) -> None:
+    """Make ``folder`` the policy of the run folder ``run`` with the metadata ``meta``
+    (``files`` recomputed; ``verified``: the run's files as its loading verified them): staged
+    beside ``folder`` and loaded there first, then renamed into place (a new folder) or its files
+    replaced one by one, the model last (:func:`~agents.rl.artefacts.checkpoint.replace_files`:
+    a folder caught in between holds no model and loads as no policy, never as a mixed one)."""
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    stage = folder.parent / f".{folder.name}.ship-{os.getpid()}"
+    shutil.rmtree(stage, ignore_errors=True)
+    stage.mkdir()
+    try:
+        names = tuple(required_files(meta))
+        for name in names:
+            shutil.copyfile(run / name, stage / name)
+        meta = {**meta, "files": _listed(stage, meta, {n: verified[n] for n in names})}
+        write_file(stage / META, json.dumps(meta, indent=2) + "\n")
+        load_policy(stage)   # the staged folder loads before it replaces anything
+        if not occupied(folder):
+            if folder.is_dir():
+                folder.rmdir()
+            os.rename(stage, folder)
+            fsync_dir(folder.parent)
+        else:
+            replace_files(stage, folder, (*names, META))
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+    load_policy(folder)
+
+
 def ship(run: Path, folder: Path) -> None:
-    load_policy(run)   # a complete, consistent policy folder (hashes verified)
-    folder.mkdir(parents=True, exist_ok=True)
-    for name in (MODEL, NORMALIZATION, META):
-        shutil.copyfile(run / name, folder / name)
+    """Copy the policy of the run folder ``run`` (loaded first: a complete, consistent policy
+    folder, hashes verified) to ``folder``, which loads at every step but a kill's."""
+    pol, meta = loaded_metadata(run)
+    place_policy(run, meta, pol.metadata["files"], folder)
 
 
 def record(folder: Path) -> dict:
-    meta_path = folder / META
-    meta = json.loads(meta_path.read_text())
-    meta.pop("files", None)                      # re-hashed below
-    meta_path.write_text(json.dumps(meta, indent=2) + "\n")
-    pol = load_policy(folder)
+    pol, meta = loaded_metadata(folder)
     cfg = pol.config
-    assert cfg is not None
+    assert isinstance(cfg, PlaneEnvConfig), f"{folder} holds no policy of the plane"
     episodes = {}
     # "evaluation": the 100 fixed targets of the README; "evaluation_fresh": 1,000 other targets
     # (another seed), the larger check (slow test)
@@ -80,9 +149,7 @@ def record(folder: Path) -> dict:
     prov = provenance()
     prov["command"] = "python3 scripts/ship_plane_policy.py"
     meta["evaluation_provenance"] = prov
-    meta["files"] = {n: sha256(folder / n) for n in (MODEL, NORMALIZATION)}
-    (folder / EPISODES).write_text(json.dumps(episodes, indent=0) + "\n")
-    meta_path.write_text(json.dumps(meta, indent=2) + "\n")
+    write_records(folder, pol, meta, episodes)
     return summary
 
 
@@ -98,14 +165,11 @@ RANDOMISED_NOTE = (
 def record_randomised(folder: Path) -> dict:
     """Record a policy trained under randomisation: ``evaluation`` under its training
     randomisation, ``evaluation_nominal`` without, on the same held-out targets."""
-    meta_path = folder / META
-    meta = json.loads(meta_path.read_text())
-    meta.pop("files", None)                      # re-hashed below
-    meta_path.write_text(json.dumps(meta, indent=2) + "\n")
-    pol = load_policy(folder)
+    pol, meta = loaded_metadata(folder)
     nominal_cfg = pol.config
-    assert nominal_cfg is not None
     trained = scene_config(pol.env_id, **policy_env_kwargs(meta))
+    assert isinstance(nominal_cfg, PlaneEnvConfig) and isinstance(trained, PlaneEnvConfig), \
+        f"{folder} holds no policy of the plane"
     episodes = {}
     seed, n = HELD_OUT_SEED, HELD_OUT_TARGETS
     for key, cfg, label in (("evaluation", trained, "trained"),
@@ -133,9 +197,7 @@ def record_randomised(folder: Path) -> dict:
     prov = provenance()
     prov["command"] = f"python3 scripts/ship_plane_policy.py --env {pol.env_id}"
     meta["evaluation_provenance"] = prov
-    meta["files"] = {name: sha256(folder / name) for name in (MODEL, NORMALIZATION)}
-    (folder / EPISODES).write_text(json.dumps(episodes, indent=0) + "\n")
-    meta_path.write_text(json.dumps(meta, indent=2) + "\n")
+    write_records(folder, pol, meta, episodes)
     return {"evaluation": meta["evaluation"], "evaluation_nominal": meta["evaluation_nominal"]}
 
 

@@ -83,15 +83,15 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--mpc-prior", default=None, metavar="POLICY",
                    help="a policy folder ('shipped': the env's default shipped policy) whose "
                         "plan on the "
-                        "model seeds the MPC's searches: adds the method mpc_ppo and seeds the "
-                        "robust MPC")
+                        "model seeds the MPC's searches: adds the method mpc_<folder name> "
+                        "(mpc_ppo_refined) and seeds the robust MPC")
     p.add_argument("--workers", type=count(1, 64), default=Defaults.mpc_workers,
                    help="processes for the MPC's episodes (results do not depend on it)")
     p.add_argument("--policy", default=None,
                    help="the closed-loop policy's folder (default, 'shipped': the env's default "
                         f"shipped policy, {_defaults_text()}; on the positioner none if none is "
-                        "shipped, '' to skip); its row is named by how it was trained (ppo, "
-                        "dagger)"),
+                        "shipped, '' to skip); its row is named after its folder "
+                        "(ppo_refined, dagger, a run folder's name)"),
     p.add_argument("--randomised-policy", default=None,
                    help="PPO trained with randomisation (default: the shipped one; '' to skip)")
     p.add_argument("--policy-seeds", nargs="+", default=(), metavar="DIR",

@@ -71,12 +71,9 @@ def _train_args(p: argparse.ArgumentParser) -> None:
 
 
 def _check_refinable(args: argparse.Namespace) -> None:
-    """Refuse ``train --refine`` before training where refine would refuse after it."""
-    from pathlib import Path
-
+    """Refuse ``train --refine`` before training where refine would refuse after it (its
+    folder: checked and held by :func:`cmd_train`)."""
     from microconveyor_env.envs import env_config
-
-    from ..rl.artefacts.folders import check_new_folder
 
     if args.algo != "ppo" or args.env not in ENV_IDS:
         raise ValueError(f"--refine refines a PPO policy of {' or '.join(ENV_IDS)}; got "
@@ -84,7 +81,6 @@ def _check_refinable(args: argparse.Namespace) -> None:
     if env_config(args.env, **env_kwargs_of(args)).randomised:
         raise ValueError("--refine corrects deterministic episodes; --env-kwargs asks for "
                          "per-episode randomisation")
-    check_new_folder(Path(args.out or "runs/ppo") / "refined", "--refine's folder")
 
 
 def _refine_folder(policy: str, out: Any, settings: Any, eval_targets: int) -> dict[str, Any]:
@@ -126,6 +122,26 @@ def _kwargs_text(kwargs: dict[str, Any] | None) -> str:
                   "resume)",
          _train_args)
 def cmd_train(args: argparse.Namespace) -> None:
+    import contextlib
+    from pathlib import Path
+
+    from ..rl.artefacts.folders import NewPolicyFolder
+
+    if args.refine:
+        _check_refinable(args)
+    with contextlib.ExitStack() as stack:
+        # --refine's folder: checked and held from before the training to the end, so that a
+        # second writer of it is refused before the training, not after the refinement
+        refined = (stack.enter_context(NewPolicyFolder(
+            Path(args.out or f"runs/{args.algo}") / "refined", "--refine's folder"))
+            if args.refine else None)
+        meta, text = _train(args, refined)
+    emit(args, meta, text)
+
+
+def _train(args: argparse.Namespace, refined: Any) -> tuple[dict[str, Any], str]:
+    """``train`` (and with ``refined``, the held folder of ``--refine``, the refinement into
+    it): the command's result and its text."""
     from ..rl.training.settings import TrainSettings
     from ..rl.training.train import train
 
@@ -138,8 +154,6 @@ def cmd_train(args: argparse.Namespace) -> None:
         if args.conf_file is None and args.algo == "ppo" and args.env == "MicroConveyor-v1":
             from importlib import resources
             args.conf_file = str(resources.files("microconveyor_env.configs") / "ppo_quick.yml")
-    if args.refine:
-        _check_refinable(args)
     args.out = args.out or f"runs/{args.algo}"
     settings = TrainSettings(
         algo=args.algo, env_id=args.env, env_kwargs=env_kwargs_of(args), steps=args.steps,
@@ -156,19 +170,16 @@ def cmd_train(args: argparse.Namespace) -> None:
             f"{meta['wall_time_s']:.0f} s -> {args.out}")
     if ev:
         text += "\n" + _success_line(ev)
-    if args.refine:
-        from pathlib import Path
-
+    if refined is not None:
         from ..rl.refinement.settings import RefineSettings
 
-        res = _refine_folder(args.out, Path(args.out) / "refined", RefineSettings(),
-                             args.eval_targets)
+        res = _refine_folder(args.out, refined, RefineSettings(), args.eval_targets)
         meta["refined"] = res
         text += (f"\nrefined -> {res['out']} ({res['refinement']['wall_time_s']:.0f} s, kept "
                  f"round {res['refinement']['kept_round']})")
         if res["evaluation"]:
             text += "\n" + _success_line(res["evaluation"])
-    emit(args, meta, text)
+    return meta, text
 
 
 def _refine_args(p: argparse.ArgumentParser) -> None:

@@ -15,6 +15,10 @@ execution-noise axis, a model-error axis, their combinations on a diagonal (and 
 ``full_grid`` every combination), with 95 % Wilson intervals; open-loop plans are made on the
 nominal model. With several training seeds of PPO (``policy_seeds``), their IQM and its
 bootstrap interval.
+
+The policy's row is named after its folder (the shipped ``ppo_refined``, a run folder's name;
+:func:`.compare_rows.policy_row_name`) and carries its path (``policy``); the MPC seeded by a
+policy's plan is ``mpc_<its folder's name>`` (``mpc_ppo_refined``).
 """
 from __future__ import annotations
 
@@ -37,7 +41,7 @@ from ..openloop.target import Rollouts, solve_target
 from ..rl.evaluation.evaluate import fixed_targets, load_policy, rollout
 from ..rl.evaluation.seeds import iqm_interval
 from .compare_rows import (TOLERANCES, closed_loop_row, episodes_to, policy_row_name, result_row,
-                           reusing)
+                           reusing, seeded_mpc_name)
 from .compare_settings import CompareSettings
 from .perturb import (Level, axes_table, perturbation_levels, plan_rollout, policy_rollout,
                       unique_levels)
@@ -128,15 +132,16 @@ def _compare(stack: contextlib.ExitStack, s: CompareSettings, cfg: EnvConfig,
     rollout(ppo, targets[:1], cfg, seed=seed)
     for method in s.methods:
         solve_target(float(targets[0]), method, 40, seed, rollouts=Rollouts(cfg))
-    name = policy_row_name(meta)
+    name = policy_row_name(meta, ppo.path)   # its folder's: ppo, ppo_refined, a run's name
     rows = [closed_loop_row(name, ppo, targets, cfg, seed, train_wall_s=train_wall,
-                            train_steps=train_steps)]
+                            train_steps=train_steps, policy=str(ppo.path))]
     robust = None
     if rand_path is not None:
         robust = load_policy(rand_path, cfg)
         rows.append(closed_loop_row("ppo_randomised", robust, targets, cfg, seed,
                                  train_wall_s=float(robust.metadata.get("wall_time_s", np.nan)),
-                                 train_steps=int(robust.metadata.get("steps", 0))))
+                                 train_steps=int(robust.metadata.get("steps", 0)),
+                                 policy=str(robust.path)))
     runners: dict[str, Callable] = {name: policy_rollout(ppo)}
     if robust is not None:
         runners["ppo_randomised"] = policy_rollout(robust)
@@ -202,10 +207,11 @@ def _mpc_rows(stack: contextlib.ExitStack, s: CompareSettings, cfg: EnvConfig,
     their rollouts (worker pools closed with ``stack``)."""
     prior = None if s.mpc_prior is None else str(s.mpc_prior)
     mpc_runs: list[Any] = []
+    seeded_name = None if prior is None else seeded_mpc_name(prior, ("mpc", "mpc_robust"))
     for name, settings, seeded in (("mpc", s.mpc, None),
-                                   ("mpc_ppo", s.mpc if prior else None, prior),
+                                   (seeded_name, s.mpc if prior else None, prior),
                                    ("mpc_robust", s.robust_mpc, prior)):
-        if settings is None:
+        if settings is None or name is None:
             continue
         run_mpc = stack.enter_context(mpc_rollout(settings, workers=s.mpc_workers,
                                                   prior=seeded))

@@ -115,10 +115,10 @@ def compare_positioner(settings: CompareSettings) -> dict:
         ppo = load_policy(path, cfg)
         rollout(ppo, targets[:1], cfg, seed=seed)   # warm-up: nothing below times a first call
         meta = ppo.metadata
-        name = policy_row_name(meta)   # "dagger": imitation, not PPO's updates
+        name = policy_row_name(meta, path)   # its folder's: the shipped dagger, a run's name
         rows.append(closed_loop_row(name, ppo, targets, cfg, seed,
                                     train_wall_s=float(meta.get("wall_time_s", np.nan)),
-                                    train_steps=int(meta.get("steps", 0))))
+                                    train_steps=int(meta.get("steps", 0)), policy=str(path)))
         runners[name] = policy_rollout(ppo)
     for model in (m for m in s.mpc_models if f"mpc_{m}" not in REFERENCE):
         rows.append(_mpc_row(f"mpc_{model}", model, cfg, targets, seed, runners, s.progress))

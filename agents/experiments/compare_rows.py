@@ -5,7 +5,8 @@ does not replay the unperturbed episodes its row already played."""
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -20,9 +21,29 @@ from .perturb import Level
 TOLERANCES = tuple(float(t) for t in np.geomspace(1e-8, 1e-3, 51))
 
 
-def policy_row_name(metadata: dict) -> str:
-    """The name of a policy's row: how it was trained (``ppo``; ``dagger``: by imitation)."""
-    return str(metadata.get("trained_by", "ppo"))
+# the names of the comparison's other rows (and the prefixes of its open-loop and MPC rows)
+OTHER_ROWS = frozenset({"ppo_randomised", "random", "fixed_schedule"})
+OPEN_LOOP = ("de", "cmaes")
+
+
+def policy_row_name(metadata: dict, path: str | Path | None = None) -> str:
+    """The name of a policy's row: its folder's name (``ppo_refined`` for the shipped
+    ``MicroConveyor-v1/ppo_refined``; a run folder's own name), prefixed ``policy_`` where that
+    would read as another row's (``random``, ``mpc...``, ``de...``, ...); without a folder, how
+    it was trained (``ppo``; ``dagger``: by imitation)."""
+    if path is None:
+        return str(metadata.get("trained_by", "ppo"))
+    name = Path(path).resolve().name if Path(path).name in ("", ".", "..") else Path(path).name
+    if name in OTHER_ROWS or name.startswith("mpc") or name.split("_")[0] in OPEN_LOOP:
+        return f"policy_{name}"
+    return name
+
+
+def seeded_mpc_name(prior: str | Path, taken: Collection[str] = ()) -> str:
+    """The name of the MPC row seeded by the policy folder ``prior``: ``mpc_<folder name>``
+    (``mpc_ppo_refined``), ``mpc_seeded_<folder name>`` where that is a name in ``taken``."""
+    name = f"mpc_{Path(prior).name or Path(prior).resolve().name}"
+    return f"mpc_seeded_{name[4:]}" if name in taken else name
 
 
 def result_row(name: str, res: dict, targets: np.ndarray, tol: float, **extra: Any) -> dict:
@@ -44,10 +65,10 @@ def result_row(name: str, res: dict, targets: np.ndarray, tol: float, **extra: A
             "abs_error_m": np.abs(err).tolist(), "rest": rest.tolist(), **extra}
 
 
-def closed_loop_row(name: str, policy: Any, targets: np.ndarray, cfg: EnvConfig, seed: int,
+def closed_loop_row(name: str, policy: Any, targets: np.ndarray, cfg: EnvConfig, seed: int, /,
                     **extra: Any) -> dict:
     """A policy's row: one batched rollout of every target (sub-env ``i`` seeded ``seed + i``),
-    its wall time per target."""
+    its wall time per target, and ``extra`` (e.g. ``policy``: its folder)."""
     t0 = time.perf_counter()
     res = rollout(policy, targets, cfg, seed=seed)
     wall = time.perf_counter() - t0

@@ -94,15 +94,16 @@ class CompareSettings:
     The methods: the open-loop ``methods`` (``"de"``, ``"cmaes"``), each at every budget of
     ``budgets`` [episodes per target, >= 10]; ``policy``, the closed-loop policy's folder (None:
     ``env_id``'s default shipped policy, :func:`agents.rl.artefacts.shipped.default_policy_name`:
-    ``ppo_refined`` on MicroConveyor-v1; its row is named by how it was trained, ``ppo`` or
-    ``dagger``); ``randomised_policy``, the PPO trained under randomisation (None:
-    ``env_id``'s shipped ``ppo_randomised`` if there is one; ``""``: none); ``policy_seeds``,
+    ``ppo_refined`` on MicroConveyor-v1; its row is named after its folder,
+    :func:`.compare_rows.policy_row_name`); ``randomised_policy``, the PPO trained under
+    randomisation (None: ``env_id``'s shipped ``ppo_randomised`` if there is one; ``""``: none); ``policy_seeds``,
     folders of PPO trained with other seeds on the same recipe (their IQM, nominal and
     perturbed); ``amortise_over`` [targets], over which PPO's training is amortised; ``mpc``,
     the MPC's settings (None: no MPC), ``robust_mpc`` a second, robust MPC's (e.g.
     :data:`ROBUST_MPC_SETTINGS`; None: none), both run by ``mpc_workers`` [-] processes (the
     results do not depend on them); ``mpc_prior``, a policy folder whose plan on the model seeds
-    the searches (adds the method ``mpc_ppo`` with ``mpc``'s settings and seeds ``mpc_robust``).
+    the searches (adds the method ``mpc_<its folder's name>``, e.g. ``mpc_ppo_refined``, with
+    ``mpc``'s settings and seeds ``mpc_robust``).
 
     On the positioner (:mod:`.compare_positioner`): ``policy`` (None: its default shipped
     policy, ``dagger``, if there is one, else no policy row; ``""``: none); ``mpc_models``, the one-step controller's

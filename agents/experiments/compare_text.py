@@ -29,7 +29,7 @@ def summary_table(result: dict) -> str:
                  f"amortised over {result['ppo_amortised']['over_targets']} targets: "
                  f"{result['ppo_amortised']['wall_s_per_target']:.2f} s per target")
     for r in result["rows"]:
-        if r["method"].startswith("mpc"):
+        if "settings" in r:   # the MPCs
             st = r["settings"]
             extra = (f", {st['noise_copies']} noisy copies at σ={st['assumed_noise']:g}"
                      if st["noise_copies"] > 1 else "")

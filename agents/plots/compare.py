@@ -11,8 +11,10 @@ import numpy as np
 from .common import pyplot
 
 LABELS = {"ppo": "PPO (shipped)", "ppo_randomised": "PPO trained with randomisation",
+          "ppo_refined": "PPO refined on the simulator (shipped)",
           "mpc": "MPC (re-plans after each firing)",
           "mpc_ppo": "MPC seeded by the PPO's plan",
+          "mpc_ppo_refined": "MPC seeded by ppo_refined's plan",
           "mpc_robust": "robust adaptive MPC (noisy copies, identifies friction)",
           "random": "random policy", "fixed_schedule": "fixed schedule (950 Hz, 200 µm)",
           "de": "DE (open loop)", "cmaes": "CMA-ES (open loop)",
@@ -20,14 +22,22 @@ LABELS = {"ppo": "PPO (shipped)", "ppo_randomised": "PPO trained with randomisat
           "mpc_nominal": "model-based, nominal model",
           "mpc_oracle": "reference (knows the hidden factors): model-based, true factors",
           "dagger": "policy trained by DAgger (shipped)"}
-COLORS = {"ppo": "C0", "ppo_randomised": "C4", "mpc": "C3", "mpc_ppo": "C8", "mpc_robust": "C9", "random": "C7", "fixed_schedule": "C5",
+COLORS = {"ppo": "C0", "ppo_randomised": "C4", "ppo_refined": "C0", "mpc": "C3", "mpc_ppo": "C8",
+          "mpc_ppo_refined": "C8", "mpc_robust": "C9", "random": "C7", "fixed_schedule": "C5",
           "de": "C1", "cmaes": "C2", "mpc_identified": "C3", "mpc_nominal": "C6",
           "mpc_oracle": "k", "dagger": "C0"}
 # one marker shape per method, so points that coincide (e.g. several methods at 0 %) stay
 # distinguishable
-MARKERS = {"ppo": "s", "ppo_randomised": "P", "mpc": "*", "mpc_ppo": "p", "mpc_robust": "h", "random": "X", "fixed_schedule": "^",
+MARKERS = {"ppo": "s", "ppo_randomised": "P", "ppo_refined": "s", "mpc": "*", "mpc_ppo": "p",
+           "mpc_ppo_refined": "p", "mpc_robust": "h", "random": "X", "fixed_schedule": "^",
            "de": "o", "cmaes": "D", "mpc_identified": "*", "mpc_nominal": "v", "mpc_oracle": "x",
            "dagger": "s"}
+
+
+def _seeded(key: str) -> bool:
+    """Whether ``key`` names an MPC seeded by a policy's plan (``mpc_<policy folder>``) that
+    the tables do not name."""
+    return key.startswith("mpc_") and key not in LABELS
 
 
 def _label(key: str) -> str:
@@ -37,14 +47,20 @@ def _label(key: str) -> str:
     if base in ("de", "cmaes"):
         budget = rest.replace("_plan", "")
         return f"{LABELS[base]}, {budget} episodes"
-    return key
+    if _seeded(key):
+        return f"MPC seeded by {key.removeprefix('mpc_seeded_').removeprefix('mpc_')}'s plan"
+    return key   # a policy's row: its folder's name
 
 
 def _color(key: str) -> str:
+    if _seeded(key):
+        return COLORS["mpc_ppo"]
     return COLORS.get(key, COLORS.get(key.partition("_")[0], "k"))
 
 
 def _marker(key: str) -> str:
+    if _seeded(key):
+        return MARKERS["mpc_ppo"]
     return MARKERS.get(key, MARKERS.get(key.partition("_")[0], "o"))
 
 
@@ -86,7 +102,7 @@ def accuracy_vs_compute(result: dict, path: str | Path) -> str:
                  color=_color(m), label=LABELS.get(m, m), alpha=0.85)
         b.semilogx(r["wall_s_per_target"], 100 * r["success_rate"], _marker(m), color=_color(m),
                    alpha=0.85)
-        if m in ("ppo", "dagger") and "ppo_amortised" in result:
+        if r is result["rows"][0] and "train_wall_s" in r and "ppo_amortised" in result:
             am = result["ppo_amortised"]
             a.loglog(am["wall_s_per_target"], 1e6 * r["median_abs_error_m"], "D", mfc="none",
                      color=_color(m), label=f"{LABELS.get(m, m)} incl. training / "

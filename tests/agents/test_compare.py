@@ -81,8 +81,9 @@ def test_compare_full_grid_and_seed_iqm(tmp_path):
     assert r.returncode == 0, r.stderr
     res = json.loads(r.stdout)
     assert res["env_id"] == "MicroConveyor-v1"
-    assert [row["method"] for row in res["rows"]][:3] == ["ppo", "ppo_randomised", "mpc_robust"]
-    grid = res["perturbation"]["ppo"]["grid"]
+    assert [row["method"] for row in res["rows"]][:3] == ["ppo_refined", "ppo_randomised",
+                                                          "mpc_robust"]
+    grid = res["perturbation"]["ppo_refined"]["grid"]
     assert sorted((g["action_noise"], g["spread"]) for g in grid) == [
         (0.0, 0.0), (0.0, 0.02), (0.01, 0.0), (0.01, 0.02)]
     nominal = res["seeds"]["nominal"]
@@ -123,15 +124,55 @@ def test_compare_rejects_bad_arguments(argv, message):
 
 def test_the_shipped_policy_is_the_ids_default_one():
     """On MicroConveyor-v1 the policy row and ``--mpc-prior shipped`` are its default shipped
-    policy (ppo_refined), as in every other command."""
+    policy (ppo_refined), as in every other command, and are named after it (the stored
+    figures' ``ppo`` and ``mpc_ppo`` are the shipped ``ppo``): in the rows, the text, the
+    charts' labels and the docs' table."""
+    import importlib.util
+    from pathlib import Path
+
     from agents.cli.compare import _prior
     from agents.experiments.compare import compare
     from agents.experiments.compare_settings import CompareSettings
+    from agents.experiments.compare_text import summary_table
+    from agents.mpc import MPCSettings
+    from agents.plots.compare import _label
 
-    assert _prior("shipped", "MicroConveyor-v1").endswith("MicroConveyor-v1/ppo_refined")
+    prior = _prior("shipped", "MicroConveyor-v1")
+    assert prior.endswith("MicroConveyor-v1/ppo_refined")
     res = compare(CompareSettings(env_id="MicroConveyor-v1", n_targets=1, methods=("de",),
-                                  budgets=(10,), mpc=None, randomised_policy="",
-                                  noise_ladder=(0.0,), spread_ladder=(0.0,), diagonal=(),
-                                  progress=False))
+                                  budgets=(10,), randomised_policy="", mpc_prior=prior,
+                                  mpc=MPCSettings(first_budget=10, replan_budget=10),
+                                  mpc_workers=1, noise_ladder=(0.0,), spread_ladder=(0.0,),
+                                  diagonal=(), progress=False))
     assert res["policy"].endswith("MicroConveyor-v1/ppo_refined")
-    assert res["rows"][0]["method"] == "ppo"   # trained by PPO, refined on the simulator
+    names = [row["method"] for row in res["rows"] if "budget" not in row]
+    assert names == ["ppo_refined", "mpc", "mpc_ppo_refined", "random", "fixed_schedule"]
+    assert res["rows"][0]["policy"] == res["policy"]
+    assert res["rows"][2]["prior"] == prior
+    assert set(res["perturbation"]) >= {"ppo_refined", "mpc_ppo_refined"}
+    text = summary_table(res)
+    assert "\nppo_refined " in text and "\nmpc_ppo_refined " in text
+    assert "\nppo " not in text and "\nmpc_ppo " not in text
+    assert _label("mpc_ppo_refined") == "MPC seeded by ppo_refined's plan"
+    path = Path(__file__).resolve().parents[2] / "scripts" / "results_tables.py"
+    spec = importlib.util.spec_from_file_location("_results_tables", path)
+    assert spec is not None and spec.loader is not None
+    tables = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tables)
+    table = tables.compare_table(res)
+    assert "| the shipped `ppo_refined` |" in table
+    assert "| MPC seeded by `ppo_refined` |" in table
+
+
+def test_a_policy_row_is_named_after_its_folder():
+    from agents.experiments.compare_rows import policy_row_name, seeded_mpc_name
+
+    assert policy_row_name({}, "agents/policies/MicroConveyor-v1/ppo_refined") == "ppo_refined"
+    assert policy_row_name({"trained_by": "dagger"}, "/x/dagger") == "dagger"
+    assert policy_row_name({}, "runs/my_run/") == "my_run"
+    for taken in ("random", "fixed_schedule", "ppo_randomised", "mpc", "mpc_robust", "de",
+                  "de_40", "cmaes_1000_plan"):   # another row's name: kept apart
+        assert policy_row_name({}, f"runs/{taken}") == f"policy_{taken}"
+    assert policy_row_name({}) == "ppo" and policy_row_name({"trained_by": "dagger"}) == "dagger"
+    assert seeded_mpc_name("agents/policies/MicroConveyor-v1/ppo") == "mpc_ppo"
+    assert seeded_mpc_name("runs/robust", ("mpc", "mpc_robust")) == "mpc_seeded_robust"

@@ -1,8 +1,9 @@
 """Policy folders are written whole or not at all, by one writer, never through a symbolic link:
 the shared writer (staging beside the destination, metadata with the files' sha256 last,
 verified, renamed into place, under a lock), `imitate` on it (its --out checked before any work),
-`train`'s final files (a kill between them never leaves a folder that loads as a wrong policy)
-and its run folder (no symbolic link inside is written through)."""
+`train --refine` (its refined folder held for the whole command), `train`'s final files (a kill
+between them never leaves a folder that the loader loads as a wrong policy) and its run folder
+(no symbolic link inside is written through)."""
 from __future__ import annotations
 
 import json
@@ -172,51 +173,116 @@ def test_imitate_killed_between_files_leaves_no_folder_that_loads(tmp_path, monk
         load_policy(tmp_path / "p")
 
 
+# ------------------------------------------------------------------ train --refine
+def test_train_refine_holds_the_refined_folder_for_the_whole_command(tmp_path, monkeypatch,
+                                                                      capsys):
+    """`train --refine` holds OUT/refined from before the training to the end: another writer
+    of it is refused during the training, and one already writing it refuses the command
+    before any training."""
+    import agents.rl.training.train as train_mod
+    from agents.rl.artefacts.folders import NewPolicyFolder
+    from microconveyor_env.cli import main
+
+    out = tmp_path / "run"
+    seen = []
+
+    def training(folder, settings, log=None):
+        try:
+            with NewPolicyFolder(Path(folder) / "refined"):
+                seen.append("entered")
+        except ValueError as exc:
+            seen.append(str(exc))
+        raise ValueError("the training stops here")
+
+    monkeypatch.setattr(train_mod, "train", training)
+    assert main(["train", "--out", str(out), "--steps", "4096", "--refine"]) != 0
+    assert len(seen) == 1 and "being written by another command" in seen[0]
+    with NewPolicyFolder(out / "refined"):   # released when the command ends
+        pass
+    monkeypatch.undo()
+    capsys.readouterr()
+    with NewPolicyFolder(out / "refined"):   # another command writing it: refused before training
+        assert main(["train", "--out", str(out), "--steps", "4096", "--refine"]) != 0
+    assert "being written by another command" in capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == []   # nothing trained
+
+
 # ------------------------------------------------------------------ train's final files
+def _shipped(name: str) -> tuple[bytes, bytes]:
+    """The model and statistics of the shipped MicroConveyor-v0 policy ``name``."""
+    from agents.rl.artefacts.shipped import shipped_path
+
+    folder = shipped_path(name, "MicroConveyor-v0")
+    return (folder / "model.zip").read_bytes(), (folder / "normalization.json").read_bytes()
+
+
 def _policy(folder: Path, model: bytes, norm: bytes | None) -> None:
-    """A policy's final files as a generation holds them (normalization.json only if given)."""
+    """A policy's final files as a generation holds them: a real model and its statistics
+    (none: the metadata says it reads raw observations), the metadata listing them."""
+    from agents.rl.artefacts.shipped import shipped_path
+
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "model.zip").write_bytes(model)
     if norm is not None:
         (folder / "normalization.json").write_bytes(norm)
     names = ["model.zip"] + (["normalization.json"] if norm is not None else [])
-    meta = {"hyperparams": {"normalize": "dict()" if norm is not None else None},
-            "files": {n: ck.sha256(folder / n) for n in names}}
+    meta = json.loads((shipped_path("ppo", "MicroConveyor-v0") / "metadata.json").read_text())
+    if norm is None:
+        meta["hyperparams"]["normalize"] = None
+    meta["files"] = {n: ck.sha256(folder / n) for n in names}
     (folder / "metadata.json").write_text(json.dumps(meta))
 
 
 def _loads_as(folder: Path) -> tuple[bytes, bytes | None] | None:
-    """What the policy loader would act with (agents.rl.artefacts.policy_files: the model needs
-    to exist, listed files must verify, normalization.json is used when present): (model
-    bytes, statistics bytes or None), or None where nothing loads."""
-    if not (folder / "model.zip").is_file():
-        return None
-    meta = ck.read_meta(folder) if (folder / "metadata.json").exists() else {}
+    """What the policy loader (:func:`agents.rl.evaluation.evaluate.load_policy`) acts with at
+    ``folder``: (model bytes, statistics bytes, None where it reads raw observations), or None
+    where it refuses the folder."""
+    from agents.rl.artefacts.policy_files import PolicyError
+    from agents.rl.evaluation.evaluate import load_policy
+
     try:
-        if "files" in meta:
-            ck.verify_files(folder, meta)
-    except CheckpointError:
+        pol = load_policy(folder)
+    except PolicyError:
         return None
-    norm = folder / "normalization.json"
-    return (folder / "model.zip").read_bytes(), norm.read_bytes() if norm.is_file() else None
+    norm = (folder / "normalization.json").read_bytes() if pol.normalizer is not None else None
+    return (folder / "model.zip").read_bytes(), norm
 
 
-@pytest.mark.parametrize("new_norm", [None, b'{"new": 1}'])
+def test_loads_as_is_the_loaders_word(tmp_path):
+    """A folder "loads" only where load_policy accepts it: metadata without ``files`` (or with
+    a stale hash) does not, whatever files lie there."""
+    old = _shipped("ppo")
+    _policy(tmp_path / "p", *old)
+    assert _loads_as(tmp_path / "p") == old
+    meta = json.loads((tmp_path / "p" / "metadata.json").read_text())
+    (tmp_path / "p" / "metadata.json").write_text(json.dumps(
+        {k: v for k, v in meta.items() if k != "files"}))
+    assert _loads_as(tmp_path / "p") is None
+    meta["files"]["model.zip"] = "0" * 64
+    (tmp_path / "p" / "metadata.json").write_text(json.dumps(meta))
+    assert _loads_as(tmp_path / "p") is None
+
+
+@pytest.mark.parametrize("raw_observations", [False, True])
 def test_train_final_files_killed_at_any_point_never_load_as_a_wrong_policy(tmp_path,
                                                                             monkeypatch,
-                                                                            new_norm):
+                                                                            raw_observations):
     """A resumed run (allowed a config change) replacing a finished run's files: a kill before
     any rename leaves the old policy, after the last the new one, in between nothing loads;
     the old statistics never stay with a new model that has none."""
-    old, new = (b"old model", b'{"old": 1}'), (b"new model", new_norm)
+    old = _shipped("ppo")
+    model, norm = _shipped("ppo_randomised")
+    new = (model, None if raw_observations else norm)
     gen = tmp_path / "gen"
     _policy(gen, *new)
+    assert _loads_as(gen) == new and _loads_as(gen) != old
     names = tuple(n for n in ("model.zip", "normalization.json") if (gen / n).is_file()) \
         + ("metadata.json",)
     real_replace = os.replace
     for kill_at in range(len(names) + 1):
         out = tmp_path / f"out-{kill_at}"
         _policy(out, *old)
+        assert _loads_as(out) == old
         calls = []
 
         def replace(src, dst, calls=calls, kill_at=kill_at):
@@ -233,9 +299,9 @@ def test_train_final_files_killed_at_any_point_never_load_as_a_wrong_policy(tmp_
         finally:
             monkeypatch.setattr(os, "replace", real_replace)
         got = _loads_as(out)
-        assert got in (None, old, new), (kill_at, got)
+        assert got in (None, old, new), kill_at
         if kill_at == len(names):
-            assert got == new, got
+            assert got == new
 
 
 def test_train_refuses_a_symbolic_link_inside_its_folder(tmp_path):
