@@ -207,18 +207,15 @@ class ActorNet:
         return np.clip(a, self.low, self.high)
 
     def _checked_forward(self, x: Any) -> Any:
-        """:meth:`mean` operation for operation (the same bits), refusing a layer output that
-        is not finite in float32 (:class:`ActorOverflowError`)."""
+        """:meth:`mean` (the same operations, the same bits), refusing a layer output that is
+        not finite in float32 (:class:`ActorOverflowError`)."""
         import torch
 
-        m = self.module
-        for k, name in enumerate(m.names):
-            x = getattr(m, name)(x)
-            if not bool(torch.isfinite(x).all()):
+        def finite(name: str, out: Any) -> None:
+            if not bool(torch.isfinite(out).all()):
                 raise self._overflow(name.replace("__", "."))
-            if k < len(m.names) - 1:
-                x = m.act(x)
-        return torch.tanh(x) if self.squash else x
+
+        return self.module(x, on_layer=finite)
 
     @staticmethod
     def _overflow(layer: str) -> ActorOverflowError:
@@ -295,10 +292,14 @@ def _Module(layers: list[tuple[str, Any, Any]], act_cls: Any, final_tanh: bool) 
                 self.names.append(name)
             self.act = act_cls()
 
-        def forward(self, x: Any) -> Any:
-            for name in self.names[:-1]:
-                x = self.act(getattr(self, name)(x))
-            x = getattr(self, self.names[-1])(x)
+        def forward(self, x: Any, on_layer: Any = None) -> Any:
+            # on_layer(name, output): called with each linear layer's output (a check)
+            for k, name in enumerate(self.names):
+                x = getattr(self, name)(x)
+                if on_layer is not None:
+                    on_layer(name, x)
+                if k < len(self.names) - 1:
+                    x = self.act(x)
             return torch.tanh(x) if final_tanh else x
 
     return ActorLayers()
