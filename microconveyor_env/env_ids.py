@@ -2,11 +2,13 @@
 
 ``import microconveyor_env`` registers the envs with Gymnasium from this module alone (stdlib and
 PyYAML), so the import stays light; the envs, their configs and the scene logic load when an env
-is made (:mod:`microconveyor_env.envs.versions`). Package infrastructure: imports no room.
+is made (:mod:`microconveyor_env.envs.core.versions` loads what a :class:`Registration` names, with
+:func:`resolve`). Package infrastructure: imports no room.
 """
 from __future__ import annotations
 
 import functools
+import importlib
 from dataclasses import dataclass
 from importlib import resources
 from typing import Any
@@ -115,8 +117,15 @@ def _overrides(env_id: str) -> tuple[tuple[str, Any], ...]:
 
 def overrides(env_id: str) -> dict[str, Any]:
     """``env_id``'s defaults beyond MicroConveyor-v0's (its ``configs/envs/<id>.yaml``); the
-    kwargs it is registered with. Unchecked: :func:`.envs.versions.registered_kwargs` checks."""
+    kwargs it is registered with. Unchecked: :func:`.envs.core.versions.registered_kwargs` checks."""
     return dict(_overrides(env_id))
+
+
+def resolve(ref: str) -> Any:
+    """What a registration names (``"module:Name"``: a config class, an env class), imported on
+    first use."""
+    module, name = ref.split(":")
+    return getattr(importlib.import_module(module), name)
 
 
 def max_episode_steps(env_id: str) -> int | None:

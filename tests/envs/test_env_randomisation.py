@@ -32,7 +32,7 @@ import gymnasium as gym  # noqa: E402
 
 from microconveyor_env.envs import EnvConfig, MicroConveyorEnv, MicroConveyorVectorEnv  # noqa: E402
 from microconveyor_env.envs.core import actions  # noqa: E402
-from microconveyor_env.envs.line import randomisation  # noqa: E402
+from microconveyor_env.envs.core import randomisation  # noqa: E402
 from microconveyor_env.physics import dynamics_kernel as kernel, forces  # noqa: E402
 from microconveyor_env.physics.materials import G0  # noqa: E402
 from support.lockstep import assert_lockstep_with_sync  # noqa: E402

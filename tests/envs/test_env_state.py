@@ -33,7 +33,7 @@ def test_both_envs_delegate_to_one_conveyor_state():
 def test_vector_env_imports_no_helper_from_the_single_env():
     tree = ast.parse((ENVS / "vector.py").read_text())
     sources = {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
-    assert "conveyor" not in sources and "common" in sources and "state" in sources
+    assert "env" not in sources and "rail.parts" in sources and "state" in sources
 
 
 @pytest.mark.parametrize("num_threads", [1, 2])

@@ -7,7 +7,7 @@ import pytest
 import microconveyor_env  # noqa: F401
 from microconveyor_env.envs import MicroConveyorEnv, env_config
 from microconveyor_env.envs.line.goal import MicroConveyorGoalEnv
-from microconveyor_env.envs.line.task import LENGTH_SCALE
+from microconveyor_env.envs.rail.step import LENGTH_SCALE
 
 
 def _pair():

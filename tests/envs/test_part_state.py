@@ -102,7 +102,7 @@ def test_state_round_trips_through_json():
     (dict(noise=[[0.0] * 3] * 5), "noise"),
 ])
 def test_bad_states_are_refused_naming_the_field(change, match):
-    from microconveyor_env.envs.versions import scene_of
+    from microconveyor_env.envs.core.versions import scene_of
 
     cfg = env_config("MicroConveyor-v1")
     env = MicroConveyorEnv(config=cfg)
@@ -160,7 +160,8 @@ def test_state_bounds_follow_the_scene():
     """The bounds (module docstring of part_state): twice the stroke's peak surface speed
     (15/4) h f plus a slide down the highest bump sqrt(2 g h); the distance at that speed for
     the whole episode from the start; standard normals within 13."""
-    from microconveyor_env.envs.line.part_state import NOISE_BOUND, state_bounds
+    from microconveyor_env.envs.core.randomisation import NOISE_BOUND
+    from microconveyor_env.envs.rail.part_state import state_bounds
 
     cfg = env_config("MicroConveyor-v1", stroke_range=(100e-6, 150e-6), freq_range=(200.0, 4e3))
     b = state_bounds(cfg)
@@ -172,7 +173,7 @@ def test_state_bounds_follow_the_scene():
 
 
 def test_json_names_env_id_and_scene():
-    from microconveyor_env.envs.versions import scene_of
+    from microconveyor_env.envs.core.versions import scene_of
 
     d = json.loads(json.dumps(_saved().to_dict()))
     assert d["env_id"] == "MicroConveyor-v1"

@@ -18,7 +18,7 @@ from microconveyor_env.envs.plane.config import PlaneEnvConfig
 from microconveyor_env.envs.plane.env import MicroConveyor2DEnv
 from microconveyor_env.envs.plane.part_state import PlaneState
 from microconveyor_env.envs.plane.vector import MicroConveyor2DVectorEnv
-from microconveyor_env.envs.versions import nominal, scene_config, scene_differences
+from microconveyor_env.envs.core.versions import nominal, scene_config, scene_differences
 from microconveyor_env.physics.materials import ParameterError
 
 ENV_ID = "MicroConveyor2D-v1"
@@ -275,14 +275,15 @@ def test_bad_randomisation_in_a_saved_state_is_refused_clearly():
     off.reset(options={"state": bare})   # the part, its time and target alone: accepted
 
 
-def test_the_line_and_the_plane_share_one_randomisation():
-    """One place per concept: the line's names are the core's."""
-    from microconveyor_env.envs.line import config as line_config
-    from microconveyor_env.envs.line import randomisation as line_rand
+def test_the_rails_and_the_plane_check_randomisation_with_the_core_bounds():
+    """One place per concept: every scene's config checks the randomisation fields with the
+    core's bounds."""
+    from microconveyor_env.envs.rail import config as rail_config
+    from microconveyor_env.envs.plane import config as plane_config
 
-    assert line_rand.streams is randomisation.streams and line_rand.draw is randomisation.draw
-    assert line_rand.apply_factors is randomisation.apply_factors
-    assert line_config.FACTOR_BOUNDS == randomisation.FACTOR_BOUNDS
+    for module in (rail_config, plane_config):
+        assert {k: module._RANGES[k] for k in randomisation.NOISE_RANGE} == randomisation.NOISE_RANGE
+        assert {k: module._PAIRS[k] for k in randomisation.FACTOR_PAIRS} == randomisation.FACTOR_PAIRS
 
 
 def test_sb3_adapter_reports_the_factors():

@@ -222,7 +222,7 @@ def test_randomisation_streams() -> None:
 def test_scene_is_not_the_line() -> None:
     """A PositionerConfig is a line config subclass but its own scene: the versions module
     tells them apart and policies of one are refused in the other."""
-    from microconveyor_env.envs.versions import scene_differences, vector_class_of
+    from microconveyor_env.envs.core.versions import scene_differences, vector_class_of
 
     pos = PositionerConfig.from_yaml(None)
     line = dataclasses.replace(EnvConfig.from_yaml(None), preset="conveyor")

@@ -8,8 +8,8 @@ import yaml
 import microconveyor_env
 from microconveyor_env.envs import ENV_IDS, EnvConfig, MicroConveyorVectorEnv, env_config, \
     scene_differences
-from microconveyor_env.envs.line.config import MAX_ACTUATORS
-from microconveyor_env.envs.versions import registered_kwargs
+from microconveyor_env.env_ids import MAX_ACTUATORS
+from microconveyor_env.envs.core.versions import registered_kwargs
 from microconveyor_env.physics.materials import ParameterError
 from microconveyor_env.presets import load_preset
 
@@ -98,7 +98,7 @@ def test_every_registered_id_builds_through_the_one_registry():
     import gymnasium as gym
 
     from microconveyor_env.env_ids import DEFAULT_ENV_ID, REGISTRY
-    from microconveyor_env.envs.versions import config_class, registered_kwargs, scene_config
+    from microconveyor_env.envs.core.versions import config_class, registered_kwargs, scene_config
 
     assert DEFAULT_ENV_ID == "MicroConveyor-v1" and DEFAULT_ENV_ID in REGISTRY
     for env_id, reg in REGISTRY.items():

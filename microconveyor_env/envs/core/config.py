@@ -1,7 +1,6 @@
 """What every scene's config shares: the field checks and the defaults file.
 
-:class:`SceneConfig` is the base of the line's :class:`~..line.config.EnvConfig` and the plane's
-:class:`~..plane.config.PlaneEnvConfig` (frozen dataclasses, SI units): reading the defaults from
+:class:`SceneConfig` is the base of every scene's config (frozen dataclasses, SI units): reading the defaults from
 ``configs/envs/<file>`` then keyword overrides (:meth:`SceneConfig.from_yaml`), and the checks a
 field of either goes through (numbers within a range, integers, ``[low, high]`` pairs, a
 choice among names, the reward's progress scale, the integrator's step budget). A refused value
@@ -20,6 +19,7 @@ from typing import Any, ClassVar, TypeVar
 from ...physics.kinematics import SHAPES
 from ...physics.materials import ParameterError, check_range
 from ...physics.validation import check_max_steps, check_step_budget, kinematics_level
+from .randomisation import is_randomised
 
 MIN_LENGTH = 1e-9  # m: below it, a distance / tolerance overflows (NaN rewards)
 C = TypeVar("C", bound="SceneConfig")
@@ -27,9 +27,10 @@ C = TypeVar("C", bound="SceneConfig")
 
 class SceneConfig:
     """The checks and the defaults file of a scene's config (a frozen dataclass subclassing
-    this): ``CONFIG_FILE`` names its file in ``configs/envs``."""
+    this): ``CONFIG_FILE`` names its file in ``configs/envs`` (None: the dataclass's defaults
+    alone)."""
 
-    CONFIG_FILE: ClassVar[str]
+    CONFIG_FILE: ClassVar[str | None] = None
     freq_range: tuple
     stroke_range: tuple
     delay_range: tuple
@@ -129,13 +130,14 @@ class SceneConfig:
 
     @classmethod
     def from_yaml(cls: type[C], path: str | None = None, **overrides: object) -> C:
-        """Defaults from ``configs/envs/<CONFIG_FILE>`` (or ``path``), then ``overrides``
-        (unknown keys refused, naming the known ones)."""
+        """Defaults from ``configs/envs/<CONFIG_FILE>`` (or ``path``; neither: the dataclass's
+        own), then ``overrides`` (unknown keys refused, naming the known ones)."""
         from ...presets import parse_yaml
 
         if path is None:
-            text = (resources.files("microconveyor_env.configs") / "envs"
-                    / cls.CONFIG_FILE).read_text()
+            file = cls.CONFIG_FILE
+            text = "" if file is None else (resources.files("microconveyor_env.configs") / "envs"
+                                            / file).read_text()
         else:
             with open(path) as fh:
                 text = fh.read()
@@ -155,6 +157,13 @@ class SceneConfig:
     def episode_limit(self) -> tuple[int, str]:
         """The most steps (firings) an episode takes, and how to say it."""
         raise NotImplementedError
+
+    @property
+    def randomised(self) -> bool:
+        """Whether any per-episode randomisation is on (:func:`.randomisation.is_randomised`: the
+        fields ``action_noise``, ``friction_factor_range``, ``mass_factor_range``); a scene
+        without those fields says False."""
+        return is_randomised(self)  # type: ignore[arg-type]
 
     @property
     def log_freq_span(self) -> float:

@@ -5,7 +5,7 @@ A scene's state (the line's :class:`~..line.part_state.PartState`, the plane's
 :class:`~..plane.part_state.PlaneState`) is a frozen dataclass subclassing :class:`SavedState`:
 its own fields (SI units) first, then ``env_id`` (the registered id the env was made with, None
 for an env made without ``gym.make``) and ``scene`` (the env's config fields that are its scene,
-:func:`~..versions.scene_of`). ``env.get_state()`` returns it after any step and
+:func:`~.versions.scene_of`). ``env.get_state()`` returns it after any step and
 ``env.reset(options={"state": s})`` continues the episode from it, bit for bit.
 
 As data it is a plain JSON-safe dict of SI numbers with unit-suffixed keys
@@ -38,7 +38,7 @@ from typing import Any, ClassVar, TypeVar
 import numpy as np
 
 from ...physics.materials import G0
-from ..versions import scene_of
+from .versions import scene_of
 
 S = TypeVar("S", bound="SavedState")
 SAVED_IN = ("env_id", "scene")

@@ -17,6 +17,7 @@ import numba
 import numpy as np
 
 from ...physics.contact_table import TableRangeError
+from ...physics.materials import ParameterError
 from ...physics.simulator import Simulator
 from . import randomisation
 from .checks import check_actions, check_reset_options
@@ -66,6 +67,28 @@ def raise_if_beyond_table(outcome: str, sim: Simulator) -> None:
                               "N) during a stroke; rebuild the table with a larger load_ratio")
 
 
+def check_table_reach(sim: Any, cfg: Any) -> None:
+    """Refuse ``cfg``'s action ranges when its strongest stroke (the top of ``freq_range`` and
+    ``stroke_range``) would load the part, the heaviest ``mass_factor_range`` allows too, beyond
+    ``sim``'s contact table: checked once when a scene builds its simulator, so steps never need
+    to. A ParameterError names ``<config class>.<field>``."""
+    owner = type(cfg).__name__
+    f, h = np.array([cfg.freq_range[1]]), np.array([cfg.stroke_range[1]])
+    try:
+        sim.check_firings(f, h)
+    except TableRangeError as exc:
+        raise ParameterError(f"{owner}.freq_range / stroke_range: {exc}") from None
+    heaviest = cfg.mass_factor_range[1]
+    if heaviest > 1.0:
+        try:
+            sim.check_firings(f, h, mass_factor=heaviest)
+        except TableRangeError as exc:
+            raise ParameterError(f"{owner}.mass_factor_range = {cfg.mass_factor_range!r} is "
+                                 f"invalid with these freq_range / stroke_range: a part "
+                                 f"{heaviest:g} times heavier: {exc}; lower the upper factor"
+                                 ) from None
+
+
 class Resets(NamedTuple):
     """Checked reset options, one entry per part (None: nothing given, the part draws)."""
 
@@ -87,8 +110,7 @@ def for_part(i: int, check: Callable[..., T], *args: Any) -> T:
 
 
 class PartsBase:
-    """``n`` parts of one scene: the base of :class:`~..line.state.Conveyor` (the line) and
-    :class:`~..plane.state.PlaneConveyor` (the plane).
+    """``n`` parts of one scene: the base of every scene's part container.
 
     A subclass builds its arrays (``parts``, ``consts``, ``action``, ``task``, ``out``) and
     then calls :meth:`_start`; :attr:`components` names the action's components;
@@ -101,13 +123,20 @@ class PartsBase:
 
     Resets: :meth:`check_reset` checks the options of every part before any changes, through
     the scene's :meth:`check_targets` and :meth:`check_state`; :meth:`reset_part` (the scene's)
-    starts one part's episode; :meth:`get_state` saves one part's state.
+    starts one part's episode; :meth:`get_state` saves one part's state. Info: :meth:`errors`
+    and :attr:`step_info` (the single and the batched env build their info dicts from them).
     """
 
     n: int
     config: Any
     # the action's components (named in the messages of refused actions)
     components: tuple[str, ...] = ("frequency", "stroke", "delay")
+    # the per-firing info keys: (key, the output array's field, the value a sub-env reset in the
+    # same step reports), in the order the info dicts hold them
+    step_info: tuple[tuple[str, str, float], ...] = ()
+    obs: np.ndarray       # (n, obs_dim) float32: the observations the envs return
+    obs_dim: int
+    obs_bound: float      # observations lie in [-obs_bound, obs_bound]
     sim: Any
     parts: Any
     consts: Any
@@ -172,6 +201,20 @@ class PartsBase:
                                 tuple[Any, ...]]:
         """The scene's compiled step (serial, parallel), its observation and that one's
         arguments."""
+        raise NotImplementedError
+
+    def observe(self) -> np.ndarray:
+        """Every part's observation, into (and returned as) ``obs``: copy to keep it."""
+        self._observe()
+        return self.obs
+
+    def clear_targets(self) -> None:
+        """No target before the first reset (NaN): the single env's part."""
+        self.parts.target[:] = np.nan
+
+    def errors(self) -> dict[str, np.ndarray]:
+        """The info rows that say how far each part is from its target (first
+        ``position_error_m``): arrays of ``n`` rows, the single env's info takes row 0."""
         raise NotImplementedError
 
     def check_actions(self, actions: Any, n: int | None) -> np.ndarray:

@@ -16,7 +16,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
-from ..versions import scene_config, vector_class, vector_class_of
+from .versions import scene_config, vector_class, vector_class_of
 from .vector import BatchedEnv
 
 

@@ -4,8 +4,8 @@
 generators seeded ``seed + i`` (as ``SyncVectorEnv`` seeds them, so a batched rollout is the
 single envs' rollouts bit for bit), reset options checked whole before any sub-env changes,
 ``NEXT_STEP`` and ``SAME_STEP`` autoreset (``final_obs`` / ``final_info``), and the step's info
-dict. A scene subclasses it with its config class, its part container (:mod:`.parts`), how its
-reset options are checked and what its info rows hold.
+dict. A scene subclasses it with its config class and its part container (:mod:`.parts`), which
+checks the reset options and says what the info rows hold.
 """
 from __future__ import annotations
 
@@ -26,15 +26,13 @@ MAX_ENVS = 1_000_000  # parts in one batch (each costs ~1 kB of state)
 
 
 class BatchedEnv(VectorEnv):
-    """``num_envs`` independent copies of a scene's single env (see the subclasses:
-    :class:`~..line.vector.MicroConveyorVectorEnv`, :class:`~..plane.vector.MicroConveyor2DVectorEnv`).
+    """``num_envs`` independent copies of a scene's single env (its subclasses).
 
     A subclass sets :attr:`config_class`, :attr:`conveyor_class` (its part container, a
     :class:`~.parts.PartsBase`: the reset options, actions and saved states are checked
-    there), :attr:`step_info` (the per-firing info keys: name, the output array's field, the
-    value a sub-env reset in the same step reports), :attr:`sb3_info` (the info keys
-    :mod:`.sb3` passes on per sub-env) and implements :meth:`_infos`; the config says how many
-    steps an episode takes at most (``episode_limit``). ``get_state(i)``: sub-env ``i``'s saved
+    there, and its ``errors`` and ``step_info`` say what the info rows hold) and
+    :attr:`sb3_info` (the info keys :mod:`.sb3` passes on per sub-env); the config says how
+    many steps an episode takes at most (``episode_limit``). ``get_state(i)``: sub-env ``i``'s saved
     part state; ``reset(options={"state": ...})`` starts sub-envs from saved states.
     """
 
@@ -42,7 +40,6 @@ class BatchedEnv(VectorEnv):
                 "autoreset_mode": AutoresetMode.NEXT_STEP}
     config_class: ClassVar[type]
     conveyor_class: ClassVar[type[PartsBase]]
-    step_info: ClassVar[tuple[tuple[str, str, float], ...]] = ()
     # the info keys of one sub-env (scalars or short rows) the SB3 adapter passes on, in order
     sb3_info: ClassVar[tuple[str, ...]] = ()
     conveyor: Any  # a conveyor_class
@@ -82,10 +79,18 @@ class BatchedEnv(VectorEnv):
         self.rngs: list[np.random.Generator] = [seeding.np_random(None)[0] for _ in range(n)]
         self._started: bool = False
 
-    # ------------------------------------------------------------------ what a scene adds
+    # ------------------------------------------------------------------ info
     def _infos(self, outcome: np.ndarray, success: np.ndarray) -> dict:
-        """The info rows every step and reset returns (with their ``_key`` masks)."""
-        raise NotImplementedError
+        """The info rows every step and reset returns (with their ``_key`` masks): success, the
+        parts' errors (the container's ``errors``), the outcome, the simulated time and, with
+        randomisation on, this episode's factors."""
+        c = self.conveyor
+        infos = {"is_success": success.copy(), **c.errors(), "outcome": outcome,
+                 "sim_time_s": c.parts.t.copy()}
+        if c.randomised:
+            infos["friction_factor"] = c.friction_factor.copy()
+            infos["mass_factor"] = c.mass_factor.copy()
+        return self._with_masks(infos, self.num_envs)
 
     # ------------------------------------------------------------------ resets
     def get_state(self, i: int) -> Any:
@@ -130,7 +135,7 @@ class BatchedEnv(VectorEnv):
         self.done = terminated | truncated
         obs = self.conveyor.obs.copy()
         infos = self._infos(np.array(kernel.OUTCOMES, dtype=object)[codes], active & out.success)
-        for key, field, _ in self.step_info:
+        for key, field, _ in self.conveyor.step_info:
             infos[key], infos["_" + key] = getattr(out, field).copy(), active.copy()
         if self.autoreset_mode == AutoresetMode.SAME_STEP and self.done.any():
             infos = self._same_step_reset(obs, infos)
@@ -162,7 +167,7 @@ class BatchedEnv(VectorEnv):
             if not key.startswith("_"):
                 infos[key] = infos[key].copy()
                 infos[key][idx] = val[idx]
-        for key, _, after_reset in self.step_info:  # step-only keys: absent after a reset
+        for key, _, after_reset in self.conveyor.step_info:  # step-only: absent after a reset
             infos[key] = np.where(finished, after_reset, infos[key])
             infos["_" + key] = infos["_" + key] & ~finished
         infos["final_obs"], infos["_final_obs"] = final_obs, finished

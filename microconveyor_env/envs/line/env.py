@@ -5,22 +5,18 @@ from __future__ import annotations
 from typing import Any, cast
 
 import numpy as np
-from gymnasium import spaces
 from gymnasium.core import RenderFrame
 
-from ...physics import dynamics_kernel as kernel
-from ..core import actions
-from . import task
-from ..core.checks import check_render_mode, config_of
 from ..core.single import SingleEnv
 from ..core.window import installed_modes
-from .part_state import PartState
+from ..rail.parts import OwnsRail
 from .config import EnvConfig
 from .frames import EnvRenderer, check_frames_per_stroke
-from .state import Conveyor, OwnsConveyor
+from .part_state import PartState
+from .state import Conveyor
 
 
-class MicroConveyorEnv(OwnsConveyor, SingleEnv):
+class MicroConveyorEnv(OwnsRail, SingleEnv):
     """Goal-conditioned micropart conveyor (physics: Kogut–Etsion contact, stick–slip dynamics).
 
     A part starts ``start_offset`` upstream of actuator 1 (at x = 0) of a linear array of
@@ -143,11 +139,15 @@ class MicroConveyorEnv(OwnsConveyor, SingleEnv):
 
     metadata = {"render_modes": ["rgb_array", "rgb_array_list", "human"], "render_fps": 4}
 
+    config_class = EnvConfig
+    conveyor_class = Conveyor
+    config: EnvConfig
+    conveyor: Conveyor
+    _last_firing: tuple[float, float, float, float] | None
+
     def __init__(self, render_mode: str | None = None, config: EnvConfig | None = None,
                  render_frames_per_stroke: int = 1, **kwargs: Any) -> None:
-        self.config = config_of(EnvConfig, config, kwargs)
-        check_render_mode(render_mode, self.metadata["render_modes"])
-        self.render_mode = render_mode
+        super().__init__(render_mode, config, **kwargs)
         n_frames = check_frames_per_stroke(render_frames_per_stroke, render_mode)
         self.render_frames_per_stroke = n_frames
         # the modes this install renders (human: with pygame; core/window.py)
@@ -155,14 +155,6 @@ class MicroConveyorEnv(OwnsConveyor, SingleEnv):
                          "render_modes": installed_modes(self.metadata["render_modes"])}
         if n_frames > 1:  # each phase of a firing (n frames) lasts 1/4 s, as a firing at n = 1
             self.metadata = {**self.metadata, "render_fps": 4 * n_frames}
-        # the part's state, randomisation and compiled step (state.py), N = 1, always serial
-        self.conveyor = Conveyor(self.config, 1, num_threads=1)
-        self.conveyor.parts.target[0] = np.nan  # no target before the first reset
-        self.action_space = spaces.Box(-1.0, 1.0, (actions.ACTION_DIM,), np.float32)
-        self.observation_space = spaces.Box(-task.OBS_BOUND, task.OBS_BOUND,
-                                            (self.conveyor.obs_dim,), np.float32)
-        self._done = True
-        self._last_firing: tuple[float, float, float, float] | None = None
         self._renderer = EnvRenderer(self, render_mode, n_frames)
 
     # state accessors (SI units)
@@ -189,24 +181,15 @@ class MicroConveyorEnv(OwnsConveyor, SingleEnv):
         return cast(PartState, super().get_state())
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        a = self._checked_action(action)
-        c = self.conveyor
-        k = int(c.parts.fired[0])
-        xa = float(c.positions[k])
+        k = self.fired
         # the state before the firing, kept only to draw it (rgb_array_list, human)
         before = (self.x, self.v, self.t) if self._renderer.collecting else None
-        out = c.step(a)
-        outcome = kernel.OUTCOMES[int(out.outcome[0])]
-        terminated = outcome in ("rest", "detached")
-        truncated = outcome in ("max_time", "too_many_events")
-        self._done = terminated or truncated
-        f, h, d = float(out.frequency[0]), float(out.stroke[0]), float(out.delay[0])
-        self._last_firing = (xa, f, h, d)
-        info = self._info(outcome, bool(out.success[0]))
-        info["frequency_hz"], info["stroke_m"], info["delay_s"] = f, h, d
-        result = (c.obs[0].copy(), float(out.reward[0]), terminated, truncated, info)
+        result = super().step(action)
+        info = result[4]
+        f, h, d = info["frequency_hz"], info["stroke_m"], info["delay_s"]
+        self._last_firing = (float(self.positions[k]), f, h, d)
         if before is not None:  # the frames of this firing: after the step, never changing it
-            self._renderer.fired(k, before, f, h, d, outcome)
+            self._renderer.fired(k, before, f, h, d, info["outcome"])
             if self.render_mode == "human":
                 self.render()
         return result
@@ -216,7 +199,7 @@ class MicroConveyorEnv(OwnsConveyor, SingleEnv):
         last ``render()`` or ``reset()``; ``human``: shows those in the window (called by
         ``reset`` and ``step``), returns None."""
         if self.render_mode == "rgb_array":
-            from .render import render_frame
+            from ..rail.render import render_frame
 
             return render_frame(self.config, self.x, self.target, self.fired, self._last_firing,
                                 self.t)
@@ -230,15 +213,3 @@ class MicroConveyorEnv(OwnsConveyor, SingleEnv):
     def close(self) -> None:
         self._renderer.close()
         super().close()
-
-    # ------------------------------------------------------------------ helpers
-    def _info(self, outcome: str, success: bool) -> dict[str, Any]:
-        c = self.conveyor
-        p = c.parts
-        info: dict[str, Any] = {"is_success": success,
-                                "position_error_m": float(p.x[0]) - float(p.target[0]),
-                                "outcome": outcome, "sim_time_s": float(p.t[0])}
-        if c.randomised:
-            info["friction_factor"] = float(c.friction_factor[0])
-            info["mass_factor"] = float(c.mass_factor[0])
-        return info

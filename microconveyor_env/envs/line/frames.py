@@ -103,7 +103,7 @@ class EnvRenderer:
     ``human``): the states not yet rendered, the drawer and the window.
 
     With ``n`` = 1 a frame per reset and per step, the state after it, as
-    :func:`.render.render_frame` draws it for ``rgb_array`` (what gymnasium's
+    :func:`..rail.render.render_frame` draws it for ``rgb_array`` (what gymnasium's
     ``RenderCollection`` would collect); with ``n`` > 1 the frames of each firing
     (:func:`firing_states`), its trajectory recomputed from the state before the step by the
     very compiled firing the step ran (:func:`...physics.trajectory.firing_trajectory`; checked to
@@ -155,7 +155,7 @@ class EnvRenderer:
 
     def frames(self) -> list[np.ndarray]:
         """The frames of every state since the last call (drawn now)."""
-        from .render import FrameDrawer, render_frame
+        from ..rail.render import FrameDrawer, render_frame
 
         items, self.pending = self.pending, []
         if self.n == 1:

@@ -31,6 +31,7 @@ import numpy as np
 from gymnasium import spaces
 
 from ...physics import dynamics_kernel as kernel
+from ..rail.step import LENGTH_SCALE, OBS_BOUND
 from . import task
 from .env import MicroConveyorEnv
 
@@ -68,7 +69,7 @@ class MicroConveyorGoalEnv(MicroConveyorEnv):
                              f"{self.config.observe_history}): its remembered rows hold the "
                              "target, so a relabelled goal would not be a valid observation; "
                              "use MicroConveyor-v1")
-        b = task.OBS_BOUND
+        b = OBS_BOUND
         goal = spaces.Box(-b, b, (1,), np.float32)
         self.observation_space = spaces.Dict({
             "observation": spaces.Box(-b, b, (OBS_DIM,), np.float32),
@@ -108,8 +109,8 @@ class MicroConveyorGoalEnv(MicroConveyorEnv):
         out = np.empty(len(infos))
         for i, inf in enumerate(infos):
             out[i] = task.reward(_CODES[inf["outcome"]], float(inf["x_before_m"]),
-                                 float(ach[i]) * task.LENGTH_SCALE, float(inf["t_before_s"]),
-                                 float(inf["sim_time_s"]), float(des[i]) * task.LENGTH_SCALE,
+                                 float(ach[i]) * LENGTH_SCALE, float(inf["t_before_s"]),
+                                 float(inf["sim_time_s"]), float(des[i]) * LENGTH_SCALE,
                                  self._tc)
         return float(out[0]) if single else out
 
@@ -117,9 +118,9 @@ class MicroConveyorGoalEnv(MicroConveyorEnv):
         """The Dict observation from the base env's compiled one (``flat``: error, velocity,
         next actuator, time, fraction fired, target): the goal-free entries 1-4 are reused, the
         position and target are taken exactly (not error + target, which would round)."""
-        b = task.OBS_BOUND
-        x = np.float32(min(max(self.x / task.LENGTH_SCALE, -b), b))
-        target = np.float32(min(max(self.target / task.LENGTH_SCALE, -b), b))
+        b = OBS_BOUND
+        x = np.float32(min(max(self.x / LENGTH_SCALE, -b), b))
+        target = np.float32(min(max(self.target / LENGTH_SCALE, -b), b))
         return {"observation": np.concatenate(([x], flat[1:5])).astype(np.float32),
                 "achieved_goal": np.array([x], np.float32),
                 "desired_goal": np.array([target], np.float32)}
@@ -130,7 +131,7 @@ def goal_observations(flat: np.ndarray) -> dict[str, np.ndarray]:
     trained on the goal env needs when it acts in the batched Box env): the position is error
     + target, exact up to float32 rounding (< 1e-6 of 10 mm) while neither is clipped."""
     flat = np.asarray(flat, dtype=np.float32).reshape(-1, task.OBS_DIM)
-    b = task.OBS_BOUND
+    b = OBS_BOUND
     x = np.clip(flat[:, :1] + flat[:, 5:6], -b, b)
     return {"observation": np.concatenate((x, flat[:, 1:5]), axis=1),
             "achieved_goal": x, "desired_goal": flat[:, 5:6].copy()}

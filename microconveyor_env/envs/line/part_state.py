@@ -15,11 +15,12 @@ randomisation fields ``None``: an env started from it keeps its own (drawn) fact
 
 A state names where it was saved: ``env_id`` (the registered id the env was made with, ``None``
 for an env made without ``gym.make``) and ``scene``, the env's config fields that are its scene
-(:func:`~..versions.scene_of`: what :func:`~..versions.scene_differences` compares; per-episode
-randomisation, runtime knobs and the reward's weights are not the scene). What every scene's
-saved state shares (naming the scene, the dict form, the refusal of another scene's state or of
-a dict that names none, the common bounds) is :mod:`..core.part_state`; a :class:`PartState`
-built in code without a scene (as a controller builds the state it observed) is taken as the
+(:func:`~..core.versions.scene_of`: what :func:`~..core.versions.scene_differences` compares;
+per-episode randomisation, runtime knobs and the reward's weights are not the scene). What every
+scene's saved state shares (naming the scene, the dict form, the refusal of another scene's
+state or of a dict that names none, the common bounds) is :mod:`..core.part_state`, what every
+rail's does :mod:`..rail.part_state`; a :class:`PartState` built in code without a scene (as a
+controller builds the state it observed) is taken as the
 env's own, and ``PartState(**d)`` does the same for a dict.
 
 Bounds (:func:`check_state`; a value outside is refused in one line naming the field, its value
@@ -38,24 +39,15 @@ and the range). With ``h``, ``f`` the top of the scene's ``stroke_range`` and ``
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, NamedTuple
+from typing import Any, ClassVar
 
-
-from ..core.part_state import (
-    SavedState,
-    check_fired,
-    check_scene,
-    check_time,
-    max_speed,
-    reset_state,
-    within,
-)
-from ..core.randomisation import NOISE_BOUND
+from ..core.part_state import SavedState, check_fired, check_scene, check_time, within
 from ..core.randomised_state import check_saved
-from .config import MAX_TARGET, EnvConfig
+from ..rail.part_state import state_bounds
+from ..rail.step import MAX_TARGET
+from .config import EnvConfig
 
-__all__ = ["NOISE_BOUND", "PartState", "StateBounds", "check_state", "reset_state",
-           "state_bounds"]
+__all__ = ["PartState", "check_state"]
 
 
 @dataclass(frozen=True)
@@ -83,22 +75,6 @@ class PartState(SavedState):
     noise: tuple[tuple[float, float, float], ...] | None = None
     env_id: str | None = None
     scene: dict[str, Any] | None = field(default=None, hash=False, repr=False)
-
-
-class StateBounds(NamedTuple):
-    """What a part can do in a scene (:func:`state_bounds`), SI units."""
-
-    speed_m_s: float                  # |velocity| at most
-    position_m: tuple[float, float]   # (lowest, highest) position
-
-
-def state_bounds(config: EnvConfig) -> StateBounds:
-    """The speed and positions a part can reach in ``config``'s scene (module docstring)."""
-    speed = max_speed(config)
-    reach = speed * config.max_time
-    start = -config.start_offset
-    return StateBounds(speed, (start - config.start_jitter - reach,
-                               start + config.start_jitter + reach))
 
 
 def check_state(state: PartState | dict, config: EnvConfig) -> PartState:

@@ -9,11 +9,11 @@ owns them and implements, once for both envs,
 
 * the reset options of all parts (targets, saved states), checked whole before any part changes
   (:meth:`Conveyor.check_reset`), and the reset of one part: its initial state and target
-  (:func:`.task.initial_state`), its randomisation streams (derived from the part's generator,
-  re-derived when the generator is replaced) and draws (:mod:`.randomisation`), or a saved state;
+  (:func:`~..rail.parts.initial_state`), its randomisation streams (derived from the part's generator,
+  re-derived when the generator is replaced) and draws (:mod:`..core.randomisation`), or a saved state;
 * the step of all parts: one compiled call (:func:`.step.step_serial` or, chosen by
   :class:`~..core.threads.ThreadChooser`, :func:`.step.step_parallel`) with its arguments built once,
-  through the container every scene shares (:class:`~..core.parts.PartsBase`).
+  through the container every rail's scene shares (:class:`~..rail.parts.RailParts`).
 
 Everything Gym-specific (spaces, seeding, info dicts, autoreset, rendering) stays in the envs.
 """
@@ -24,24 +24,14 @@ from typing import Any
 import numpy as np
 
 from ...physics import dynamics_kernel as kernel
-from ...physics.simulator import Simulator
 from ..core import actions
+from ..core.versions import scene_of
+from ..rail.parts import RailParts, initial_state
+from ..rail.step import OBS_BOUND
 from . import task
-from .common import check_targets, make_simulator
-from ..core.parts import PartsBase, Resets
 from .config import EnvConfig
 from .part_state import PartState, check_state
-from .step import (
-    NO_NOISE,
-    NO_RECORD,
-    Constants,
-    Outputs,
-    Parts,
-    observe_all,
-    step_parallel,
-    step_serial,
-)
-from ..versions import scene_of
+from .step import Outputs, Parts, observe_all, step_parallel, step_serial
 
 Streams = tuple[np.random.Generator, np.random.Generator]
 # One remembered firing of the observation history (EnvConfig.observe_history): the observation
@@ -49,10 +39,10 @@ Streams = tuple[np.random.Generator, np.random.Generator]
 # [-1, 1] as the decoding clips it, before execution noise) and 1.0 (the slot holds a firing; an
 # empty slot is all zeros)
 HISTORY_ROW = task.OBS_DIM + actions.ACTION_DIM + 1
-__all__ = ["HISTORY_ROW", "Conveyor", "OwnsConveyor", "Resets", "conveyor_field"]
+__all__ = ["HISTORY_ROW", "Conveyor", "conveyor_field"]
 
 
-class Conveyor(PartsBase):
+class Conveyor(RailParts):
     """``n`` parts on one configuration: their state, per-episode randomisation and step.
 
     ``parts`` (x, v, t, fired, target), ``consts`` (dt, min_steps, positions, P, noise, tables),
@@ -65,21 +55,15 @@ class Conveyor(PartsBase):
     place, never rebind them. Pickles (the compiled calls are rebuilt after loading).
     """
 
+    config: EnvConfig
+    step_info = (("frequency_hz", "frequency", 0.0), ("stroke_m", "stroke", 0.0),
+                 ("delay_s", "delay", 0.0))
+
     def __init__(self, config: EnvConfig, n: int, num_threads: int | None = 1) -> None:
-        self.config = config
-        self.n = n
-        self.sim = make_simulator(config)
-        self.positions: np.ndarray = np.asarray(config.actuator_positions, dtype=np.float64)
-        self.action = actions.constants(config, config.action_noise)
+        self._start_rail(config, n, config.n_actuators)  # a noise row per actuator
         self.task = task.constants(config)
         self.parts = Parts(x=np.zeros(n), v=np.zeros(n), t=np.zeros(n),
                            fired=np.zeros(n, dtype=np.int64), target=np.zeros(n))
-        tu, tq, tqu = self.sim.tables
-        self.consts = Constants(
-            dt=float(self.sim.dt), min_steps=int(self.sim.min_steps), positions=self.positions,
-            P=np.tile(self.sim.params, (n, 1)),
-            noise=(np.zeros((n, config.n_actuators, 3)) if config.action_noise > 0 else NO_NOISE),
-            tu=tu, tq=tq, tqu=tqu, rec=NO_RECORD)
         self.out = Outputs(reward=np.zeros(n), outcome=np.zeros(n, dtype=np.int64),
                            success=np.zeros(n, dtype=np.bool_), frequency=np.zeros(n),
                            stroke=np.zeros(n), delay=np.zeros(n),
@@ -93,7 +77,7 @@ class Conveyor(PartsBase):
         # the compiled step's own rows (``out.obs``, the same array: nothing is copied)
         self.history_len: int = config.observe_history
         self.obs_dim: int = task.OBS_DIM + self.history_len * HISTORY_ROW
-        self.obs_bound: float = task.OBS_BOUND
+        self.obs_bound: float = OBS_BOUND
         self.obs: np.ndarray = (self.out.obs if self.history_len == 0 else
                                 np.zeros((n, self.obs_dim), dtype=np.float32))
         # the compiled calls' inputs (owned, so their types never change) and the calls; the envs
@@ -107,10 +91,6 @@ class Conveyor(PartsBase):
                                                          self.out.obs)
 
     # ------------------------------------------------------------------ reset
-    def check_targets(self, given: Any, batched: bool) -> list[float]:
-        """Every part's target [m] (:func:`.common.check_targets`)."""
-        return check_targets(given, batched, self.n)
-
     def check_state(self, state: Any) -> PartState:
         """A saved part state checked against the config (:func:`.part_state.check_state`)."""
         return check_state(state, self.config)
@@ -122,7 +102,7 @@ class Conveyor(PartsBase):
         derived from ``rng``; then ``state``, if given, in place of all that (its fields left
         None keep this episode's draws). ``target`` and ``state`` as :meth:`check_reset` gives
         them."""
-        x0, tgt = task.initial_state(self.config, rng, target)
+        x0, tgt = initial_state(self.config, rng, target)
         self._draw_randomisation(i, rng)
         p = self.parts
         p.x[i], p.v[i], p.t[i] = x0, 0.0, 0.0
@@ -186,27 +166,11 @@ class Conveyor(PartsBase):
         self.obs[:, :od] = self.out.obs
 
 
-class OwnsConveyor:
-    """What both envs expose of the :class:`~.state.Conveyor` they own (``self.conveyor``)."""
-
-    conveyor: Conveyor
-
-    @property
-    def sim(self) -> Simulator:
-        """The simulator (its constants, contact table and integrator settings)."""
-        return self.conveyor.sim
-
-    @property
-    def positions(self) -> np.ndarray:
-        """Actuator positions [m] (float64)."""
-        return self.conveyor.positions
-
-
 def conveyor_field(path: str, doc: str) -> Any:
     """A read-only property for ``self.conveyor.<path>`` (dotted), e.g. ``"parts.x"``."""
     names = path.split(".")
 
-    def get(self: OwnsConveyor) -> Any:
+    def get(self: Any) -> Any:
         obj: Any = self.conveyor
         for name in names:
             obj = getattr(obj, name)

@@ -10,17 +10,18 @@ per part; compiled code reads them by field name, so there are no index constant
 step):
 
 * :class:`Parts`: the part state ``x, v, t, fired, target``;
-* :class:`Constants`: what a step reads but does not write: ``dt``, ``min_steps``, the actuator
-  ``positions``, the per-part physics rows ``P`` (the simulator's constants with that part's mass
-  and friction factor, drawn per episode, see :mod:`.randomisation`), the execution ``noise``,
-  the contact-table arrays ``tu, tq, tqu`` and ``rec`` (the env records no trajectories);
+* :class:`~..rail.step.Constants` (every rail's): what a step reads but does not write: ``dt``,
+  ``min_steps``, the actuator ``positions``, the per-part physics rows ``P`` (the simulator's
+  constants with that part's mass and friction factor, drawn per episode, see
+  :mod:`..core.randomisation`), the execution ``noise``, the contact-table arrays ``tu, tq, tqu``
+  and ``rec`` (the env records no trajectories);
 * :class:`Outputs`: what a step reports per part (reward, outcome code, success, the firing as
   fired, the observation row, and the kernel's output row, whose columns are the kernel's
   ``O_*``);
 * :class:`~..core.actions.ActionConstants` and :class:`~.task.TaskConstants` (scalars), passed on
   their own: numba's parallel loop cannot take a NamedTuple of scalars nested inside another one.
 
-The types live here and in :mod:`..core.actions` / :mod:`.task`, compiled modules: an edit of any
+The types live here and in :mod:`..rail.step`, :mod:`..core.actions` / :mod:`.task`, compiled modules: an edit of any
 compiled module discards the cached machine code of every other (:mod:`microconveyor_env.jit_cache`
 finds them by their ``refresh`` call), since a cached function is keyed by a NamedTuple's class
 and field types, not its field names. The only index constants the env still uses are the
@@ -29,7 +30,7 @@ physics' own (``forces.I_*`` into a row of ``P``, ``dynamics_kernel.O_*`` into a
 
 Execution noise: with ``AC.noise = sigma > 0`` part ``i`` fires ``clip(action + sigma * noise[i,
 k])`` at its firing ``k`` (``noise``: standard normals drawn per episode, ``(N, n_actuators,
-3)``); with sigma = 0 the action is used as given and ``noise`` is not read (:data:`NO_NOISE`).
+3)``); with sigma = 0 the action is used as given and ``noise`` is not read (:data:`~..rail.step.NO_NOISE`).
 """
 from __future__ import annotations
 
@@ -43,9 +44,6 @@ from ...jit_cache import refresh as refresh_jit_cache
 from ..core.actions import decode
 from .task import is_success, observe_part, reward, stop_if_delivered
 
-NO_RECORD = np.zeros((0, kernel.N_REC))  # the env never records trajectories
-NO_NOISE = np.zeros((0, 0, 3))  # no execution noise (action_noise = 0)
-
 
 class Parts(NamedTuple):
     """The state of N parts."""
@@ -55,20 +53,6 @@ class Parts(NamedTuple):
     t: np.ndarray       # (N,) float64, simulated time [s]
     fired: np.ndarray   # (N,) int64, actuators fired so far
     target: np.ndarray  # (N,) float64, target [m]
-
-
-class Constants(NamedTuple):
-    """What the step reads and never writes (``P`` and ``noise`` change only at a part's reset)."""
-
-    dt: float              # s, integrator step
-    min_steps: int         # integrator steps per stroke, at least
-    positions: np.ndarray  # (n_actuators,) float64, actuator positions [m]
-    P: np.ndarray          # (N, n_params) float64, each part's physics constants (forces.I_*)
-    noise: np.ndarray      # (N, n_actuators, 3) float64 standard normals, or NO_NOISE
-    tu: np.ndarray         # contact table (Simulator.tables)
-    tq: np.ndarray
-    tqu: np.ndarray
-    rec: np.ndarray        # NO_RECORD
 
 
 class Outputs(NamedTuple):

@@ -1,5 +1,5 @@
-"""The reach-target task of the line (MicroConveyor-v0, -v1): start, observation, reward,
-success.
+"""The reach-target task of the line (MicroConveyor-v0, -v1): observation, reward, success
+(the start and target of an episode are every rail's: :func:`..rail.parts.initial_state`).
 
 What the part should do, apart from how it moves (:mod:`...physics`) and how an action fires an
 actuator (:mod:`..core.actions`); :mod:`.step` composes the three into the compiled per-part step, so
@@ -31,17 +31,17 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-import numpy as np
 from numba import njit
 
 from ...jit_cache import refresh as refresh_jit_cache
 from ...physics import dynamics_kernel as kernel
 from ..core import reward as scored
 from ..core.reward import reward_constants
+from ..rail.step import LENGTH_SCALE, OBS_BOUND
 
 OBS_DIM = 6
-OBS_BOUND = 10.0          # observations are clipped to [-OBS_BOUND, OBS_BOUND]
-LENGTH_SCALE = 10e-3      # m: position error and target are divided by this
+# observations are clipped to [-OBS_BOUND, OBS_BOUND]; position error and target are divided by
+# LENGTH_SCALE [m] (every rail's: ..rail.step)
 VELOCITY_SCALE = 0.5      # m/s
 
 
@@ -64,15 +64,6 @@ def constants(cfg) -> TaskConstants:
     """The task constants of ``cfg`` (an EnvConfig)."""
     return TaskConstants(n_actuators=int(cfg.n_actuators), spacing=float(cfg.spacing),
                          **reward_constants(cfg))
-
-
-def initial_state(cfg, rng: np.random.Generator, target: float | None = None) -> tuple:
-    """(start position [m], target [m]) of a new episode: the part ``start_offset`` upstream of
-    actuator 1 (jittered by up to ``start_jitter``), the target drawn uniformly from
-    ``target_range`` unless given (already checked)."""
-    jitter = rng.uniform(-1.0, 1.0) * cfg.start_jitter if cfg.start_jitter else 0.0
-    drawn = rng.uniform(*cfg.target_range)
-    return -cfg.start_offset + jitter, drawn if target is None else target
 
 
 @njit(cache=True)

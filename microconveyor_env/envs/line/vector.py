@@ -7,15 +7,15 @@ from typing import Any, ClassVar, cast
 import numpy as np
 
 from ..core.vector import MAX_ENVS, BatchedEnv
-from .common import check_target
+from ..rail.parts import OwnsRail, check_target
 from .config import EnvConfig
 from .part_state import PartState
-from .state import Conveyor, OwnsConveyor, conveyor_field
+from .state import Conveyor, conveyor_field
 
 __all__ = ["MAX_ENVS", "MicroConveyorVectorEnv"]
 
 
-class MicroConveyorVectorEnv(OwnsConveyor, BatchedEnv):
+class MicroConveyorVectorEnv(OwnsRail, BatchedEnv):
     """``num_envs`` independent copies of :class:`~microconveyor_env.envs.MicroConveyorEnv`.
 
     Same spaces, rewards and info keys as the single env (batched). Sub-env ``i`` reset with
@@ -30,15 +30,13 @@ class MicroConveyorVectorEnv(OwnsConveyor, BatchedEnv):
     ``reset(options={"state": s})``: every sub-env starts from the part state ``s`` (a list:
     one per sub-env); see the single env and :mod:`.part_state`.
     Per-episode randomisation (``action_noise``, ``friction_factor_range``, ``mass_factor_range``;
-    :mod:`.randomisation`): each part has its own row of constants and draws from streams derived
+    :mod:`..core.randomisation`): each part has its own row of constants and draws from streams derived
     from its own generator, so sub-env ``i`` seeded ``seed + i`` draws what the single env seeded
     ``seed + i`` draws; ``friction_factor`` / ``mass_factor`` (arrays) hold this episode's factors.
     """
 
     config_class: ClassVar[type] = EnvConfig
     conveyor_class = Conveyor
-    step_info = (("frequency_hz", "frequency", 0.0), ("stroke_m", "stroke", 0.0),
-                 ("delay_s", "delay", 0.0))
     sb3_info = ("is_success", "position_error_m", "outcome", "sim_time_s", "frequency_hz",
                 "stroke_m", "delay_s", "friction_factor", "mass_factor")
     config: EnvConfig
@@ -80,18 +78,10 @@ class MicroConveyorVectorEnv(OwnsConveyor, BatchedEnv):
         scene; see the single env)."""
         return cast(PartState, super().get_state(i))
 
-    def _infos(self, outcome: np.ndarray, success: np.ndarray) -> dict:
-        infos = {"is_success": success.copy(), "position_error_m": self.x - self.target,
-                 "outcome": outcome, "sim_time_s": self.t.copy()}
-        if self.conveyor.randomised:
-            infos["friction_factor"] = self.friction_factor.copy()
-            infos["mass_factor"] = self.mass_factor.copy()
-        return self._with_masks(infos, self.num_envs)
-
     def render(self) -> tuple | None:
         if self.render_mode != "rgb_array":
             return None
-        from .render import render_frame
+        from ..rail.render import render_frame
 
         return tuple(render_frame(self.config, self.x[i], self.target[i], int(self.fired[i]),
                                   None, self.t[i]) for i in range(self.num_envs))

@@ -15,7 +15,7 @@ from ...env_ids import PLANE_MAX_FIRINGS
 from ...physics.materials import ParameterError, check_range
 from ...physics.validation import MAX_STEPS, MIN_DT, MIN_WAVELENGTH
 from ..core.config import MIN_LENGTH, SceneConfig
-from ..core.randomisation import FACTOR_PAIRS, NOISE_RANGE, is_randomised
+from ..core.randomisation import FACTOR_PAIRS, NOISE_RANGE
 
 CONFIG_FILE = "MicroConveyor2D-v0.yaml"
 MAX_FIRINGS = PLANE_MAX_FIRINGS  # an episode has at most this many steps (spec.max_episode_steps)
@@ -120,11 +120,6 @@ class PlaneEnvConfig(SceneConfig):
         dx = max(abs(x1 - self.start[0]), abs(self.start[0] - x0)) + j
         dy = max(abs(y1 - self.start[1]), abs(self.start[1] - y0)) + j
         return math.hypot(dx, dy)
-
-    @property
-    def randomised(self) -> bool:
-        """Whether any per-episode randomisation is on (noise > 0 or a factor range not (1, 1))."""
-        return is_randomised(self)
 
     @property
     def episode_limit(self) -> tuple[int, str]:

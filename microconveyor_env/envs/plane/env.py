@@ -4,18 +4,12 @@ from __future__ import annotations
 
 from typing import Any, cast
 
-import numpy as np
-from gymnasium import spaces
 from gymnasium.core import RenderFrame
 
-from ...physics import dynamics_kernel as kernel
-from . import task as plane_task
-from ..core.checks import check_render_mode, config_of
 from ..core.single import SingleEnv
 from .config import PlaneEnvConfig
 from .part_state import PlaneState
 from .state import PlaneConveyor
-from .step import ACTION_DIM
 
 
 class MicroConveyor2DEnv(SingleEnv):
@@ -144,19 +138,16 @@ class MicroConveyor2DEnv(SingleEnv):
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
 
+    config_class = PlaneEnvConfig
+    conveyor_class = PlaneConveyor
+    config: PlaneEnvConfig
+    conveyor: PlaneConveyor
+    _last_firing: tuple[int, float, float, float] | None
+
     def __init__(self, render_mode: str | None = None, config: PlaneEnvConfig | None = None,
                  **kwargs: Any) -> None:
-        self.config = config_of(PlaneEnvConfig, config, kwargs)
-        check_render_mode(render_mode, self.metadata["render_modes"])
-        self.render_mode = render_mode
-        self.conveyor = PlaneConveyor(self.config, 1, num_threads=1)
-        self.conveyor.parts.tx[0] = self.conveyor.parts.ty[0] = np.nan
-        self.action_space = spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
-        self.observation_space = spaces.Box(-plane_task.OBS_BOUND, plane_task.OBS_BOUND,
-                                            (plane_task.OBS_DIM,), np.float32)
-        self._done = True
+        super().__init__(render_mode, config, **kwargs)
         self._path: list[tuple[float, float]] = []
-        self._last_firing: tuple[int, float, float, float] | None = None
 
     # state accessors (SI units)
     x = property(lambda self: float(self.conveyor.parts.x[0]), doc="part x [m]")
@@ -184,21 +175,10 @@ class MicroConveyor2DEnv(SingleEnv):
         {"state": s})`` continues the episode from it exactly."""
         return cast(PlaneState, super().get_state())
 
-    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        a = self._checked_action(action)
-        c = self.conveyor
-        out = c.step(a)
-        outcome = kernel.OUTCOMES[int(out.outcome[0])]
-        terminated = outcome in ("rest", "detached")
-        truncated = outcome in ("max_time", "too_many_events")
-        self._done = terminated or truncated
-        j, f, h, d = int(out.actuator[0]), float(out.frequency[0]), float(out.stroke[0]), \
-            float(out.delay[0])
-        self._last_firing = (j, f, h, d)
+    def _after_step(self, info: dict[str, Any]) -> None:
+        self._last_firing = (info["actuator"], info["frequency_hz"], info["stroke_m"],
+                             info["delay_s"])
         self._path.append((self.x, self.y))
-        info = self._info(outcome, bool(out.success[0]))
-        info["actuator"], info["frequency_hz"], info["stroke_m"], info["delay_s"] = j, f, h, d
-        return c.out.obs[0].copy(), float(out.reward[0]), terminated, truncated, info
 
     def render(self) -> RenderFrame | list[RenderFrame] | None:
         """``rgb_array``: the frame of the state now (uint8 (400, 480, 3))."""
@@ -210,14 +190,3 @@ class MicroConveyor2DEnv(SingleEnv):
             raise RuntimeError("render() before the first reset(): there is no part to draw")
         return render_plane_frame(self.config, self._path, self.target, self.fired,
                                   self._last_firing, self.t)
-
-    def _info(self, outcome: str, success: bool) -> dict[str, Any]:
-        (tx, ty), x, y = self.target, self.x, self.y
-        info = {"is_success": success, "position_error_m": (x - tx, y - ty),
-                "distance_m": float(np.hypot(x - tx, y - ty)), "outcome": outcome,
-                "sim_time_s": self.t}
-        c = self.conveyor
-        if c.randomised:
-            info["friction_factor"] = float(c.friction_factor[0])
-            info["mass_factor"] = float(c.mass_factor[0])
-        return info

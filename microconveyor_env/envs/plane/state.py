@@ -12,8 +12,6 @@ from typing import Any
 import numpy as np
 
 from ...physics.plane import kernel as plane_kernel
-from ...physics.contact_table import TableRangeError
-from ...physics.materials import ParameterError
 from ...physics.plane.simulator import PlaneSimulator
 from ...presets import load_preset
 from ..core import actions, randomisation
@@ -29,8 +27,8 @@ from .step import (
     step_parallel,
     step_serial,
 )
-from ..core.parts import PartsBase, for_part
-from ..versions import scene_of
+from ..core.parts import PartsBase, check_table_reach, for_part
+from ..core.versions import scene_of
 from .part_state import PlaneState, check_plane_state
 
 
@@ -41,20 +39,7 @@ def make_plane_simulator(cfg: PlaneEnvConfig) -> PlaneSimulator:
     sim = PlaneSimulator(load_preset(cfg.preset).contact, shape=cfg.shape,
                          wavelength=cfg.wavelength, kinematics=cfg.kinematics, dt=cfg.dt,
                          max_time=cfg.max_time, min_steps=cfg.min_steps, max_steps=cfg.max_steps)
-    f, h = np.array([cfg.freq_range[1]]), np.array([cfg.stroke_range[1]])
-    try:
-        sim.check_firings(f, h)
-    except TableRangeError as exc:
-        raise ParameterError(f"PlaneEnvConfig.freq_range / stroke_range: {exc}") from None
-    heaviest = cfg.mass_factor_range[1]
-    if heaviest > 1.0:
-        try:
-            sim.check_firings(f, h, mass_factor=heaviest)
-        except TableRangeError as exc:
-            raise ParameterError(f"PlaneEnvConfig.mass_factor_range = {cfg.mass_factor_range!r} "
-                                 f"is invalid with these freq_range / stroke_range: a part "
-                                 f"{heaviest:g} times heavier: {exc}; lower the upper factor"
-                                 ) from None
+    check_table_reach(sim, cfg)
     return sim
 
 
@@ -82,6 +67,8 @@ class PlaneConveyor(PartsBase):
     them. Pickles."""
 
     components = ("aim x", "aim y", "frequency", "stroke", "delay")
+    step_info = (("actuator", "actuator", -1), ("frequency_hz", "frequency", 0.0),
+                 ("stroke_m", "stroke", 0.0), ("delay_s", "delay", 0.0))
 
     def __init__(self, config: PlaneEnvConfig, n: int, num_threads: int | None = 1) -> None:
         self.config = config
@@ -108,6 +95,7 @@ class PlaneConveyor(PartsBase):
             frequency=np.zeros(n), stroke=np.zeros(n), delay=np.zeros(n),
             obs=np.zeros((n, plane_task.OBS_DIM), dtype=np.float32),
             kernel=np.zeros((n, plane_kernel.N_OUT)))
+        self.obs = self.out.obs  # every part's observation after the last step or observe
         self.obs_dim: int = plane_task.OBS_DIM
         self.obs_bound: float = plane_task.OBS_BOUND
         # per-episode randomisation: the factors drawn, and each part's streams with the
@@ -115,10 +103,15 @@ class PlaneConveyor(PartsBase):
         self._start_randomisation(config, n)
         self._start(n, num_threads)
 
-    @property
-    def obs(self) -> np.ndarray:
-        """Every part's observation after the last step or observe (``out.obs``)."""
-        return self.out.obs
+    def clear_targets(self) -> None:
+        self.parts.tx[:] = self.parts.ty[:] = np.nan
+
+    def errors(self) -> dict[str, np.ndarray]:
+        """``position_error_m`` (n, 2): each part's (x − tx, y − ty) [m]; ``distance_m``: its
+        Euclidean distance to the target [m]."""
+        p = self.parts
+        err = np.stack([p.x - p.tx, p.y - p.ty], 1)
+        return {"position_error_m": err, "distance_m": np.hypot(err[:, 0], err[:, 1])}
 
     def compiled(self) -> tuple[Any, Any, Any, tuple[Any, ...]]:
         return step_serial, step_parallel, observe_all, (self.parts, self.task, self.out.obs)
@@ -175,8 +168,3 @@ class PlaneConveyor(PartsBase):
         return PlaneState((float(p.x[i]), float(p.y[i])), (float(p.vx[i]), float(p.vy[i])),
                           float(p.t[i]), int(p.fired[i]), (float(p.tx[i]), float(p.ty[i])),
                           ff, mf, noise, env_id, scene_of(self.config))
-
-    def observe(self) -> np.ndarray:
-        """Every part's observation, into (and returned as) ``out.obs``: copy to keep it."""
-        self._observe()
-        return self.out.obs

@@ -34,8 +34,6 @@ class MicroConveyor2DVectorEnv(BatchedEnv):
 
     config_class: ClassVar[type] = PlaneEnvConfig
     conveyor_class = PlaneConveyor
-    step_info = (("actuator", "actuator", -1), ("frequency_hz", "frequency", 0.0),
-                 ("stroke_m", "stroke", 0.0), ("delay_s", "delay", 0.0))
     sb3_info = ("is_success", "position_error_m", "distance_m", "outcome", "sim_time_s",
                 "actuator", "frequency_hz", "stroke_m", "delay_s", "friction_factor",
                 "mass_factor")
@@ -57,17 +55,6 @@ class MicroConveyor2DVectorEnv(BatchedEnv):
     def get_state(self, i: int) -> PlaneState:
         """Sub-env ``i``'s :class:`~.part_state.PlaneState` now."""
         return cast(PlaneState, super().get_state(i))
-
-    def _infos(self, outcome: np.ndarray, success: np.ndarray) -> dict:
-        p = self.conveyor.parts
-        err = np.stack([p.x - p.tx, p.y - p.ty], 1)
-        infos = {"is_success": success.copy(), "position_error_m": err,
-                 "distance_m": np.hypot(err[:, 0], err[:, 1]), "outcome": outcome,
-                 "sim_time_s": p.t.copy()}
-        if self.conveyor.randomised:
-            infos["friction_factor"] = self.friction_factor.copy()
-            infos["mass_factor"] = self.mass_factor.copy()
-        return self._with_masks(infos, self.num_envs)
 
     def render(self) -> tuple | None:
         """``rgb_array``: one frame per sub-env (the part and target now, no path)."""

@@ -1,9 +1,9 @@
 """Validated configuration of MicroPositioner-v0 (defaults in
 ``configs/envs/MicroPositioner-v0.yaml``, where every key has its meaning and unit; SI units).
 
-The positioner is the line's scene (:class:`~..line.config.EnvConfig`: the same surface, bump,
-start, targets, reward and randomisation fields, checked the same way) with two fields of its
-own: ``pick_reach``, how far from the part the action's aim point can be (which actuator fires),
+The positioner is a rail's scene (:class:`~..rail.config.RailConfig`, as the line: the same
+surface, bump, start, targets, reward and randomisation fields, checked the same way) with two
+fields of its own: ``pick_reach``, how far from the part the action's aim point can be (which actuator fires),
 and ``max_firings``, the firings an episode may take. Every firing starts from rest (a step
 ends with the part at rest), so there is no delay to choose: ``delay_range`` is [0, 0]; the
 episode ends once the part rests within the tolerance (``stop_at_target`` is always true); the
@@ -16,13 +16,13 @@ from typing import ClassVar
 
 from ...env_ids import POSITIONER_MAX_FIRINGS
 from ...physics.materials import ParameterError, check_range
-from ..line.config import EnvConfig
+from ..rail.config import RailConfig
 
 MAX_FIRINGS = POSITIONER_MAX_FIRINGS  # firings an episode may take at most
 
 
 @dataclass(frozen=True)
-class PositionerConfig(EnvConfig):
+class PositionerConfig(RailConfig):
     """All settings of MicroPositioner-v0 (SI units; meanings in its YAML file)."""
 
     CONFIG_FILE: ClassVar[str] = "MicroPositioner-v0.yaml"

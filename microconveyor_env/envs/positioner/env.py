@@ -4,20 +4,16 @@ from __future__ import annotations
 
 from typing import Any, cast
 
-import numpy as np
-from gymnasium import spaces
 from gymnasium.core import RenderFrame
 
-from ...physics import dynamics_kernel as kernel
-from ..core.checks import check_render_mode, config_of
 from ..core.single import SingleEnv
-from . import task
+from ..rail.parts import OwnsRail
 from .config import PositionerConfig
 from .part_state import PositionerState
 from .state import PositionerParts
 
 
-class MicroPositionerEnv(SingleEnv):
+class MicroPositionerEnv(OwnsRail, SingleEnv):
     """Closed-loop positioning of a micropart on a long linear actuator array (physics:
     Kogut–Etsion contact, stick–slip dynamics, chapter 4's surface as MicroConveyor-v1).
 
@@ -104,18 +100,11 @@ class MicroPositionerEnv(SingleEnv):
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
 
-    def __init__(self, render_mode: str | None = None, config: PositionerConfig | None = None,
-                 **kwargs: Any) -> None:
-        self.config = config_of(PositionerConfig, config, kwargs)
-        check_render_mode(render_mode, self.metadata["render_modes"])
-        self.render_mode = render_mode
-        self.conveyor = PositionerParts(self.config, 1, num_threads=1)
-        self.conveyor.parts.target[0] = np.nan  # no target before the first reset
-        self.action_space = spaces.Box(-1.0, 1.0, (3,), np.float32)
-        self.observation_space = spaces.Box(-task.OBS_BOUND, task.OBS_BOUND, (task.OBS_DIM,),
-                                            np.float32)
-        self._done = True
-        self._last_firing: tuple[float, float, float, float] | None = None
+    config_class = PositionerConfig
+    conveyor_class = PositionerParts
+    config: PositionerConfig
+    conveyor: PositionerParts
+    _last_firing: tuple[float, float, float, float] | None
 
     # state accessors (SI units)
     x = property(lambda self: float(self.conveyor.parts.x[0]), doc="part position [m]")
@@ -127,50 +116,19 @@ class MicroPositionerEnv(SingleEnv):
     mass_factor = property(lambda self: float(self.conveyor.mass_factor[0]),
                            doc="this episode's factor on the mass [-]")
 
-    @property
-    def sim(self) -> Any:
-        """The simulator (its constants, contact table and integrator settings)."""
-        return self.conveyor.sim
-
-    @property
-    def positions(self) -> np.ndarray:
-        """Actuator positions [m] (float64)."""
-        return self.conveyor.positions
-
     def get_state(self) -> PositionerState:
         """The part's :class:`~.part_state.PositionerState` now (SI units)."""
         return cast(PositionerState, super().get_state())
 
-    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        a = self._checked_action(action)
-        c = self.conveyor
-        out = c.step(a)
-        outcome = kernel.OUTCOMES[int(out.outcome[0])]
-        terminated = outcome in ("rest", "detached")
-        truncated = outcome in ("max_time", "too_many_events")
-        self._done = terminated or truncated
-        j, f, h = int(out.actuator[0]), float(out.frequency[0]), float(out.stroke[0])
-        self._last_firing = (float(c.positions[j]), f, h, 0.0)
-        info = self._info(outcome, bool(out.success[0]))
-        info["actuator"], info["frequency_hz"], info["stroke_m"] = j, f, h
-        return c.obs[0].copy(), float(out.reward[0]), terminated, truncated, info
+    def _after_step(self, info: dict[str, Any]) -> None:
+        self._last_firing = (float(self.positions[info["actuator"]]), info["frequency_hz"],
+                             info["stroke_m"], 0.0)
 
     def render(self) -> RenderFrame | list[RenderFrame] | None:
         """``rgb_array``: the frame of the state now (the array, the part at rest, the target
         and its tolerance, the last stroke's peak deformation dashed)."""
         if self.render_mode != "rgb_array":
             return None
-        from ..line.render import render_frame
+        from ..rail.render import render_frame
 
         return render_frame(self.config, self.x, self.target, 0, self._last_firing, self.t)
-
-    def _info(self, outcome: str, success: bool) -> dict[str, Any]:
-        c = self.conveyor
-        p = c.parts
-        info: dict[str, Any] = {"is_success": success,
-                                "position_error_m": float(p.x[0]) - float(p.target[0]),
-                                "outcome": outcome, "sim_time_s": float(p.t[0])}
-        if c.randomised:
-            info["friction_factor"] = float(c.friction_factor[0])
-            info["mass_factor"] = float(c.mass_factor[0])
-        return info

@@ -20,7 +20,7 @@ Bounds (:func:`check_positioner_state`; a value outside is refused in one line):
 |---|---|---|
 | ``fired`` | firings | an integer in [0, ``max_firings`` - 1] (a firing must be left) |
 | ``time_s`` | s | [0, ``max_time``) |
-| ``position_m``, ``last_step_m`` | m | within the line's reachable span (:func:`~..line.part_state.state_bounds`) |
+| ``position_m``, ``last_step_m`` | m | within a rail's reachable span (:func:`~..rail.part_state.state_bounds`) |
 | ``target_m`` | m | abs at most 0.1 (as the line) |
 | ``last_frequency``, ``last_stroke`` | action units | [-1, 1] (as commanded, clipped) |
 | ``last_offset_m`` | m | within the array's length plus ``pick_reach`` |
@@ -32,9 +32,9 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 from ..core.part_state import SavedState, check_fired, check_scene, check_time, within
-from ..line.config import MAX_TARGET
 from ..core.randomised_state import check_saved
-from ..line.part_state import state_bounds
+from ..rail.part_state import state_bounds
+from ..rail.step import MAX_TARGET
 from .config import PositionerConfig
 
 __all__ = ["PositionerState", "check_positioner_state"]

@@ -1,10 +1,10 @@
 """N parts of MicroPositioner-v0: the state and the step that its single env (N = 1) and its
-batched env share (as the line's :mod:`..line.state`, on the container every scene shares,
-:class:`~..core.parts.PartsBase`).
+batched env share (as the line's :mod:`..line.state`, on the container every rail's scene
+shares, :class:`~..rail.parts.RailParts`).
 
-Resets draw the start and target as the line does (:func:`..line.task.initial_state`) and, with
-randomisation on, each part's factors and noise from streams derived from its generator
-(:mod:`..line.randomisation`: one noise row per firing, ``max_firings`` rows), so the single env
+Resets draw the start and target as every rail does (:func:`..rail.parts.initial_state`) and,
+with randomisation on, each part's factors and noise from streams derived from its generator
+(:mod:`..core.randomisation`: one noise row per firing, ``max_firings`` rows), so the single env
 seeded ``s + i`` and sub-env ``i`` of the batched env seeded ``s`` draw the same.
 """
 from __future__ import annotations
@@ -14,11 +14,8 @@ from typing import Any
 import numpy as np
 
 from ...physics import dynamics_kernel as kernel
-from ..core import actions
-from ..core.parts import PartsBase
-from ..line.common import check_targets, make_simulator
-from ..line.step import NO_NOISE, NO_RECORD, Constants
-from ..versions import scene_of
+from ..core.versions import scene_of
+from ..rail.parts import RailParts, initial_state
 from . import task
 from .config import PositionerConfig
 from .part_state import PositionerState, check_positioner_state
@@ -27,30 +24,23 @@ from .step import Outputs, Parts, observe_all, step_parallel, step_serial
 __all__ = ["PositionerParts"]
 
 
-class PositionerParts(PartsBase):
+class PositionerParts(RailParts):
     """``n`` parts on one :class:`~.config.PositionerConfig`: their state, per-episode
     randomisation and step (``parts``, ``consts``, ``action``, ``task``, ``out``: :mod:`.step`).
     ``friction_factor`` / ``mass_factor``: each part's factors this episode (1 while
     randomisation is off). Pickles (the compiled calls are rebuilt after loading)."""
 
     components = ("aim", "frequency", "stroke")
+    step_info = (("actuator", "actuator", -1), ("frequency_hz", "frequency", 0.0),
+                 ("stroke_m", "stroke", 0.0))
+    config: PositionerConfig
 
     def __init__(self, config: PositionerConfig, n: int, num_threads: int | None = 1) -> None:
-        self.config = config
-        self.n = n
-        self.sim = make_simulator(config)
-        self.positions: np.ndarray = np.asarray(config.actuator_positions, dtype=np.float64)
-        self.action = actions.constants(config, config.action_noise)
+        self._start_rail(config, n, config.max_firings)  # a noise row per firing
         self.task = task.constants(config)
         z = np.zeros
         self.parts = Parts(x=z(n), t=z(n), fired=z(n, dtype=np.int64), target=z(n),
                            last_step=z(n), last_f=z(n), last_h=z(n), last_off=z(n))
-        tu, tq, tqu = self.sim.tables
-        self.consts = Constants(
-            dt=float(self.sim.dt), min_steps=int(self.sim.min_steps), positions=self.positions,
-            P=np.tile(self.sim.params, (n, 1)),
-            noise=(z((n, config.max_firings, 3)) if config.action_noise > 0 else NO_NOISE),
-            tu=tu, tq=tq, tqu=tqu, rec=NO_RECORD)
         self.out = Outputs(reward=z(n), outcome=z(n, dtype=np.int64),
                            success=z(n, dtype=np.bool_), actuator=np.full(n, -1, np.int64),
                            frequency=z(n), stroke=z(n),
@@ -65,16 +55,8 @@ class PositionerParts(PartsBase):
     def compiled(self) -> tuple[Any, Any, Any, tuple[Any, ...]]:
         return step_serial, step_parallel, observe_all, (self.parts, self.task, self.out.obs)
 
-    def observe(self) -> np.ndarray:
-        """Every part's observation, into (and returned as) ``obs``: copy to keep it."""
-        self._observe()
-        return self.obs
 
     # ------------------------------------------------------------------ reset
-    def check_targets(self, given: Any, batched: bool) -> list[float]:
-        """Every part's target [m], as the line checks them (:func:`..line.common.check_targets`)."""
-        return check_targets(given, batched, self.n)
-
     def check_state(self, state: Any) -> PositionerState:
         return check_positioner_state(state, self.config)
 
@@ -84,7 +66,7 @@ class PositionerParts(PartsBase):
         the drawn one), its randomisation from the streams derived from ``rng``; then
         ``state``, if given, in place of all that (its randomisation fields left None keep this
         episode's draws)."""
-        x0, tgt = task.initial_state(self.config, rng, target)
+        x0, tgt = initial_state(self.config, rng, target)
         self._draw_randomisation(i, rng)
         p = self.parts
         p.x[i], p.t[i], p.fired[i], p.target[i] = x0, 0.0, 0, tgt

@@ -8,7 +8,8 @@ as the plane picks its actuator. A resting part moves towards and past the actua
 (docs/physics.md §5, "One actuator"), so aiming ahead of the part carries it downstream and
 aiming behind it carries it back.
 
-Start, target, reward and success are the line's (:mod:`..line.task`, :mod:`..core.reward`):
+Start and target are every rail's (:func:`..rail.parts.initial_state`); reward and success the
+line's (:mod:`..line.task`, :mod:`..core.reward`):
 the potential ``-min(|x - target|, H) / progress_scale``, the time cost, the success bonus when
 the part rests within the tolerance, detachment scored as the worst state there is. Every step
 ends at rest, so success can be decided after any step; the episode then ends.
@@ -28,11 +29,9 @@ from numba import njit
 
 from ...jit_cache import refresh as refresh_jit_cache
 from ..core.reward import is_success, potential, reward, reward_constants
-from ..line.task import initial_state
 
 __all__ = ["COARSE_SCALE", "FINE_SCALE", "OBS_BOUND", "OBS_DIM", "PositionerTaskConstants",
-           "constants", "initial_state", "is_success", "observe_part", "pick", "potential",
-           "reward"]
+           "constants", "is_success", "observe_part", "pick", "potential", "reward"]
 
 OBS_DIM = 12
 OBS_BOUND = 10.0        # observations are clipped to [-OBS_BOUND, OBS_BOUND]

@@ -2,11 +2,11 @@
 bit-identical to N single envs (the shared machinery: :mod:`..core.vector`)."""
 from __future__ import annotations
 
-from typing import Any, ClassVar, cast
+from typing import ClassVar, cast
 
-import numpy as np
 
 from ..core.vector import BatchedEnv
+from ..rail.parts import OwnsRail
 from .config import PositionerConfig
 from .part_state import PositionerState
 from .state import PositionerParts
@@ -14,7 +14,7 @@ from .state import PositionerParts
 __all__ = ["MicroPositionerVectorEnv"]
 
 
-class MicroPositionerVectorEnv(BatchedEnv):
+class MicroPositionerVectorEnv(OwnsRail, BatchedEnv):
     """``num_envs`` independent copies of :class:`~.env.MicroPositionerEnv` (same spaces,
     rewards and info keys, batched). Sub-env ``i`` reset with ``seed`` uses ``seed + i``, as
     ``SyncVectorEnv`` does, so both give identical rollouts; ``autoreset_mode`` ``NEXT_STEP``
@@ -24,8 +24,6 @@ class MicroPositionerVectorEnv(BatchedEnv):
 
     config_class: ClassVar[type] = PositionerConfig
     conveyor_class = PositionerParts
-    step_info = (("actuator", "actuator", -1), ("frequency_hz", "frequency", 0.0),
-                 ("stroke_m", "stroke", 0.0))
     sb3_info = ("is_success", "position_error_m", "outcome", "sim_time_s", "actuator",
                 "frequency_hz", "stroke_m", "friction_factor", "mass_factor")
     config: PositionerConfig
@@ -40,28 +38,14 @@ class MicroPositionerVectorEnv(BatchedEnv):
     mass_factor = property(lambda self: self.conveyor.mass_factor,
                            doc="This episode's factor on the mass [-], per sub-env.")
 
-    @property
-    def positions(self) -> np.ndarray:
-        """Actuator positions [m] (float64)."""
-        return self.conveyor.positions
-
     def get_state(self, i: int) -> PositionerState:
         """Sub-env ``i``'s :class:`~.part_state.PositionerState` now."""
         return cast(PositionerState, super().get_state(i))
 
-    def _infos(self, outcome: np.ndarray, success: np.ndarray) -> dict:
-        infos: dict[str, Any] = {"is_success": success.copy(),
-                                 "position_error_m": self.x - self.target,
-                                 "outcome": outcome, "sim_time_s": self.t.copy()}
-        if self.conveyor.randomised:
-            infos["friction_factor"] = self.friction_factor.copy()
-            infos["mass_factor"] = self.mass_factor.copy()
-        return self._with_masks(infos, self.num_envs)
-
     def render(self) -> tuple | None:
         if self.render_mode != "rgb_array":
             return None
-        from ..line.render import render_frame
+        from ..rail.render import render_frame
 
         return tuple(render_frame(self.config, self.x[i], self.target[i], 0, None, self.t[i])
                      for i in range(self.num_envs))

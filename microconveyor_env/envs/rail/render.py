@@ -1,19 +1,19 @@
-"""rgb_array frames of the conveyor (matplotlib Agg, imported lazily): one frame of a state after a
-step (:func:`render_frame`) and the frames during a firing (:class:`FrameDrawer`, states from
-:mod:`.frames`)."""
+"""rgb_array frames of a rail (matplotlib Agg, imported lazily): one frame of a state after a
+step (:func:`render_frame`; the line's and the positioner's) and the frames during a firing
+(:class:`FrameDrawer`, states from the line's :mod:`..line.frames`)."""
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from .config import EnvConfig
+    from .config import RailConfig
 
 import numpy as np
 
 from ...physics.kinematics import surface_profile
 
 
-def render_frame(cfg: EnvConfig, x: float, target: float, fired: int,
+def render_frame(cfg: RailConfig, x: float, target: float, fired: int,
                  last_firing: tuple | None, t: float, size: tuple = (8.0, 3.0),
                  dpi: int = 80) -> np.ndarray:
     """uint8 (H, W, 3): surface, actuators, part, target and tolerance band.
@@ -58,7 +58,7 @@ class FrameDrawer:
     updated (~4x faster than a new figure per frame). The view spans the actuators, the target
     and the part, and widens (never narrows) within an episode when the part leaves it."""
 
-    def __init__(self, cfg: EnvConfig, size: tuple = (8.0, 3.0), dpi: int = 80) -> None:
+    def __init__(self, cfg: RailConfig, size: tuple = (8.0, 3.0), dpi: int = 80) -> None:
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
         from matplotlib.patches import Rectangle

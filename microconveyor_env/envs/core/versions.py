@@ -1,37 +1,32 @@
 """The registered env ids as the envs see them: the config of any id, its config class and
-batched env, and what counts as the scene (over the registry of :mod:`microconveyor_env.env_ids`).
+batched env, and what counts as the scene, over the registry of :mod:`microconveyor_env.env_ids`
+(each :class:`~microconveyor_env.env_ids.Registration` names its config class and entry points,
+loaded here on first use, so the core names no scene).
 
-The line's versions are :class:`~.line.env.MicroConveyorEnv` with different defaults:
-``MicroConveyor-v0`` the dataclass defaults of :class:`~.line.config.EnvConfig`
-(``configs/envs/MicroConveyor-v0.yaml``), each later version those plus the overrides of its own
-``configs/envs/<id>.yaml``, which become the registered ``gym.spec(id).kwargs`` (as Gymnasium's
-own versions carry theirs). The plane's MicroConveyor2D-v0 is
-:class:`~.plane.env.MicroConveyor2DEnv` on :class:`~.plane.config.PlaneEnvConfig`. What each
-version changed and why: the env cards' version histories (docs/env.md).
+A version is a scene's env with its defaults: ``MicroConveyor-v0`` the dataclass defaults of the
+line's config (``configs/envs/MicroConveyor-v0.yaml``), each later version those plus the
+overrides of its own ``configs/envs/<id>.yaml``, which become the registered
+``gym.spec(id).kwargs`` (as Gymnasium's own versions carry theirs). What each version changed
+and why: the env cards' version histories (docs/env.md).
 """
 from __future__ import annotations
 
 import dataclasses
 from typing import Any
 
-# the ids themselves live in the light ..env_ids (registration imports only it); re-exported
-from ..env_ids import ALL_ENV_IDS, DEFAULT_ENV_ID, ENTRY_POINTS, ENV_IDS, FIRST_ENV_ID, \
-    GOAL_ENV_IDS, LATEST, MAX_ACTUATORS, NOT_SCENE, PERTURBATION_FIELDS, PLANE_ENV_IDS, \
-    REGISTRY, REWARD_FIELDS, RUNTIME_FIELDS, base_id, overrides
-from ..physics.materials import ParameterError
-from .line.config import EnvConfig
+from ...env_ids import DEFAULT_ENV_ID, NOT_SCENE, PERTURBATION_FIELDS, REGISTRY, \
+    base_id, overrides, resolve
+from ...physics.materials import ParameterError
 
-__all__ = ["ALL_ENV_IDS", "DEFAULT_ENV_ID", "ENTRY_POINTS", "FIRST_ENV_ID", "ENV_IDS",
-           "GOAL_ENV_IDS", "LATEST", "MAX_ACTUATORS", "PLANE_ENV_IDS", "base_env_id",
-           "check_env_id", "config_class", "env_config", "nominal", "registered_kwargs",
-           "scene_config", "scene_differences", "scene_of", "vector_class", "vector_class_of"]
-_ = (PERTURBATION_FIELDS, REWARD_FIELDS, RUNTIME_FIELDS)   # re-exported for their users
+__all__ = ["base_env_id", "check_env_id", "config_class", "nominal", "not_scene",
+           "registered_kwargs", "scene_config", "scene_differences", "scene_of", "vector_class",
+           "vector_class_of"]
 
 
 def check_env_id(env_id: str) -> str:
     """``env_id`` if it is a registered version, else a ParameterError naming the versions."""
-    if env_id not in ALL_ENV_IDS:
-        raise ParameterError(f"unknown env id {env_id!r}; registered: {', '.join(ALL_ENV_IDS)}")
+    if env_id not in REGISTRY:
+        raise ParameterError(f"unknown env id {env_id!r}; registered: {', '.join(REGISTRY)}")
     return env_id
 
 
@@ -40,19 +35,9 @@ def base_env_id(env_id: str) -> str:
     return base_id(check_env_id(env_id))
 
 
-def _load(ref: str) -> type:
-    """The class a registration names (``module:Class``)."""
-    import importlib
-
-    module, name = ref.split(":")
-    cls: type = getattr(importlib.import_module(module), name)
-    return cls
-
-
 def config_class(env_id: str) -> type:
-    """The config class of a registered ``env_id`` (:class:`EnvConfig`, or the plane's
-    :class:`~.plane.config.PlaneEnvConfig`), as its registration names it."""
-    return _load(REGISTRY[check_env_id(env_id)].config)
+    """The config class of a registered ``env_id``, as its registration names it."""
+    return resolve(REGISTRY[check_env_id(env_id)].config)
 
 
 def vector_class(env_id: str) -> type:
@@ -62,12 +47,12 @@ def vector_class(env_id: str) -> type:
     ref = reg.vector_entry_point or REGISTRY[reg.base].vector_entry_point
     if ref is None:
         raise ParameterError(f"{env_id} has no batched env")
-    return _load(ref)
+    return resolve(ref)
 
 
 def vector_class_of(config: Any) -> type:
     """The batched env of the scene whose config class ``config`` is an instance of."""
-    for env_id in ALL_ENV_IDS:
+    for env_id in REGISTRY:
         if config_class(env_id) is type(config):
             return vector_class(env_id)
     raise ParameterError(f"no registered env takes a {type(config).__name__}")
@@ -83,16 +68,6 @@ def registered_kwargs(env_id: str) -> dict[str, Any]:
     return kw
 
 
-def env_config(env_id: str = DEFAULT_ENV_ID, **overrides: Any) -> EnvConfig:
-    """The validated config of ``gym.make(env_id, **overrides)`` (SI units) of the line's ids
-    (:class:`EnvConfig`); :func:`scene_config` takes every registered id."""
-    if REGISTRY[check_env_id(env_id)].geometry != "line":
-        raise ParameterError(f"{env_id} is not a conveyor line (its config is a "
-                             f"{config_class(env_id).__name__}); use scene_config")
-    config: EnvConfig = scene_config(env_id, **overrides)
-    return config
-
-
 def scene_config(env_id: str = DEFAULT_ENV_ID, **overrides: Any) -> Any:
     """The validated config of ``gym.make(env_id, **overrides)`` (SI units) of any registered
     id: its config class's ``from_yaml`` with the id's registered kwargs, then ``overrides``."""
@@ -106,7 +81,7 @@ def scene_config(env_id: str = DEFAULT_ENV_ID, **overrides: Any) -> Any:
 def scene_differences(trained: Any, asked: Any) -> dict[str, tuple[Any, Any]]:
     """Fields (name -> (trained, asked)) in which two configs describe different scenes or
     tasks; runtime knobs, per-episode randomisation and the reward's weights are not the
-    scene. Configs of two geometries (the line and the plane) differ in ``"config"``."""
+    scene. Configs of two geometries (two config classes) differ in ``"geometry"``."""
     if type(trained) is not type(asked):
         return {"geometry": (_geometry(trained), _geometry(asked))}
     a, b = dataclasses.asdict(trained), dataclasses.asdict(asked)
@@ -115,7 +90,8 @@ def scene_differences(trained: Any, asked: Any) -> dict[str, tuple[Any, Any]]:
 
 
 def _geometry(config: Any) -> str:
-    """``"the line (EnvConfig)"`` or ``"the plane (PlaneEnvConfig)"``, for messages."""
+    """The geometry and config class of ``config``, e.g. ``"the line (EnvConfig)"``, for
+    messages."""
     kind = next((reg.geometry for reg in REGISTRY.values()
                  if config_class(reg.env_id) is type(config)), "unknown")
     return f"the {kind} ({type(config).__name__})"
@@ -139,7 +115,7 @@ def scene_of(config: Any) -> dict[str, Any]:
 
 def nominal(config: Any) -> Any:
     """``config`` with per-episode randomisation off (its scene under nominal conditions); a
-    config without randomisation (the plane's) as it is."""
+    config without randomisation fields as it is."""
     off: dict[str, Any] = {f.name: f.default for f in dataclasses.fields(type(config))
                            if f.name in PERTURBATION_FIELDS}
     if not off:

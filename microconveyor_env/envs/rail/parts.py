@@ -1,0 +1,113 @@
+"""What the part containers of a rail's scenes share (the line's
+:class:`~..line.state.Conveyor`, the positioner's :class:`~..positioner.state.PositionerParts`,
+both on the container every scene shares, :class:`~..core.parts.PartsBase`): the simulator a
+config builds, the actuator positions and the step's constants, the start and target of an
+episode and the check of a target option; and what the envs expose of the container they own.
+"""
+from __future__ import annotations
+
+import math
+import numbers
+from typing import Any
+
+import numpy as np
+
+from ...physics.simulator import Simulator
+from ...presets import simulator
+from ..core import actions
+from ..core.parts import PartsBase, check_table_reach, for_part
+from .config import RailConfig
+from .step import MAX_TARGET, NO_NOISE, NO_RECORD, Constants
+
+
+def make_simulator(cfg: RailConfig) -> Simulator:
+    """The env's simulator; refuses action ranges whose strongest stroke would load the part
+    beyond the contact table (:func:`~..core.parts.check_table_reach`, once here, so steps never
+    need to)."""
+    sim = simulator(cfg.preset, shape=cfg.shape, wavelength=cfg.wavelength,
+                    kinematics=cfg.kinematics, mode=cfg.mode, dt=cfg.dt, max_time=cfg.max_time,
+                    min_steps=cfg.min_steps, max_steps=cfg.max_steps)
+    check_table_reach(sim, cfg)
+    return sim
+
+
+def initial_state(cfg: Any, rng: np.random.Generator, target: float | None = None) -> tuple:
+    """(start position [m], target [m]) of a new episode: the part ``start_offset`` upstream of
+    actuator 1 (jittered by up to ``start_jitter``), the target drawn uniformly from
+    ``target_range`` unless given (already checked)."""
+    jitter = rng.uniform(-1.0, 1.0) * cfg.start_jitter if cfg.start_jitter else 0.0
+    drawn = rng.uniform(*cfg.target_range)
+    return -cfg.start_offset + jitter, drawn if target is None else target
+
+
+def check_target(target: object) -> float:
+    """A target from ``reset(options=...)`` [m]: finite and where the observation can show it."""
+    t = math.nan
+    if isinstance(target, (numbers.Real, np.floating, np.integer)) and not isinstance(
+            target, (bool, np.bool_)):
+        t = float(target)
+    if not (np.isfinite(t) and abs(t) <= MAX_TARGET):
+        raise ValueError(f"options['target'] = {target!r} is invalid: must be a finite distance "
+                         f"beyond actuator 1 within ±{MAX_TARGET * 1e3:g} mm")
+    return t
+
+
+def check_targets(given: object, batched: bool, n: int) -> list[float]:
+    """Every part's target [m] from reset's ``target`` option (:func:`check_target`):
+    ``batched``, one for all ``n`` parts or a sequence of ``n``, one per part; else the single
+    env's one."""
+    if not batched:
+        return [check_target(given)]
+    try:
+        tv = np.broadcast_to(np.asarray(given, dtype=float), (n,))
+    except (TypeError, ValueError):
+        raise ValueError(f"options['target'] = {given!r} is invalid: give "
+                         f"one target [m] or {n}, one per env") from None
+    return [for_part(i, check_target, t) for i, t in enumerate(tv)]
+
+
+class RailParts(PartsBase):
+    """``n`` parts on a rail: the simulator, the actuator ``positions``, the action's constants
+    and the step's :class:`~.step.Constants` (:meth:`_start_rail`, with ``rows`` noise rows a
+    part: one per firing an episode can have), the targets of reset options, and the position
+    error the envs' info reports."""
+
+    config: RailConfig
+    sim: Simulator
+
+    def _start_rail(self, config: RailConfig, n: int, rows: int) -> None:
+        self.config = config
+        self.n = n
+        self.sim = make_simulator(config)
+        self.positions: np.ndarray = np.asarray(config.actuator_positions, dtype=np.float64)
+        self.action = actions.constants(config, config.action_noise)
+        tu, tq, tqu = self.sim.tables
+        self.consts = Constants(
+            dt=float(self.sim.dt), min_steps=int(self.sim.min_steps), positions=self.positions,
+            P=np.tile(self.sim.params, (n, 1)),
+            noise=(np.zeros((n, rows, 3)) if config.action_noise > 0 else NO_NOISE),
+            tu=tu, tq=tq, tqu=tqu, rec=NO_RECORD)
+
+    def check_targets(self, given: Any, batched: bool) -> list[float]:
+        """Every part's target [m] (:func:`check_targets`)."""
+        return check_targets(given, batched, self.n)
+
+    def errors(self) -> dict[str, np.ndarray]:
+        """``position_error_m``: each part's signed x − target [m]."""
+        return {"position_error_m": self.parts.x - self.parts.target}
+
+
+class OwnsRail:
+    """What a rail's envs expose of the container they own (``self.conveyor``)."""
+
+    conveyor: RailParts
+
+    @property
+    def sim(self) -> Simulator:
+        """The simulator (its constants, contact table and integrator settings)."""
+        return self.conveyor.sim
+
+    @property
+    def positions(self) -> np.ndarray:
+        """Actuator positions [m] (float64)."""
+        return self.conveyor.positions
