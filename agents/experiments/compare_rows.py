@@ -1,4 +1,4 @@
-"""What the comparisons of every scene share (:mod:`.compare`, the line's; :mod:`.compare_positioner`):
+"""What the comparisons of every scene share (:mod:`.compare`, on the line and the positioner):
 a method's row from its per-target results, a closed-loop policy's row, the episodes a search
 needed to reach the tolerance, the tolerances success is read at, and a rollout function that
 does not replay the unperturbed episodes its row already played."""

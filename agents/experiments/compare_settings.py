@@ -4,7 +4,7 @@ settings object validated once when it is made, its defaults, and the env ids it
 The comparison runs on the conveyor line's scene versions (``MicroConveyor-v0``,
 ``MicroConveyor-v1``): its open-loop methods search a plan of the line's firings per target and
 its MPC re-plans them from the line's part state; and on the positioner (``MicroPositioner-v0``,
-:mod:`.compare_positioner`): plans of a few firings and the one-step model-based controller.
+:mod:`.compare`): plans of a few firings and the one-step model-based controller.
 :func:`check_env_id` refuses the other registered ids with the reason (the plane; the
 goal-conditioned interface of a line version).
 """
@@ -13,17 +13,17 @@ from __future__ import annotations
 import numbers
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from microconveyor_env.env_ids import DEFAULT_ENV_ID, REGISTRY
 from microconveyor_env.envs import EnvConfig
-from microconveyor_env.envs.line.config import FACTOR_BOUNDS, MAX_ACTION_NOISE
-from microconveyor_env.envs.versions import config_class
+from microconveyor_env.envs.core.randomisation import FACTOR_BOUNDS, MAX_ACTION_NOISE
+from microconveyor_env.envs.core.versions import config_class
 
 from ..mpc import MPCSettings
-from ..mpc.positioner import MODELS as POSITIONER_MODELS
+from ..mpc.control import MODELS as POSITIONER_MODELS
 from ..openloop.search import METHODS
 from .perturb import DIAGONAL, NOISE_LADDER, SPREAD_LADDER
 
@@ -105,10 +105,10 @@ class CompareSettings:
     the searches (adds the method ``mpc_<its folder's name>``, e.g. ``mpc_ppo_refined``, with
     ``mpc``'s settings and seeds ``mpc_robust``).
 
-    On the positioner (:mod:`.compare_positioner`): ``policy`` (None: its default shipped
+    On the positioner: ``policy`` (None: its default shipped
     policy, ``dagger``, if there is one, else no policy row; ``""``: none); ``mpc_models``, the one-step controller's
     models, one row each (``"identified"``, ``"nominal"``, and ``"oracle"``, the reference that
-    knows each episode's hidden factors: :mod:`agents.mpc.positioner`); ``plan_firings`` [-],
+    knows each episode's hidden factors: :class:`agents.mpc.OneStepSettings`); ``plan_firings`` [-],
     the firings of each open-loop plan. ``mpc``, ``robust_mpc``, ``mpc_prior``,
     ``mpc_workers``, ``randomised_policy`` and ``policy_seeds`` are the line's.
 
@@ -122,26 +122,49 @@ class CompareSettings:
 
     env_id: str = DEFAULT_ENV_ID
     config: EnvConfig | None = None
-    n_targets: int = 100
-    seed: int = 0
-    methods: Sequence[str] = ("de", "cmaes")
-    budgets: Sequence[int] = (1000,)
+    n_targets: int = field(default=100, metadata={
+        "help": "number of fixed targets (drawn with --seed from the default range; default "
+                "{default})", "flag": "--targets", "bounds": (1, 10_000)})
+    seed: int = field(default=0, metadata={
+        "help": "seed of the targets, the searches and the episodes (default {default})"})
+    methods: Sequence[str] = field(default=("de", "cmaes"), metadata={
+        "help": "open-loop methods: de, cmaes or both"})
+    budgets: Sequence[int] = field(default=(1000,), metadata={
+        "help": "episodes per target for DE and CMA-ES (comma list; default {default})"})
     policy: str | Path | None = None
     randomised_policy: str | Path | None = None
-    policy_seeds: Sequence[str | Path] = ()
-    amortise_over: int = 100
+    policy_seeds: Sequence[str | Path] = field(default=(), metadata={
+        "help": "policy folders of PPO trained with other seeds: their IQM and 95 % bootstrap "
+                "interval, nominal and perturbed", "nargs": "+", "metavar": "DIR"})
+    amortise_over: int = field(default=100, metadata={
+        "help": "targets over which PPO's training is amortised in the chart",
+        "bounds": (1, None)})
     mpc: MPCSettings | None = MPC_SETTINGS
     robust_mpc: MPCSettings | None = None
     mpc_prior: str | Path | None = None
-    mpc_workers: int = 2
-    noise_ladder: Sequence[float] = NOISE_LADDER
-    spread_ladder: Sequence[float] = SPREAD_LADDER
-    diagonal: Sequence[tuple[float, float]] = DIAGONAL
-    full_grid: bool = False
-    perturb_repeats: int = 1
+    mpc_workers: int = field(default=2, metadata={
+        "help": "processes for the MPC's episodes (results do not depend on it)",
+        "flag": "--workers", "bounds": (1, 64)})
+    noise_ladder: Sequence[float] = field(default=NOISE_LADDER, metadata={
+        "help": "execution-noise axis σ [action units] (comma list)", "flag": "--noise"})
+    spread_ladder: Sequence[float] = field(default=SPREAD_LADDER, metadata={
+        "help": "model-error axis r [-]: friction and mass factors in [1-r, 1+r]",
+        "flag": "--spread"})
+    diagonal: Sequence[tuple[float, float]] = field(default=DIAGONAL, metadata={
+        "help": "noise and model error together (default {default})", "metavar": "SIGMA:R,..."})
+    full_grid: bool = field(default=False, metadata={
+        "help": "also every (σ, r) combination of the two axes (the full grid; ~20 levels: long)",
+        "flag": ("--full", "--full-grid")})
+    perturb_repeats: int = field(default=1, metadata={
+        "help": "perturbed replays per target and level", "flag": "--repeats",
+        "bounds": (1, 1000)})
     progress: bool = True
-    mpc_models: Sequence[str] = ("identified", "nominal", "oracle")
-    plan_firings: int = 5
+    mpc_models: Sequence[str] = field(default=("identified", "nominal", "oracle"), metadata={
+        "help": "positioner: the one-step model-based controller's models, one row each (comma "
+                "list of identified, nominal, oracle; default all three; oracle knows each "
+                "episode's hidden friction and mass: a reference row)", "metavar": "MODELS"})
+    plan_firings: int = field(default=5, metadata={
+        "help": "positioner: firings of each open-loop DE / CMA-ES plan", "bounds": (1, 24)})
 
     def __post_init__(self) -> None:
         check_env_id(self.env_id)

@@ -101,7 +101,7 @@ def _wilson_text(row: dict) -> str:
 
 
 def positioner_table(result: dict) -> str:
-    """The positioner's comparison (:mod:`.compare_positioner`) as text: one line per method
+    """The positioner's comparison (:func:`.compare.compare` on a positioner id) as text: one line per method
     (success with its 95 % Wilson interval, median |error|, detach rate, compute per target),
     then per method and perturbation level success, median |error| and detach rate; the
     reference row is named as such."""

@@ -33,7 +33,7 @@ def load_demo_policy(policy_path: str | Path | None = None, config: EnvConfig | 
     :func:`..rl.artefacts.shipped.default_policy_name`) for the scene ``config`` (default:
     ``env_id``'s defaults), loaded before any other work so that a bad ``--policy`` (or one of
     another scene) fails at once."""
-    from microconveyor_env.envs.versions import scene_config
+    from microconveyor_env.envs.core.versions import scene_config
 
     from ..rl.artefacts.shipped import require_shipped
 

@@ -2,15 +2,15 @@
 the part came to rest and what it cost, on every scene: the line, the positioner and the plane.
 
 * ``policy``: the env's default shipped policy (or a given one), closed loop, one episode.
-* ``mpc``: model-based control on the nominal model. On the line, model-predictive control
-  (:class:`agents.mpc.control.MPC`): every search seeded by a policy's plan (or by none), a
-  re-plan after each firing from the part's observed state. On the positioner, the one-step
-  controller (:class:`agents.mpc.positioner.PositionerMPC`, its friction identified online):
-  before every firing, the firing whose predicted rest is nearest the target.
-* ``de``: the open-loop plan of differential evolution on the nominal model, then played once:
-  the line's plan fires every actuator in turn (:func:`agents.openloop.target.solve_target`);
-  the positioner's is :data:`~agents.openloop.positioner.PLAN_FIRINGS` firings of any actuator
-  (:func:`agents.openloop.positioner.solve_plan`).
+* ``mpc``: model-predictive control on the nominal model (:class:`agents.mpc.MPC`). On the
+  line, every search seeded by a policy's plan (or by none), a re-plan after each firing from
+  the part's observed state; on the positioner, the one-step controller (its friction
+  identified online): before every firing, the firing whose predicted rest is nearest the
+  target.
+* ``de``: the open-loop plan of differential evolution on the nominal model
+  (:func:`agents.openloop.target.solve_target`), then played once: the line's plan fires every
+  actuator in turn; the positioner's is :data:`~agents.planning.scene.PLAN_FIRINGS` firings of
+  any actuator.
 
 The plane (MicroConveyor2D-v0, -v1) has a policy only (:func:`methods_of`): no model-based
 planner is defined on it.
@@ -37,11 +37,12 @@ import numpy as np
 from microconveyor_env.envs import EnvConfig, MicroConveyorEnv
 from microconveyor_env.envs.plane.config import PlaneEnvConfig
 from microconveyor_env.envs.positioner.config import PositionerConfig
-from microconveyor_env.envs.versions import nominal, scene_differences
+from microconveyor_env.envs.core.versions import nominal, scene_differences
 
 from ..mpc import MPC, MPCSettings
-from ..openloop.positioner import PLAN_FIRINGS
 from ..openloop.search import TARGET_BUDGET
+from ..openloop.target import solve_target
+from ..planning.scene import PLAN_FIRINGS
 
 METHODS = ("policy", "mpc", "de")
 DE_BUDGET = TARGET_BUDGET   # DE episodes of the model (optimize's default for one target)
@@ -234,34 +235,64 @@ def _ending(env: _Recorder, info: dict[str, Any], k: int) -> dict[str, Any]:
             "firings": env.firings}
 
 
+def actor_for(method: str, policy: Any, config: Any, env_id: str) -> tuple[Any, str]:
+    """What acts for ``method`` in ``config``'s scene, and how, in words: the policy that acts
+    (``policy``) or seeds the line's MPC (``mpc``), loaded from ``policy`` when it is a folder
+    [path] or None (``env_id``'s default shipped policy), or taken as it is when already loaded;
+    None for the positioner's controller and DE. A policy of another scene is refused for
+    ``policy`` and only seeds the line's MPC where its observations fit (:func:`mpc_seed`)."""
+    loaded = policy is not None and not isinstance(policy, (str, Path))
+    if method == "policy":
+        if not loaded:
+            from .demo import load_demo_policy
+
+            policy = load_demo_policy(policy, config, env_id)   # another scene is refused
+        return policy, f"policy {policy.path}"
+    if method == "mpc" and geometry_of(config) == "line":
+        if loaded:
+            return policy, f"policy {policy.path}, seeding the MPC"
+        return mpc_seed(policy, config, env_id)
+    if method == "mpc":
+        return None, "the one-step controller on its model, friction identified online"
+    return None, "differential evolution on the nominal model"
+
+
 def place(target_m: Any, method: str, config: Any, policy: Any = None, seed: int = 0,
-          budget: int | None = None, mpc: MPCSettings | None = None) -> dict[str, Any]:
+          budget: int | None = None, mpc: MPCSettings | None = None,
+          env_id: str = "this scene",
+          checked: Callable[[], None] | None = None) -> dict[str, Any]:
     """Place one part at ``target_m`` [m: beyond actuator 1 on the line and the positioner, an
     (x, y) point on the plane] in ``config`` with ``method`` (:func:`methods_of`): ``policy``
+    (a loaded policy, a policy folder, or None: the default shipped one; :func:`actor_for`)
     acts (``policy``) or seeds the line's MPC (``mpc``; settings ``mpc``, default
-    :class:`MPCSettings` with ``seed``; None: unseeded); ``budget`` [episodes]: DE's search
+    :class:`MPCSettings` with ``seed``); ``budget`` [episodes]: DE's search
     (default :func:`de_budget`); ``seed`` [-]: the episode's and the searches'. The result (SI
     units): the firings (actuator, frequency, stroke, delay), the rest position and the error
     (signed on a line, the distance on the plane), the outcome, success (at rest within the
     config's tolerance), the simulated time and the compute (``wall_time_s``, ``episodes``:
-    every simulator episode, the placement's included)."""
-    check_method(method, config, "this scene")
-    if method == "policy" and policy is None:
-        raise ValueError("method 'policy' needs a policy")
+    every simulator episode, the placement's included). ``target_m`` and ``method`` are
+    checked here, once (:func:`check_target`, :func:`check_method`; ``env_id`` names the scene
+    in their messages), then the policy is loaded; ``checked()`` is called once they pass,
+    before any work. The result also names the ``actor`` (in words) and the ``policy`` folder."""
+    check_method(method, config, env_id)
+    target = check_target(target_m, config, env_id)
+    policy, actor = actor_for(method, policy, config, env_id)
+    if checked is not None:
+        checked()
     budget = de_budget(config) if budget is None else int(budget)
-    geometry = geometry_of(config)
     t0 = time.perf_counter()
-    if geometry != "line":
-        res, episodes, extra = _place_scene(target_m, method, config, policy, seed, budget)
-        final = res.pop("final_position_m")
+    if geometry_of(config) == "line":
+        res, episodes, extra = _place_line(target, method, config, policy, seed, budget, mpc)
     else:
-        res, episodes, extra = _place_line(float(target_m), method, config, policy, seed,
-                                           budget, mpc)
-        final = float(target_m) + res["error_m"]
-    target: Any = [float(v) for v in target_m] if geometry == "plane" else float(target_m)
-    return {"target_m": target, "method": method, "seed": int(seed), **res,
+        res, episodes, extra = _place_scene(target, method, config, policy, seed, budget)
+    final = res.pop("final_position_m", None)
+    if final is None:
+        final = target + res["error_m"]
+    return {"target_m": list(target) if isinstance(target, tuple) else target,
+            "method": method, "seed": int(seed), **res,
             "final_position_m": final, "tolerance_m": config.tolerance,
-            "wall_time_s": time.perf_counter() - t0, "episodes": int(episodes), **extra}
+            "wall_time_s": time.perf_counter() - t0, "episodes": int(episodes), **extra,
+            "actor": actor, "policy": None if policy is None else str(policy.path)}
 
 
 def _place_line(target_m: float, method: str, config: EnvConfig, policy: Any, seed: int,
@@ -284,8 +315,6 @@ def _place_line(target_m: float, method: str, config: EnvConfig, policy: Any, se
         extra = {"mpc_first_budget": settings.first_budget,
                  "mpc_replan_budget": settings.replan_budget, "mpc_seeded": policy is not None}
     else:
-        from ..openloop.target import solve_target
-
         plan = solve_target(target_m, "de", budget, seed, config=model)
         res = _episode(config, target_m, seed, lambda _obs, k: plan.plan[k])
         episodes = plan.episodes + 1
@@ -297,28 +326,23 @@ def _place_scene(target: Any, method: str, config: Any, policy: Any, seed: int,
                  budget: int) -> tuple[dict, int, dict]:
     """A placement on the positioner or the plane: the result, the episodes, the extra keys."""
     env = _Recorder(_scene_env(config))
-    tg: Any = tuple(float(v) for v in target) if geometry_of(config) == "plane" \
-        else float(target)
+    tg = target
     extra: dict[str, Any] = {}
     try:
         if method == "policy":
             res = _played(env, tg, seed, lambda obs, _k: np.asarray(policy.act(obs[None]))[0])
             episodes = 1
         elif method == "mpc":
-            from ..mpc.positioner import PositionerMPC
-
-            ctl = PositionerMPC(config)
-            ep = ctl.run(env, float(tg), seed)   # type: ignore[arg-type]  # the env, recording
+            ctl = MPC(nominal(config))
+            ep = ctl.run(env, tg, seed)   # the env, recording
             info = {"outcome": ep.outcome, "is_success": ep.success}
             res = _ending(env, info, ep.firings)
             episodes = ep.episodes + 1
-            extra = {"mpc_model": ctl.settings.model,
+            extra = {"mpc_model": getattr(ctl.settings, "model", None),
                      "estimated_friction_factor": float(ep.estimated_factors[0])}
         else:
-            from ..openloop.positioner import nominal_rollouts, solve_plan
-
-            found = solve_plan(float(tg), "de", budget, seed, nominal_rollouts(config),
-                               PLAN_FIRINGS)
+            found = solve_target(tg, "de", budget, seed, config=nominal(config),
+                                 firings=PLAN_FIRINGS)
             plan = found.plan
             res = _played(env, tg, seed,
                           lambda _obs, k: plan[k] if k < len(plan) else None)

@@ -17,14 +17,12 @@ import numpy as np
 
 from microconveyor_env.envs import EnvConfig
 
-from ..openloop.target import MISS, Rollouts, solve_target
 from ..openloop.search import de_minimize
+from ..openloop.target import solve_target
+from ..planning import MISS, LineRollouts, robust_cost
 
 
-TIE_BREAK = 0.1  # weight of the smooth term of the robust cost (robust_schedule)
-
-
-def best_schedule(roll: Rollouts, target: float, budget: int, seed: int) -> Any:
+def best_schedule(roll: LineRollouts, target: float, budget: int, seed: int) -> Any:
     """Differential evolution over the schedule for the smallest nominal |error|
     (:func:`.open_loop.solve_target`): (best error [m], schedule (n, 3), episodes)."""
     res = solve_target(target, "de", budget, seed, rollouts=roll)
@@ -32,17 +30,14 @@ def best_schedule(roll: Rollouts, target: float, budget: int, seed: int) -> Any:
     return err, res.plan, res.episodes
 
 
-def robust_schedule(roll: Rollouts, target: float, budget: int, seed: int, sigma: float,
+def robust_schedule(roll: LineRollouts, target: float, budget: int, seed: int, sigma: float,
                     k: int = 8, x0: np.ndarray | None = None) -> tuple[np.ndarray, int]:
     """Differential evolution for the schedule whose ``k`` noisy copies (noise ``sigma``) end
     closest on average, started from ``x0``: (schedule (n, 3), episodes).
 
-    A copy costs its error in tolerances capped at 10 (not at rest: 10), plus a tie-break of
-    0.1 ln(1 + error / tolerance) (not at rest: 0.1 ln(1e4)). The cap makes the cost a proxy of
-    the success rate; the tie-break keeps a slope where every copy misses, which is where far
-    targets start: with the cap alone the whole population costs 10, DE sees a flat landscape
-    and stops at once (at 8 mm on MicroConveyor-v1 this took the noisy success of the answer
-    from 0 to 0.68)."""
+    A copy costs :func:`agents.planning.robust_cost`: its error capped at 10 tolerances plus a
+    tie-break of 0.1 tolerance ln(1 + error / tolerance); a copy not at rest counts as an error
+    of 10^4 tolerances."""
     n, tol = roll.config.n_actuators, roll.config.tolerance
     rng = np.random.default_rng(seed)
     start = roll.episodes
@@ -51,17 +46,14 @@ def robust_schedule(roll: Rollouts, target: float, budget: int, seed: int, sigma
         s = x.reshape(-1, n, 3)
         noisy = np.clip(s[:, None] + rng.normal(0.0, sigma, (s.shape[0], k, n, 3)), -1, 1)
         r = roll.run(noisy.reshape(-1, n, 3), target)
-        ratio = r.abs_error_m / tol
-        c = np.where(r.rest, np.minimum(ratio, 10.0) + TIE_BREAK * np.log1p(ratio),
-                     10.0 + TIE_BREAK * np.log1p(1e4))
-        return c.reshape(-1, k).mean(1)
+        return robust_cost(r.abs_error_m, r.rest, tol, miss=1e4 * tol).reshape(-1, k).mean(1)
 
     res = de_minimize(cost, [(-1.0, 1.0)] * (3 * n), max(5, budget // k), seed,
                       x0=None if x0 is None else np.asarray(x0, float).ravel())
     return res.x.reshape(n, 3), roll.episodes - start
 
 
-def noisy_success(roll: Rollouts, schedule: np.ndarray, target: float, sigma: float,
+def noisy_success(roll: LineRollouts, schedule: np.ndarray, target: float, sigma: float,
                   n_noisy: int, seed: int) -> float:
     rng = np.random.default_rng(seed)
     noisy = np.clip(schedule[None] + rng.normal(0.0, sigma, (n_noisy, *schedule.shape)), -1, 1)
@@ -81,7 +73,7 @@ def reach_study(targets: Sequence[float], budget: int = 3000, sigma: float = 1e-
     A target is reachable when an answer lands within tolerance (nominally, or in some noisy
     replays), robust when one of the two answers keeps ``robust_rate``."""
     cfg = config or EnvConfig.from_yaml(target_range=(1e-4, 0.1))
-    roll = Rollouts(cfg)
+    roll = LineRollouts(cfg)
     rows = []
     for i, target in enumerate(targets):
         t0 = time.perf_counter()

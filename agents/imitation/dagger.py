@@ -1,14 +1,15 @@
 """DAgger: a policy network that imitates a model-based expert on the states it visits itself,
 saved as a policy folder that loads as data like every trained policy.
 
-Two experts, one per scene (their settings: ``configs/dagger.yml``, keyed by env id):
+Two experts, one per scene, picked by :func:`agents.mpc.experts.expert_for` (their settings:
+``configs/dagger.yml``, keyed by env id):
 
-* MicroPositioner-v0: the one-step model-based search (:class:`~agents.mpc.positioner.
+* MicroPositioner-v0: the one-step model-based search (:class:`~agents.mpc.experts.
   BatchExpert`): every reachable actuator, frequency and stroke fired on the nominal model from
   where the part rests; it sees where the part rests and the target, never the episode's
   friction, mass or noise;
 * MicroConveyor-v1 (the 1-D conveyor): model-predictive control seeded by a policy
-  (:class:`~agents.mpc.seeded.SeededExpert`): the seed policy's firing, its last firing re-aimed
+  (:class:`~agents.mpc.experts.SeededExpert`): the seed policy's firing, its last firing re-aimed
   on the nominal model so that the part rests on the target.
 
 Each round plays ``episodes`` episodes at once on the batched env (round 0 with the expert
@@ -44,11 +45,11 @@ import yaml
 
 from microconveyor_env.envs.line.config import EnvConfig
 from microconveyor_env.envs.positioner.config import PositionerConfig
-from microconveyor_env.envs.versions import (GOAL_ENV_IDS, check_env_id, scene_config,
-                                             vector_class)
+from microconveyor_env.env_ids import GOAL_ENV_IDS
+from microconveyor_env.envs.core.versions import check_env_id, scene_config, vector_class
 
-from ..mpc.positioner import BatchExpert
-from ..mpc.seeded import SeededExpert
+from ..mpc.experts import expert_for
+from ..planning import PositionerScene, scene_of
 from .student import Student
 
 ENV_ID = "MicroPositioner-v0"   # the dataclass defaults are the positioner's recipe
@@ -75,18 +76,22 @@ class DaggerSettings:
     in batches of ``batch_size`` [-], ``learning_rate`` [-] multiplied by ``lr_decay`` [-] after
     every round) or ``"lbfgs"`` (full batch in float64, ``fit_iterations`` [-]).
 
-    The positioner's expert (:class:`~agents.mpc.positioner.BatchExpert`): ``frequencies``,
+    The positioner's expert (:class:`~agents.mpc.experts.BatchExpert`): ``frequencies``,
     ``strokes`` [-] its candidate grid, ``margin`` [-] grid cells from detachment, ``slack_m``
     [m] how much farther a gentler firing may land, ``heavier`` [-] the heavier part it checks.
-    The conveyor's expert (:class:`~agents.mpc.seeded.SeededExpert`): ``seed_policy``, a shipped
+    The conveyor's expert (:class:`~agents.mpc.experts.SeededExpert`): ``seed_policy``, a shipped
     policy's name for ``env_id`` or a policy folder; ``newton_iterations`` [-] and ``accept_m``
     [m] of the re-aimed last firing."""
 
     env_id: str = ENV_ID
     env_kwargs: dict[str, Any] = field(default_factory=lambda: dict(TRAIN_KWARGS))
-    seed: int = 0
-    rounds: int = 10
-    episodes: int = 256
+    seed: int = field(default=0, metadata={"help": "training seed", "bounds": (0, 2**31 - 1)})
+    rounds: int = field(default=10, metadata={
+        "help": "DAgger rounds (round 0: the expert acts; later: the policy; default: the "
+                "recipe's, 5 on MicroConveyor-v1, 10 on MicroPositioner-v0)", "bounds": (1, 1000)})
+    episodes: int = field(default=256, metadata={
+        "help": "episodes per round, played at once on the batched env (default: the recipe's, "
+                "256)", "bounds": (1, 100000)})
     net_arch: tuple[int, ...] = (256, 256)
     fit: str = "adam"
     epochs: int = 30
@@ -99,7 +104,9 @@ class DaggerSettings:
     margin: int = 2
     slack_m: float = 5e-6
     heavier: float = 0.1
-    seed_policy: str | None = None
+    seed_policy: str | None = field(default=None, metadata={
+        "help": "MicroConveyor-v1: the policy that seeds the expert, a shipped policy's name or a "
+                "policy folder (default: the recipe's, ppo_refined)", "metavar": "NAME|PATH"})
     newton_iterations: int = 6
     accept_m: float = 2e-6
 
@@ -187,14 +194,8 @@ def seed_policy_path(s: DaggerSettings) -> Path:
 def make_expert(s: DaggerSettings, cfg: Any) -> tuple[Labeller, dict[str, Any]]:
     """The expert of ``cfg``'s scene as ``label(obs, venv)`` and its description for the
     metadata."""
-    if isinstance(cfg, PositionerConfig):
-        grid = BatchExpert(cfg, s.frequencies, s.strokes, s.margin, s.slack_m, s.heavier)
-
-        def positioner(obs: np.ndarray, venv: Any, live: np.ndarray) -> Labels:
-            acts, ok = grid.act(venv.x.copy(), venv.t.copy(), venv.target.copy())
-            return acts, ok, None
-
-        return positioner, {
+    if isinstance(scene_of(cfg), PositionerScene):
+        return expert_for(cfg, s).label, {
             "kind": "one-step model-based, nominal model, the gentlest firing within the "
                     "slack of the nearest",
             "frequencies": s.frequencies, "strokes": s.strokes, "margin": s.margin,
@@ -202,7 +203,7 @@ def make_expert(s: DaggerSettings, cfg: Any) -> tuple[Labeller, dict[str, Any]]:
     from ..rl.artefacts.checkpoint import sha256
     from ..rl.artefacts.policy_files import (PolicyError, load_policy, policy_scene,
                                             read_policy_meta)
-    from microconveyor_env.envs.versions import scene_differences
+    from microconveyor_env.envs.core.versions import scene_differences
 
     folder = seed_policy_path(s)
     meta = read_policy_meta(folder)
@@ -212,13 +213,7 @@ def make_expert(s: DaggerSettings, cfg: Any) -> tuple[Labeller, dict[str, Any]]:
                           f"{s.env_id} with the env kwargs given (differs in "
                           f"{', '.join(sorted(diff))}): give a seed policy of this scene")
     policy = load_policy(folder, config=cfg)
-    seeded = SeededExpert(cfg, policy.act, s.newton_iterations, accept_m=s.accept_m)
-
-    def conveyor(obs: np.ndarray, venv: Any, live: np.ndarray) -> Labels:
-        acts, fixed = seeded.act(obs, venv.conveyor.parts, rows=live)
-        return acts, np.ones(len(acts), bool), fixed
-
-    return conveyor, {
+    return expert_for(cfg, s, policy.act).label, {
         "kind": "model-predictive control seeded by a policy: its firings, its last firing "
                 "re-aimed by Gauss-Newton on the nominal model",
         "seed_policy": s.seed_policy, "seed_policy_env_id": policy.env_id,

@@ -1,26 +1,44 @@
-"""Model-predictive control (MPC) of one episode, with the simulator as the model.
+"""Model-predictive control of one episode on any scene planners serve, with the simulator as
+the model: before every firing, observe the part (:meth:`agents.planning.Scene.observed`),
+update the model's friction and mass factors from the firings seen (optional), plan on the model
+from that state, fire the plan's first firing on the real part, and repeat until the episode
+ends (or, on the positioner, until no firing is predicted to bring the part closer: it then rests
+where it is, outcome ``rest``). The loop is :class:`MPC`; what plans is chosen by the settings:
 
-Before every firing the controller observes the part (position, velocity, simulated time, how
-many actuators have fired: :class:`~microconveyor_env.envs.PartState`), searches the remaining
-firings on the **nominal** model from that state (DE or CMA-ES, :func:`..openloop.target.
-solve_target` with ``start=``), fires the first of them on the real part, and repeats: a
-receding horizon that ends with the episode. The real part may differ from the model (friction,
-mass, execution noise: the env's per-episode randomisation); each re-plan starts from where the
-part really is, so errors of earlier firings are corrected by later ones. The last firing can only
-be planned, not corrected.
+* :class:`MPCSettings`, the line's receding horizon (:class:`HorizonPlanner`): the remaining
+  firings searched on the **nominal** model from the observed state (DE or CMA-ES,
+  :func:`..openloop.target.solve_target` with ``start=``). The real part may differ from the
+  model (friction, mass, execution noise: the env's per-episode randomisation); each re-plan
+  starts from where the part really is, so errors of earlier firings are corrected by later
+  ones; the last firing can only be planned, not corrected. Budgets are in episodes of the
+  model: ``first_budget`` for the plan before the first firing, ``replan_budget`` for each later
+  one. A re-plan is warm-started from the remainder of the previous plan (DE: one member of the
+  start population; CMA-ES: the start mean), so with an exact model it keeps that plan unless it
+  finds a better one. A prior policy's plan on the model may seed every search; robust plans
+  are scored over noisy copies (:func:`agents.planning.robust_cost`); the factors may be
+  identified from the firings seen (:class:`.identification.Identifier`).
+* :class:`OneStepSettings`, the positioner's one-step controller (:class:`OneStepPlanner`):
+  its firings each run the part to rest, so a one-step search is a whole plan. From the
+  observed state it fires a grid of candidate firings on the model
+  (:meth:`agents.planning.PositionerScene.candidates`: every actuator the aim can pick, aimed
+  at exactly, ``frequencies`` × ``strokes`` across the action ranges). A candidate whose model
+  part detaches (or runs out of time) is refused, and so are its ``margin`` neighbours in
+  frequency and stroke: a margin from detachment for the execution noise; the nearest few are
+  fired again with the model's friction and mass ``check_factor`` higher and lower, and one that
+  detaches there is passed over: a margin for the model's error (the mass sets detachment on
+  its own). Of the rest, the one whose predicted rest is nearest the target fires. Its model
+  (``model=``): ``"nominal"``; ``"identified"``, the effective friction factor fitted online
+  (:class:`.identification.FrictionFit`); ``"oracle"``, the episode's true factors read from the
+  env: a reference for the others, never a method.
 
-Budgets are in episodes of the model: ``first_budget`` for the plan before the first firing,
-``replan_budget`` for each later one. A re-plan is warm-started from the remainder of the
-previous plan (DE: one member of the start population; CMA-ES: the start mean), so with an exact
-model it keeps that plan unless it finds a better one. A prior policy's plan on the model may
-seed every search; robust plans are scored over noisy copies; the model's friction and mass
-factors may be identified from the firings seen (:mod:`.identification`). Everything is seeded:
-an MPC episode is deterministic given its seeds. Many episodes on worker processes:
-:mod:`.harness`.
+It acts only through the env's API: ``reset``, ``step`` and the saved state without its hidden
+factors and noise. Everything is seeded: an episode is deterministic given its seeds. Many
+episodes on worker processes: :mod:`.harness`.
 """
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -30,8 +48,9 @@ import numpy as np
 from microconveyor_env.envs import EnvConfig, MicroConveyorEnv, PartState
 
 from ..openloop.search import METHODS, check_budget, minimize
-from ..openloop.target import MISS, Rollouts, solve_target
-from .identification import Identifier, Transition
+from ..openloop.target import solve_target
+from ..planning import MISS, PositionerScene, Scene, robust_cost, scene_of
+from .identification import FrictionFit, Identifier
 
 
 @dataclass(frozen=True)
@@ -86,6 +105,56 @@ class MPCSettings:
         return self.noise_copies > 1
 
 
+MODELS = ("nominal", "identified", "oracle")   # the one-step controller's models
+# the step below which a candidate does not count as bringing the part closer [m]
+MIN_GAIN = 0.1e-6
+
+
+@dataclass(frozen=True)
+class OneStepSettings:
+    """``model``: ``"nominal"``, ``"identified"`` or ``"oracle"`` (module docstring: the one-step controller);
+    ``frequencies``, ``strokes`` [-]: candidate values evenly spaced over the frequency and
+    stroke actions' range [-1, 1] (the env maps them log-uniformly onto its frequency range and
+    linearly onto its stroke range); ``margin`` [-]: grid cells in frequency and stroke around a
+    candidate whose model part detaches that are refused too; ``factor_range`` R [-] and
+    ``factor_points`` [-]: the identified friction factor's grid over [1 − R, 1 + R];
+    ``prior_width`` [-]: the fit's prior standard deviation of that factor around 1;
+    ``residual_m`` [m]: the rest residual that weighs as much as one prior width;
+    ``check_factor`` δ [-] and ``check_best`` [-]: the nearest ``check_best`` candidates are
+    fired again with the model's friction and mass factors times 1 ± δ (four corners), and one
+    that detaches under any is passed over (0: no check), a margin for the model's error."""
+
+    model: str = "identified"
+    frequencies: int = 41
+    strokes: int = 6
+    margin: int = 1
+    factor_range: float = 0.3
+    factor_points: int = 61
+    prior_width: float = 0.1
+    residual_m: float = 2e-6
+    check_factor: float = 0.1
+    check_best: int = 16
+
+    def __post_init__(self) -> None:
+        if self.model not in MODELS:
+            raise ValueError(f"model = {self.model!r} is invalid: must be one of {MODELS}")
+        for name, least in (("frequencies", 2), ("strokes", 2), ("margin", 0),
+                            ("factor_points", 3), ("check_best", 1)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < least:
+                raise ValueError(f"{name} = {v!r} is invalid: must be an integer >= {least}")
+        for name in ("factor_range", "check_factor"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and 0.0 <= v <= 0.9) or (
+                    name == "factor_range" and v == 0.0):
+                raise ValueError(f"{name} = {v!r} is invalid: must be in "
+                                 f"{'(0' if name == 'factor_range' else '[0'}, 0.9]")
+        for name in ("prior_width", "residual_m"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and 0.0 < v < math.inf):
+                raise ValueError(f"{name} = {v!r} is invalid: must be a positive number")
+
+
 @dataclass
 class MPCEpisode:
     """One controlled episode (SI units): the outcome as the env reports it, the firings as
@@ -108,49 +177,60 @@ class MPCEpisode:
     delay_s: list[float] = field(default_factory=list)
 
 
-def observed(state: PartState) -> PartState:
-    """What the controller sees of a part: its kinematic state, never the episode's hidden
-    randomisation (friction and mass factors, noise)."""
-    return PartState(state.position_m, state.velocity_m_s, state.time_s, state.fired,
-                     state.target_m)
+class HorizonPlanner:
+    """The line's receding horizon (module docstring): plans the remaining firings on ``model``
+    (an :class:`EnvConfig`, randomisation off) with ``settings``, seeded by ``prior`` (a policy,
+    ``act(obs) -> actions``) if given. :meth:`next` fires the first of its plan."""
 
-
-TIE_BREAK = 0.1      # robust cost: weight of the smooth term beyond the cap (agents.experiments.reach)
-
-
-class MPC:
-    """The controller: plans on ``model`` (an :class:`EnvConfig`, randomisation off: the nominal
-    model) with ``settings``. :meth:`run` controls one episode of a real env."""
-
-    def __init__(self, model: EnvConfig, settings: MPCSettings | None = None,
-                 prior: Any = None) -> None:
+    def __init__(self, model: EnvConfig, settings: MPCSettings, prior: Any = None) -> None:
         if model.randomised:
             raise ValueError("the MPC's model must be nominal (randomisation off); perturb the "
                              "real env instead")
         self.model = model
-        self.settings = s = settings or MPCSettings()
+        self.settings = s = settings
         # the planning model: nominal, or (identify / robust) the same scene whose factors a
         # start state may set and whose copies draw execution noise of the assumed sigma
         r = s.factor_range
-        planning = dataclasses.replace(
+        self.planning = dataclasses.replace(
             model, action_noise=float(s.assumed_noise),
             friction_factor_range=(1.0 - r, 1.0 + r) if s.identify else (1.0, 1.0),
             mass_factor_range=(1.0 - r, 1.0 + r) if s.identify else (1.0, 1.0))
-        self.rollouts = Rollouts(planning)
-        self.prior = prior  # a policy (act(obs) -> actions) whose plan seeds every search
+        self.rollouts = scene_of(self.planning).rollouts()
+        self.prior = prior
         self._prior_env: MicroConveyorEnv | None = None
-        self.identifier = Identifier(planning, r) if s.identify else None
-        self.factors: tuple[float, float] = (1.0, 1.0)  # friction, mass: the current estimate
+        self.spent = 0   # model episodes searched
+        self._last: np.ndarray | None = None
 
-    def plan(self, state: PartState, budget: int, seed: int,
-             warm: np.ndarray | None = None) -> tuple[np.ndarray, int]:
+    def identifier(self) -> Identifier | None:
+        """The fit of the factors the settings ask for (None: plan on the nominal factors)."""
+        s = self.settings
+        return Identifier(self.planning, s.factor_range) if s.identify else None
+
+    def reset(self) -> None:
+        """A new episode: no plan to warm-start from."""
+        self._last = None
+
+    def next(self, state: PartState, k: int, seed: int,
+             factors: tuple[float, float]) -> np.ndarray:
+        """The firing to fire now (float32 ``(3,)``): the first of the plan from ``state``
+        (the ``k``-th re-plan, its search seeded ``seed``) on the model with ``factors``."""
+        s = self.settings
+        warm = self._last[1:] if (self._last is not None and s.warm_start) else None
+        plan, used = self.plan(state, s.first_budget if k == 0 else s.replan_budget, seed,
+                               warm, factors)
+        self.spent += used
+        self._last = plan
+        return plan[0].astype(np.float32)
+
+    def plan(self, state: PartState, budget: int, seed: int, warm: np.ndarray | None = None,
+             factors: tuple[float, float] = (1.0, 1.0)) -> tuple[np.ndarray, int]:
         """The best remaining plan ``(n_actuators - fired, 3)`` from ``state`` within ``budget``
         model episodes, and the episodes used."""
         s = self.settings
         kw: dict[str, Any] = {}
         if s.identify:
-            state = dataclasses.replace(state, friction_factor=self.factors[0],
-                                        mass_factor=self.factors[1])
+            state = dataclasses.replace(state, friction_factor=factors[0],
+                                        mass_factor=factors[1])
         used = 0
         if self.prior is not None:  # the policy's plan on the model, if it beats the warm start
             prior = self.prior_plan(state)
@@ -205,51 +285,164 @@ class MPC:
             plans = np.repeat(X.reshape(-1, n, 3).astype(np.float32).astype(float), k, axis=0)
             r = self.rollouts.run(plans, state.target_m, seed=copies * (len(plans) // k),
                                   start=state)
-            e = np.where(r.rest, np.nan_to_num(r.abs_error_m, nan=MISS), MISS)
-            c = np.minimum(e, 10 * tol) + TIE_BREAK * tol * np.log1p(e / tol)
-            return c.reshape(-1, k).mean(axis=1)
+            return robust_cost(r.abs_error_m, r.rest, tol).reshape(-1, k).mean(axis=1)
 
         res = minimize(self.settings.method, cost, [(-1.0, 1.0)] * (3 * n), budget // k, seed,
                        **kw)
         return res.x.reshape(n, 3).astype(np.float32).astype(float), res.episodes * k
 
-    def run(self, env: MicroConveyorEnv, target_m: float, seed: int,
+
+def dilate(bad: np.ndarray, margin: int) -> np.ndarray:
+    """``bad`` (..., F, H) grown by ``margin`` cells along F and H."""
+    out = bad.copy()
+    for _ in range(margin):
+        grown = out.copy()
+        grown[..., 1:, :] |= out[..., :-1, :]
+        grown[..., :-1, :] |= out[..., 1:, :]
+        grown[..., 1:] |= out[..., :-1]
+        grown[..., :-1] |= out[..., 1:]
+        out = grown
+    return out
+
+
+def with_factors(state: Any, friction: float, mass: float = 1.0) -> Any:
+    """``state`` on a model part with these friction and mass factors [-]."""
+    return dataclasses.replace(state, friction_factor=float(friction), mass_factor=float(mass))
+
+
+class OneStepPlanner:
+    """The positioner's one-step controller (module docstring) on ``scene`` with ``settings``:
+    :meth:`predict` fires every candidate on the model, :meth:`choose` picks one."""
+
+    def __init__(self, scene: PositionerScene, settings: OneStepSettings) -> None:
+        self.scene = scene
+        self.settings = settings
+        self.model = scene.firing_model()
+
+    @property
+    def spent(self) -> int:
+        """Model firings so far (the identification's included)."""
+        return self.model.firings
+
+    def identifier(self) -> FrictionFit | None:
+        return FrictionFit(self.model, self.settings) \
+            if self.settings.model == "identified" else None
+
+    def reset(self) -> None:
+        pass
+
+    def next(self, state: Any, k: int, seed: int,
+             factors: tuple[float, float]) -> np.ndarray | None:
+        return self.choose(state, factors)
+
+    def predict(self, state: Any, factors: tuple[float, float] = (1.0, 1.0)
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every candidate from ``state`` (observed) on the model with ``factors``: the actions
+        ``(A, F, H, 3)``, the predicted rests [m] ``(A, F, H)`` and whether each is allowed
+        (rests, and no neighbour within the margin detaches)."""
+        s = self.settings
+        acts, n_aims = self.scene.candidates(state.position_m, s.frequencies, s.strokes)
+        x, ok = self.model.rests(with_factors(state, *factors), acts)
+        shape = (n_aims, s.frequencies, s.strokes)
+        allowed = ~dilate(~ok.reshape(shape), s.margin)
+        return acts.reshape(*shape, 3), x.reshape(shape), allowed
+
+    def choose(self, state: Any, factors: tuple[float, float] = (1.0, 1.0)) -> np.ndarray | None:
+        """The firing (action ``(3,)`` float32) whose predicted rest from ``state`` is nearest
+        its target, or None when no allowed candidate is predicted to bring the part closer.
+        With ``check_factor`` δ > 0, the ``check_best`` nearest are fired again on the model
+        with its friction and mass factors each times 1 − δ or 1 + δ (the four corners), and
+        the nearest that rests under all four is chosen (the nearest of all if none does)."""
+        s = self.settings
+        acts, x, allowed = self.predict(state, factors)
+        err = np.where(allowed, np.abs(x - state.target_m), np.inf).ravel()
+        gain = err < abs(state.position_m - state.target_m) - MIN_GAIN
+        order = np.argsort(err, kind="stable")[:s.check_best]
+        order = order[gain[order]]
+        if not order.size:
+            return None
+        flat = acts.reshape(-1, 3)
+        if s.check_factor > 0.0:
+            f, m = factors
+            d = s.check_factor
+            corners = [(f * a, m * b) for a in (1.0 - d, 1.0 + d) for b in (1.0 - d, 1.0 + d)]
+            states = [with_factors(state, a, b) for a, b in corners for _ in order]
+            _, ok = self.model.rests(states, np.tile(flat[order], (len(corners), 1)))
+            every = ok.reshape(len(corners), order.size).all(axis=0)
+            if every.any():
+                return flat[order[int(np.argmax(every))]]
+        return flat[order[0]]
+
+
+class MPC:
+    """The controller on the scene of ``model`` (:func:`agents.planning.scene_of`; on the line
+    a nominal :class:`EnvConfig`, on the positioner its config, whose randomisation the model
+    does not use) with ``settings`` (:class:`MPCSettings`: the receding horizon, seeded by the
+    policy ``prior`` if given; :class:`OneStepSettings`: the one-step controller; default: the
+    scene's). :meth:`run` controls one episode of a real env."""
+
+    def __init__(self, model: Any, settings: MPCSettings | OneStepSettings | None = None,
+                 prior: Any = None) -> None:
+        self.scene: Scene = scene_of(model)
+        self.planner: HorizonPlanner | OneStepPlanner
+        if isinstance(self.scene, PositionerScene):
+            self.settings = settings or OneStepSettings()
+            if not isinstance(self.settings, OneStepSettings):
+                raise ValueError("the positioner's controller takes OneStepSettings")
+            self.planner = OneStepPlanner(self.scene, self.settings)
+        else:
+            self.settings = settings or MPCSettings()
+            if not isinstance(self.settings, MPCSettings):
+                raise ValueError("the line's MPC takes MPCSettings")
+            self.planner = HorizonPlanner(model, self.settings, prior)
+        self.model = model
+        self.identifier = self.planner.identifier()
+        self.oracle = getattr(self.settings, "model", None) == "oracle"
+        self.seed = int(getattr(self.settings, "seed", 0))
+        self.factors: tuple[float, float] = (1.0, 1.0)  # friction, mass: the model's now
+
+    def run(self, env: Any, target_m: float, seed: int,
             search_seed: int | None = None) -> MPCEpisode:
         """Control one episode of ``env`` (reset with ``seed`` towards ``target_m`` [m]); the
-        searches are seeded from ``search_seed`` (default: the settings' seed)."""
-        s = self.settings
-        base = s.seed if search_seed is None else int(search_seed)
+        searches are seeded from ``search_seed`` (default: the settings' seed). ``episodes``
+        counts the model's episodes (the one-step controller's: its firings)."""
+        base = self.seed if search_seed is None else int(search_seed)
+        planner, fit = self.planner, self.identifier
         env.reset(seed=int(seed), options={"target": float(target_m)})
-        ff, mf = env.friction_factor, env.mass_factor
-        self.factors = (1.0, 1.0)
-        history: list[Transition] = []
-        plan: np.ndarray | None = None
-        episodes, wall, k = 0, 0.0, 0
-        fired: dict[str, list[float]] = {"frequency_hz": [], "stroke_m": [], "delay_s": []}
+        true = (env.friction_factor, env.mass_factor)
+        planner.reset()
+        if fit is not None:
+            fit.reset()
+        self.factors = true if self.oracle else (1.0, 1.0)
+        start = planner.spent
+        wall, k = 0.0, 0
+        fired: dict[str, list[float]] = {key: [] for key in self.scene.firing_keys}
+        before: Any = None
+        action: np.ndarray | None = None
+        info: dict[str, Any] = {}
         while True:
-            state = observed(env.get_state())
+            state = self.scene.observed(env.get_state())
             t0 = time.perf_counter()
-            if history:
-                history[-1] = (history[-1][0], history[-1][1], state)
-                if self.identifier is not None:
-                    self.factors = self.identifier.fit(history)
-            warm = plan[1:] if (plan is not None and s.warm_start) else None
-            plan, used = self.plan(state, s.first_budget if k == 0 else s.replan_budget,
-                                   base + k, warm)
+            if fit is not None and before is not None:
+                fit.add((before, np.asarray(action, float), state))
+                self.factors = fit.factors()
+            action = planner.next(state, k, base + k, self.factors)
             wall += time.perf_counter() - t0
-            episodes += used
-            action = plan[0].astype(np.float32)
-            history.append((state, action.astype(float), state))
+            if action is None:   # nothing brings it closer: it rests where it is
+                info = {"position_error_m": state.position_m - state.target_m,
+                        "outcome": "rest", "is_success": False, "sim_time_s": state.time_s}
+                break
+            before = state
             _, _, term, trunc, info = env.step(action)
-            for key in fired:
-                fired[key].append(float(info[key]))
+            for key, values in fired.items():
+                values.append(float(info[key]))
             k += 1
             if term or trunc:
                 break
         return MPCEpisode(
             target_m=float(target_m), error_m=float(info["position_error_m"]),
             outcome=str(info["outcome"]), success=bool(info["is_success"]),
-            time_s=float(info["sim_time_s"]), firings=k, episodes=episodes, wall_time_s=wall,
-            friction_factor=ff, mass_factor=mf, estimated_factors=self.factors,
-            frequency_hz=fired["frequency_hz"], stroke_m=fired["stroke_m"],
-            delay_s=fired["delay_s"])
+            time_s=float(info["sim_time_s"]), firings=k, episodes=planner.spent - start,
+            wall_time_s=wall, friction_factor=true[0], mass_factor=true[1],
+            estimated_factors=self.factors, frequency_hz=fired["frequency_hz"],
+            stroke_m=fired["stroke_m"], delay_s=fired.get("delay_s", []))

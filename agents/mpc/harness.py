@@ -1,5 +1,5 @@
 """MPC episodes of many targets, on worker processes: the harness experiments run the controller
-(:mod:`.control`) with.
+(:mod:`.control`) with, on any scene it serves.
 
 :class:`MPCRollout` is a rollout function ``(config, targets, seed) -> dict`` as
 :mod:`agents.experiments.perturb` runs them. Its episodes are split into batches, one per worker
@@ -14,10 +14,12 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from microconveyor_env.envs import EnvConfig, MicroConveyorEnv
-from microconveyor_env.envs.versions import nominal
+from microconveyor_env.envs.core.versions import nominal
 
-from .control import MPC, MPCEpisode, MPCSettings
+from ..planning import scene_of
+from .control import MPC, MPCEpisode, MPCSettings, OneStepSettings
+
+Settings = MPCSettings | OneStepSettings
 
 LOST = "worker_died"   # the outcome of an episode whose batch's process died twice
 
@@ -27,9 +29,9 @@ class Batch(NamedTuple):
     the search seeds) towards ``targets`` [m], env seeds ``seeds``, on ``config``, planned on ``model`` (None:
     ``config`` made nominal) with ``settings``, seeded by the policy folder ``prior``."""
 
-    config: EnvConfig
-    model: EnvConfig | None
-    settings: MPCSettings | None
+    config: Any
+    model: Any
+    settings: Settings | None
     targets: np.ndarray
     seeds: np.ndarray
     numbers: np.ndarray
@@ -45,8 +47,8 @@ def _episodes(batch: Batch) -> list[MPCEpisode]:
 
         policy = load_policy(batch.prior)
     ctl = MPC(batch.model or nominal(batch.config), batch.settings, policy)
-    env = MicroConveyorEnv(config=batch.config)
-    return [ctl.run(env, float(tg), int(sd), search_seed=ctl.settings.seed + 1000 * int(i))
+    env = scene_of(batch.config).env()
+    return [ctl.run(env, float(tg), int(sd), search_seed=ctl.seed + 1000 * int(i))
             for tg, sd, i in zip(batch.targets, batch.seeds, batch.numbers, strict=True)]
 
 
@@ -59,17 +61,18 @@ def _lost_episodes(batch: Batch, why: object) -> list[MPCEpisode]:
 class MPCRollout:
     """A rollout function ``(config, targets, seed) -> dict`` as :mod:`agents.experiments.perturb`
     runs them: episode ``i`` is the single env of ``config`` seeded ``seed + i`` (the same episode
-    as sub-env ``i`` of the batched env), controlled by an :class:`~.control.MPC` planning on
-    ``model`` (default: ``config`` with randomisation off), its searches seeded
-    ``settings.seed + 1000 i``; ``prior``: a policy folder whose plan on the model seeds every
+    as sub-env ``i`` of the batched env), controlled by an :class:`~.control.MPC` with
+    ``settings`` (:class:`~.control.MPCSettings` on the line, :class:`~.control.OneStepSettings`
+    on the positioner; None: the scene's default) planning on ``model`` (default: ``config``
+    with randomisation off), its searches seeded ``settings.seed + 1000 i``; ``prior``: a policy folder whose plan on the model seeds every
     search, loaded in each worker as data. ``workers`` [-] processes share the targets (started
     once, on the first call, with ``spawn``: numba's thread pool does not survive a fork; the
     results do not depend on the number of workers; a worker ends when this process does, however
     it ends); :meth:`close` (or ``with``) stops them. The dict also holds the compute per target:
-    ``episodes`` (of the model) and ``wall_time_s`` (planning). ``worker_deaths`` counts the pools
-    a dead worker broke."""
+    ``episodes`` (of the model) and ``wall_time_s`` (planning), and the model's
+    ``estimated_friction_factor``. ``worker_deaths`` counts the pools a dead worker broke."""
 
-    def __init__(self, settings: MPCSettings | None = None, model: EnvConfig | None = None,
+    def __init__(self, settings: Settings | None = None, model: Any = None,
                  workers: int = 1, prior: str | None = None) -> None:
         if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
             raise ValueError(f"workers = {workers!r} is invalid: must be an integer >= 1")
@@ -78,7 +81,7 @@ class MPCRollout:
         self._pool: Any = None
         self.worker_deaths = 0   # pools broken by a dead worker so far
 
-    def __call__(self, config: EnvConfig, targets: np.ndarray, seed: int) -> dict:
+    def __call__(self, config: Any, targets: np.ndarray, seed: int) -> dict:
         tg = np.asarray(targets, float)
         index = np.arange(tg.size)
         seeds = seed + index
@@ -94,10 +97,12 @@ class MPCRollout:
             "targets_m": tg,
             "error_m": np.array([e.error_m for e in eps]),
             "outcome": np.array([e.outcome for e in eps], dtype=object),
+            "success": np.array([e.success for e in eps]),
             "time_s": np.array([e.time_s for e in eps]),
             "firings": np.array([e.firings for e in eps]),
             "episodes": np.array([e.episodes for e in eps]),
-            "wall_time_s": np.array([e.wall_time_s for e in eps])}
+            "wall_time_s": np.array([e.wall_time_s for e in eps]),
+            "estimated_friction_factor": np.array([e.estimated_factors[0] for e in eps])}
         if config.randomised:  # what the env drew for episode i (seed + i), as rollout() reports
             out["friction_factor"] = np.array([e.friction_factor for e in eps])
             out["mass_factor"] = np.array([e.mass_factor for e in eps])
@@ -157,7 +162,7 @@ class MPCRollout:
         self.close()
 
 
-def mpc_rollout(settings: MPCSettings | None = None, model: EnvConfig | None = None,
+def mpc_rollout(settings: Settings | None = None, model: Any = None,
                 workers: int = 1, prior: str | None = None) -> MPCRollout:
     """:class:`MPCRollout` (``settings``, ``model``, ``workers``; ``prior``: a policy folder
     whose plan on the model seeds every search, loaded in each worker as data)."""

@@ -15,8 +15,7 @@ from microconveyor_env.envs.positioner.part_state import PositionerState
 pytest.importorskip("stable_baselines3")
 
 from agents.imitation.dagger import DaggerSettings, dagger, recipe  # noqa: E402
-from agents.mpc.positioner import BatchExpert  # noqa: E402
-from agents.mpc.seeded import SeededExpert  # noqa: E402
+from agents.mpc.experts import BatchExpert, SeededExpert  # noqa: E402
 
 
 def test_expert_predicts_the_nominal_env_exactly_and_gets_closer() -> None:

@@ -5,10 +5,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from agents.mpc import MPC, MPCSettings, mpc_rollout, observed
+from agents.mpc import MPC, MPCSettings, mpc_rollout
 from agents.openloop.target import solve_target
+from agents.planning import scene_of
 from microconveyor_env.envs import MicroConveyorEnv, env_config
-from microconveyor_env.envs.versions import nominal
+from microconveyor_env.envs.core.versions import nominal
 
 pytest.importorskip("cma")
 
@@ -59,7 +60,7 @@ def test_the_controller_sees_no_hidden_randomisation_and_plans_nominally():
     cfg = env_config("MicroConveyor-v1", action_noise=3e-3, friction_factor_range=(0.9, 1.1))
     env = MicroConveyorEnv(config=cfg)
     env.reset(seed=0)
-    seen = observed(env.get_state())
+    seen = scene_of(cfg).observed(env.get_state())
     assert seen.friction_factor is None and seen.noise is None
     assert not nominal(cfg).randomised
     with pytest.raises(ValueError, match="nominal"):

@@ -12,7 +12,8 @@ pytest.importorskip("cma")
 
 from agents.openloop.dissertation import TABLE_4_3, DissertationProblem, dissertation_cost, \
     evaluate_parameters, solve_dissertation  # noqa: E402
-from agents.openloop.target import Rollouts, replay, solve_target  # noqa: E402
+from agents.openloop.target import replay, solve_target  # noqa: E402
+from agents.planning import LineRollouts  # noqa: E402
 from agents.openloop.search import cmaes_minimize, de_minimize, de_population, minimize  # noqa: E402
 
 
@@ -23,7 +24,7 @@ def run(*args):
 
 @pytest.mark.parametrize("method", ["de", "cmaes"])
 def test_solve_target_is_deterministic_and_within_budget(method):
-    roll = Rollouts()
+    roll = LineRollouts()
     a = solve_target(1e-3, method, 60, seed=3, rollouts=roll)
     assert roll.episodes == a.episodes <= 60
     b = solve_target(1e-3, method, 60, seed=3)

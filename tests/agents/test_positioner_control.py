@@ -8,18 +8,19 @@ import sys
 import numpy as np
 import pytest
 
-from agents.mpc.positioner import (FrictionFit, Model, PositionerMPC, PositionerMPCSettings,
-                                   candidate_actions, observed)
-from agents.openloop.positioner import nominal_rollouts, plans_rollout, solve_plan
+from agents.mpc import MPC, OneStepSettings
+from agents.mpc.identification import FrictionFit
+from agents.openloop.target import plans_rollout, solve_target
+from agents.planning import PositionerScene
 from microconveyor_env.envs.positioner.env import MicroPositionerEnv
-from microconveyor_env.envs.versions import scene_config
+from microconveyor_env.envs.core.versions import scene_config
 
 ENV = "MicroPositioner-v0"
 
 
 def test_candidates_aim_at_every_reachable_actuator_exactly():
     cfg = scene_config(ENV)
-    acts, n = candidate_actions(2.05e-3, cfg, 3, 2)
+    acts, n = PositionerScene(cfg).candidates(2.05e-3, 3, 2)
     assert acts.shape == (n * 3 * 2, 3) and acts.dtype == np.float32
     aims = np.unique(acts[:, 0])
     picked = np.floor((2.05e-3 + aims * cfg.pick_reach) / cfg.spacing + 0.5)
@@ -34,8 +35,8 @@ def test_the_chosen_firing_lands_near_the_target_on_the_nominal_model():
     cfg = scene_config(ENV)
     env = MicroPositionerEnv(config=cfg)
     env.reset(seed=0, options={"target": 1.2e-3})
-    ctl = PositionerMPC(cfg, PositionerMPCSettings(model="nominal"))
-    state = observed(env.get_state())
+    ctl = MPC(cfg, OneStepSettings(model="nominal")).planner
+    state = PositionerScene(cfg).observed(env.get_state())
     acts, x, allowed = ctl.predict(state)
     action = ctl.choose(state)
     assert action is not None and action.shape == (3,)
@@ -51,15 +52,16 @@ def test_the_identified_friction_is_the_one_the_firings_were_made_with():
     real = scene_config(ENV, friction_factor_range=(true, true))
     env = MicroPositionerEnv(config=real)
     env.reset(seed=0, options={"target": 9e-3})
-    settings = PositionerMPCSettings(model="identified")
-    fit = FrictionFit(Model(scene_config(ENV)), settings)
-    chooser = PositionerMPC(scene_config(ENV), PositionerMPCSettings(model="nominal"))
+    settings = OneStepSettings(model="identified")
+    scene = PositionerScene(scene_config(ENV))
+    fit = FrictionFit(scene.firing_model(), settings)
+    chooser = MPC(scene_config(ENV), OneStepSettings(model="nominal")).planner
     for _ in range(2):
-        before = observed(env.get_state())
+        before = scene.observed(env.get_state())
         assert before.friction_factor is None   # the controller never sees the factor
         action = chooser.choose(before)
         env.step(action)
-        fit.add((before, action, env.x))
+        fit.add((before, action, scene.observed(env.get_state())))
     assert fit.estimate() == pytest.approx(true, abs=0.005)
     fit.reset()
     assert fit.estimate() == 1.0
@@ -67,9 +69,8 @@ def test_the_identified_friction_is_the_one_the_firings_were_made_with():
 
 def test_a_plan_search_returns_a_plan_of_the_asked_shape():
     cfg = scene_config(ENV)
-    roll = nominal_rollouts(cfg)
     for method in ("de", "cmaes"):
-        r = solve_plan(3e-3, method, 40, 0, roll, firings=4)
+        r = solve_target(3e-3, method, 40, 0, config=cfg, firings=4)
         assert r.plan.shape == (4, 3) and np.all(np.abs(r.plan) <= 1)
         assert 0 < r.episodes <= 40 and r.outcome in ("rest", "detached")
         assert r.error_m == pytest.approx(
@@ -78,7 +79,7 @@ def test_a_plan_search_returns_a_plan_of_the_asked_shape():
 
 def test_settings_refuse_an_unknown_model():
     with pytest.raises(ValueError, match="model"):
-        PositionerMPCSettings(model="exact")
+        OneStepSettings(model="exact")
 
 
 def test_compare_on_the_positioner_writes_every_row_and_the_chart(tmp_path):

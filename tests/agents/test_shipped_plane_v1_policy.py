@@ -24,7 +24,7 @@ from agents.rl.evaluation.evaluate import (  # noqa: E402
     rollout,
 )
 from microconveyor_env.envs.plane.config import PlaneEnvConfig  # noqa: E402
-from microconveyor_env.envs.versions import scene_config  # noqa: E402
+from microconveyor_env.envs.core.versions import scene_config  # noqa: E402
 
 EPISODE_TOL_M = 1e-6
 ENV_ID = "MicroConveyor2D-v1"

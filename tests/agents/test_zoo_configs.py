@@ -15,7 +15,7 @@ import yaml
 pytest.importorskip("rl_zoo3")
 
 from agents.rl.training import hyperparams  # noqa: E402
-from microconveyor_env.envs.versions import ALL_ENV_IDS  # noqa: E402
+from microconveyor_env.env_ids import ALL_ENV_IDS  # noqa: E402
 
 CONFIGS = resources.files("microconveyor_env.configs")
 FILES = ("ppo", "ppo_quick", "ppo_history", "ppo_randomised", "sac", "tqc")

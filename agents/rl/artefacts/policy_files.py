@@ -51,8 +51,8 @@ import numpy as np
 
 from microconveyor_env.envs import EnvConfig, scene_differences
 from microconveyor_env.envs.plane.config import PlaneEnvConfig
-from microconveyor_env.envs.versions import ALL_ENV_IDS, PLANE_ENV_IDS, base_id, check_env_id, \
-    config_class, nominal, scene_config
+from microconveyor_env.env_ids import ALL_ENV_IDS, PLANE_ENV_IDS, base_id
+from microconveyor_env.envs.core.versions import check_env_id, config_class, nominal, scene_config
 from microconveyor_env.physics.materials import ParameterError
 from microconveyor_env.presets import PresetError
 

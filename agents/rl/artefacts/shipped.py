@@ -33,9 +33,10 @@ def shipped_path(name: str | None = None, env_id: str = DEFAULT_ENV_ID) -> Path:
     return Path(str(resources.files("agents") / "policies" / env_id / name))
 
 
-def shipped_policies() -> dict[str, list[str]]:
-    """Every shipped policy, as {env id: [names]}."""
-    root = Path(str(resources.files("agents") / "policies"))
+def shipped_policies(root: str | Path | None = None) -> dict[str, list[str]]:
+    """Every shipped policy, as {env id: [names]}: the package's, or those under ``root`` (a
+    folder laid out as ``agents/policies``)."""
+    root = Path(str(resources.files("agents") / "policies")) if root is None else Path(root)
     return {env.name: sorted(p.name for p in env.iterdir() if (p / "model.zip").is_file())
             for env in sorted(root.iterdir()) if env.is_dir()}
 
@@ -57,7 +58,7 @@ def require_shipped(env_id: str = DEFAULT_ENV_ID, name: str | None = None) -> Pa
     return path
 
 
-def provenance(command: str = "python scripts/record_shipped_evaluations.py") -> dict[str, Any]:
+def provenance(command: str = "microconveyor record") -> dict[str, Any]:
     """What a recorded evaluation of a shipped policy was computed with: package, torch, SB3,
     numpy and Python versions, the machine, the time (UTC) and the ``command`` that records."""
     from importlib.metadata import version

@@ -65,7 +65,7 @@ def distance_targets(config: EnvConfig | PlaneEnvConfig, distances: Any,
 
 def batched_env(config: EnvConfig | PlaneEnvConfig, n: int) -> Any:
     """The batched env of ``config``'s scene with ``n`` sub-envs, same-step autoreset."""
-    from microconveyor_env.envs.versions import vector_class_of
+    from microconveyor_env.envs.core.versions import vector_class_of
 
     return vector_class_of(config)(n, config=config, autoreset_mode="SameStep")
 

@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 
 from microconveyor_env.envs import EnvConfig
-from microconveyor_env.envs.versions import GOAL_ENV_IDS
+from microconveyor_env.env_ids import GOAL_ENV_IDS
 
 from ..artefacts.policy_files import Policy, policy_scene
 from . import corrections, fit as fitting

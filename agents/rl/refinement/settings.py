@@ -1,7 +1,7 @@
 """The settings of a refinement (:mod:`.refine`), validated once."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -15,15 +15,19 @@ class RefineSettings:
     when it ends this close; ``fit_iterations`` [-] L-BFGS iterations per fit; ``seed`` [-] of the
     training targets."""
 
-    targets: int = 1000
-    rounds: int = 8
+    targets: int = field(default=1000, metadata={
+        "help": "training targets per round, drawn from the policy's target range (default "
+                "{default})", "bounds": (1, None)})
+    rounds: int = field(default=8, metadata={"help": "correct-and-fit rounds (default {default})",
+                                             "bounds": (1, None)})
     newton_iterations: int = 6
     first_iterations: int = 12
     step: float = 1e-3
     max_step: float = 0.2
     accept_m: float = 10e-6
-    fit_iterations: int = 1000
-    seed: int = 0
+    fit_iterations: int = field(default=1000, metadata={
+        "help": "L-BFGS iterations of each fit (default {default})", "bounds": (1, None)})
+    seed: int = field(default=0, metadata={"help": "seed of the training targets (default {default})"})
 
     def __post_init__(self) -> None:
         for name in ("targets", "rounds", "newton_iterations", "first_iterations",

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from .algos import ALGO_NAMES
@@ -47,22 +47,40 @@ class TrainSettings:
     targets per evaluation (0: none); ``eval_seed`` [-] of their fixed target set;
     ``progress_bar``, ``tensorboard``: what the run shows and logs."""
 
-    algo: str = "ppo"
+    algo: str = field(default="ppo", metadata={
+        "help": "algorithm: ppo (stable-baselines3, on the compiled batch), sac "
+                "(stable-baselines3), tqc (sb3-contrib); sac and tqc on MicroConveyorGoal-v1 use "
+                "HER (default: {default})", "choices": ALGO_NAMES})
     env_id: str = ENV_ID
     env_kwargs: dict[str, Any] | None = None
-    conf_file: str | None = None
+    conf_file: str | None = field(default=None, metadata={
+        "help": "rl-zoo3 style YAML (default: the shipped configs/ALGO.yml)"})
     overrides: dict[str, Any] | None = None
-    steps: int | None = None
-    max_minutes: float | None = None
-    seed: int | None = None
-    resume: bool = False
-    allow_config_change: bool = False
-    fork_seed: int | None = None
-    checkpoint_freq: int = 200_000
-    eval_freq: int = 250_000
-    eval_targets: int = 100
+    steps: int | None = field(default=None, metadata={
+        "help": "total environment steps (default: n_timesteps of the conf file)",
+        "bounds": (1, None)})
+    max_minutes: float | None = field(default=None, metadata={
+        "help": "stop after this wall time [min], resumed time included"})
+    seed: int | None = field(default=None, metadata={
+        "help": "training seed (default 0); --resume continues the run's own seed and refuses "
+                "another"})
+    resume: bool = field(default=False, metadata={
+        "help": "continue from the newest complete checkpoint in OUT/checkpoints (refused if "
+                "there is none or the config differs)"})
+    allow_config_change: bool = field(default=False, metadata={
+        "help": "with --resume: continue under a different config (recorded in the metadata)"})
+    fork_seed: int | None = field(default=None, metadata={
+        "help": "with --resume: continue the checkpoint under this seed instead of the run's (a "
+                "fork: the same state, other samples; recorded in the metadata)"})
+    checkpoint_freq: int = field(default=200_000, metadata={
+        "help": "steps between checkpoints (a kill loses at most this many)", "bounds": (1, None)})
+    eval_freq: int = field(default=250_000, metadata={
+        "help": "0: no periodic evaluation", "bounds": (0, None)})
+    eval_targets: int = field(default=100, metadata={
+        "help": "targets per evaluation (0: no evaluation)", "bounds": (0, None)})
     eval_seed: int = 12345
-    progress_bar: bool = True
+    progress_bar: bool = field(default=True, metadata={"help": "no progress bar",
+                                                       "flag": "--no-progress"})
     tensorboard: bool = True
 
     def __post_init__(self) -> None:

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
-from microconveyor_env.envs.line.task import LENGTH_SCALE
+from microconveyor_env.envs.rail.step import LENGTH_SCALE
 
 from .hyperparams import number_in
 

@@ -30,7 +30,8 @@ from stable_baselines3.common.vec_env import VecEnv, VecMonitor, VecNormalize
 
 from microconveyor_env.envs.core.sb3 import MicroConveyorSB3VecEnv
 from microconveyor_env.envs.plane.config import PlaneEnvConfig
-from microconveyor_env.envs.versions import GOAL_ENV_IDS, check_env_id, scene_config
+from microconveyor_env.env_ids import GOAL_ENV_IDS
+from microconveyor_env.envs.core.versions import check_env_id, scene_config
 
 from ..artefacts import checkpoint
 from ..artefacts.checkpoint import META, MODEL, NORMALIZATION
@@ -98,7 +99,8 @@ def recipe(s: TrainSettings, config: Any | None = None) -> tuple[dict, Any]:
 
 
 def train(out: str | Path, settings: TrainSettings | None = None, config: Any | None = None,
-          log: Log | None = None, on_eval: Callable[[dict], None] | None = None) -> dict:
+          log: Log | None = None, on_eval: Callable[[dict], None] | None = None,
+          on_model: Callable[[Any, BaseCallback], None] | None = None) -> dict:
     """Train (or resume) as ``settings`` say (:class:`~.settings.TrainSettings`) into ``out``;
     returns the metadata written there. The env: ``settings.env_id`` with the conf file's
     ``env_kwargs`` updated by ``settings.env_kwargs``, or ``config`` if given; the metadata
@@ -107,7 +109,9 @@ def train(out: str | Path, settings: TrainSettings | None = None, config: Any | 
     ``evaluations.jsonl``); an exception it raises stops the run there and propagates (a tuner's
     pruning), the checkpoints written so far stay. A fork (``fork_seed``) records itself in the
     metadata's ``forks`` and its ``seed`` becomes the fork's; how much of a run's final figure
-    its last updates decide is measured this way (docs/agents.md)."""
+    its last updates decide is measured this way (docs/agents.md). ``on_model``: called with the
+    live model and the periodic evaluation-and-checkpoint callback just before learning starts
+    (a benchmark's instruments: benchmarks/train_time_breakdown.py)."""
     import torch
 
     s = settings or TrainSettings()
@@ -144,6 +148,8 @@ def train(out: str | Path, settings: TrainSettings | None = None, config: Any | 
                 log(f"resume: the replay buffer is not checkpointed; it refills for "
                     f"{model.learning_starts - model.num_timesteps} steps before updates resume")
         periodic = Periodic(out, cfg, s, run_meta, wall_before, log, on_eval)
+        if on_model is not None:
+            on_model(model, periodic)
         return _learn(model, periodic, total, s)
 
 

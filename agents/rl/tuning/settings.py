@@ -2,12 +2,13 @@
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from ..training import hyperparams
 from ..training.settings import check_budgets
+from .space import SPACE
 
 DEFAULT_STUDY = "microconveyor-ppo"
 SEED_MAX = 2**31 - 1   # the largest seed (a worker's sampler takes sampler_seed + its index)
@@ -31,26 +32,52 @@ class TuneSettings:
     ``heartbeat_s`` [s]: a new study's heartbeat interval (None: the default; a study keeps the
     one it was created with)."""
 
-    out: str | Path = "runs/tune"
-    n_trials: int = 20
-    workers: int = 1
-    storage: str | None = None
-    study_name: str = DEFAULT_STUDY
+    out: str | Path = field(default="runs/tune", metadata={
+        "help": "folder of the trials' run folders (OUT/STUDY/trial-N), the default SQLite "
+                "storage and best.yml (default: {default})"})
+    n_trials: int = field(default=20, metadata={
+        "help": "trials this command runs, split over its workers (other machines add theirs to "
+                "the same study)", "flag": "--trials", "bounds": (1, None)})
+    workers: int = field(default=1, metadata={
+        "help": "local worker processes (each trains on one core)", "bounds": (1, None)})
+    storage: str | None = field(default=None, metadata={
+        "help": "Optuna storage URL shared by all workers: sqlite:///PATH (one machine) or a "
+                "database for many machines, e.g. postgresql://USER@HOST/DB (default: "
+                "$MICROCONVEYOR_TUNE_STORAGE, else sqlite:///OUT/optuna.db)"})
+    study_name: str = field(default=DEFAULT_STUDY, metadata={
+        "help": "study name (default: {default})", "flag": "--study"})
     env_id: str = hyperparams.ENV_ID
     env_kwargs: dict[str, Any] | None = None
-    conf_file: str | None = None
-    fixed: dict[str, Any] | None = None
-    trial_steps: int = 1_000_000
-    trial_minutes: float | None = None
-    eval_freq: int = 250_000
-    eval_targets: int = 100
+    conf_file: str | None = field(default=None, metadata={
+        "help": "rl-zoo3 style YAML giving the base hyperparameters (default: the shipped "
+                "configs/ppo.yml)"})
+    fixed: dict[str, Any] | None = field(default=None, metadata={
+        "help": f"do not tune KEY, use VALUE; keys: {', '.join(SPACE)}", "flag": "--fix",
+        "nargs": "+", "metavar": "KEY:VALUE"})
+    trial_steps: int = field(default=1_000_000, metadata={
+        "help": "environment steps per trial (default: {default:,})", "flag": "--steps",
+        "bounds": (1, None)})
+    trial_minutes: float | None = field(default=None, metadata={
+        "help": "wall budget of one trial [min] (default: none, --steps only)"})
+    eval_freq: int = field(default=250_000, metadata={
+        "help": "steps between periodic evaluations (0: none)", "bounds": (0, None)})
+    eval_targets: int = field(default=100, metadata={"help": "targets per evaluation",
+                                                     "bounds": (1, None)})
     eval_seed: int = 12345
-    seed: int = 0
-    prune: bool = True
-    sampler_seed: int | None = None
-    best_file: str | Path | None = None
+    seed: int = field(default=0, metadata={"help": "training seed of every trial"})
+    prune: bool = field(default=True, metadata={
+        "help": "no median pruning on the periodic evaluations", "flag": "--no-prune"})
+    sampler_seed: int | None = field(default=None, metadata={
+        "help": "seed of the TPE sampler (worker i uses SEED + i; default: random)"})
+    best_file: str | Path | None = field(default=None, metadata={
+        "help": "where to write the best trial's config entry (rl-zoo3 YAML; default: "
+                "OUT/STUDY/best.yml)", "flag": "--best"})
     verbose: bool = False
-    heartbeat_s: int | None = None
+    heartbeat_s: int | None = field(default=None, metadata={
+        "help": "a new study's heartbeat interval: a running trial without a heartbeat for 3x "
+                "this (its worker or machine lost) is marked failed (default: 60; a study keeps "
+                "the one it was created with)", "flag": "--heartbeat", "metavar": "SECONDS",
+        "bounds": (1, None)})
 
     def __post_init__(self) -> None:
         if self.n_trials < 1 or self.workers < 1:

@@ -52,7 +52,7 @@ def check_settings(job: dict) -> None:
     the others), which must make a PPO model on that env."""
     import optuna
 
-    from microconveyor_env.envs.versions import scene_config
+    from microconveyor_env.envs.core.versions import scene_config
 
     from ..training.settings import TrainSettings
     from ..training.train import make_env, new_model, recipe
