@@ -17,6 +17,7 @@ import json
 import multiprocessing as mp
 import os
 import time
+from typing import Any
 
 import gymnasium as gym
 import numba
@@ -25,13 +26,15 @@ from gymnasium.utils.performance import benchmark_step
 
 import microconveyor_env  # noqa: F401  (registers MicroConveyor-v0)
 
-RANDOMISE = {"action_noise": 0.05, "friction_factor_range": (0.8, 1.2),
+NUMBA_THREADS: int = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]
+
+RANDOMISE: dict[str, Any] = {"action_noise": 0.05, "friction_factor_range": (0.8, 1.2),
              "mass_factor_range": (0.8, 1.2)}
 
 
 def batched_firings_per_s(num_envs: int, seconds: float, num_threads, seed: int = 0,
                           **kw) -> dict:
-    venv = gym.make_vec("MicroConveyor-v0", num_envs=num_envs, num_threads=num_threads, **kw)
+    venv: Any = gym.make_vec("MicroConveyor-v0", num_envs=num_envs, num_threads=num_threads, **kw)
     venv.reset(seed=seed)
     rng = np.random.default_rng(seed)
     for _ in range(3):  # warm-up (kernel load; the automatic mode tries both choices)
@@ -55,9 +58,11 @@ def _busy(stop) -> None:
 
 def measure(num_envs: int, seconds: float, **kw) -> dict:
     env = gym.make("MicroConveyor-v0", **kw).unwrapped
-    benchmark_step(env, target_duration=0.5, seed=0)  # warm-up
-    out = {"single_env_steps_per_s": round(benchmark_step(env, target_duration=seconds, seed=0))}
-    for label, nt in (("serial", 1), ("parallel", numba.config.NUMBA_NUM_THREADS),
+    # gymnasium annotates target_duration [s] as an int; it takes any number of seconds
+    benchmark_step(env, target_duration=0.5, seed=0)  # type: ignore[arg-type]  # warm-up
+    out: dict[str, Any] = {"single_env_steps_per_s": round(benchmark_step(
+        env, target_duration=seconds, seed=0))}  # type: ignore[arg-type]
+    for label, nt in (("serial", 1), ("parallel", NUMBA_THREADS),
                       ("auto", None)):
         out[f"batched_{label}"] = batched_firings_per_s(num_envs, seconds, nt, **kw)
     return out
@@ -72,8 +77,8 @@ def main() -> None:
                     help=f"per-episode randomisation on: {RANDOMISE}")
     args = ap.parse_args()
     kw = RANDOMISE if args.randomise else {}
-    result = {"num_envs": args.num_envs, "cores": os.cpu_count(),
-              "numba_threads": numba.config.NUMBA_NUM_THREADS, "randomise": kw,
+    result: dict[str, Any] = {"num_envs": args.num_envs, "cores": os.cpu_count(),
+              "numba_threads": NUMBA_THREADS, "randomise": kw,
               "idle": measure(args.num_envs, args.seconds, **kw)}
     if not args.no_load:
         stop = mp.Event()

@@ -37,6 +37,7 @@ import json
 import os
 import platform
 import resource
+import shlex
 import subprocess
 import sys
 import time
@@ -45,12 +46,10 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
-from agents.rl.evaluation.evaluate import (figures, fixed_targets, load_policy,  # noqa: E402
+from agents.rl.evaluation.evaluate import (figures, fixed_targets, load_policy,
                                             rollout)
-from agents.rl.evaluation.seeds import iqm_interval  # noqa: E402
+from agents.rl.evaluation.seeds import iqm_interval
 
 
 def seed_list(text: str) -> list[int]:
@@ -62,10 +61,12 @@ def seed_list(text: str) -> list[int]:
     return out
 
 
-def train(env_id: str, seed: int, folder: Path, cpu: int | None, log: Path) -> dict:
-    """Run the command once; its wall and CPU time [s]."""
+def train(env_id: str, seed: int, folder: Path, cpu: int | None, log: Path,
+          extra: tuple[str, ...] = ()) -> dict:
+    """Run the command once (``extra``: further options of ``imitate``); its wall and CPU time
+    [s]."""
     cmd = [sys.executable, "-m", "microconveyor_env.cli", "imitate", "--env", env_id,
-           "--seed", str(seed), "--out", str(folder)]
+           "--seed", str(seed), "--out", str(folder), *extra]
     env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
            "NUMBA_NUM_THREADS": "1"}
 
@@ -97,6 +98,8 @@ def held_out(folder: Path, n: int, seed: int) -> tuple[dict, np.ndarray]:
     every episode's signed error [m]."""
     pol = load_policy(folder)
     cfg = pol.config
+    if cfg is None:
+        raise SystemExit(f"{folder}: its policy names no env")
     res = rollout(pol, fixed_targets(cfg, n, seed), cfg, seed=seed)
     return figures(res, cfg.tolerance), np.asarray(res["error_m"], float)
 
@@ -104,7 +107,7 @@ def held_out(folder: Path, n: int, seed: int) -> tuple[dict, np.ndarray]:
 def act_time(folder: Path, calls: int = 2000) -> float:
     """Seconds per action of the policy in ``folder`` for one observation at a time (as a
     controller calls it), the mean over ``calls`` calls after one warm-up call."""
-    from microconveyor_env.envs.versions import vector_class_of
+    from microconveyor_env.envs.core.versions import vector_class_of
 
     pol = load_policy(folder)
     obs, _ = vector_class_of(pol.config)(1, config=pol.config).reset(seed=0)   # a first state
@@ -135,6 +138,9 @@ def main() -> None:
     ap.add_argument("--min-success", type=float, default=0.90)
     ap.add_argument("--max-median-m", type=float, default=20e-6)
     ap.add_argument("--note", default="", help="what else ran on the machine")
+    ap.add_argument("--imitate-args", type=shlex.split, default=[],
+                    help="further options of each `microconveyor imitate` run, one string (e.g. "
+                         "'--rounds 1 --episodes 2' for a quick check of this script)")
     ap.add_argument("--compare-with", type=Path, default=None,
                     help="a run folder of this script on another CPU code path (module docstring)")
     args = ap.parse_args()
@@ -144,7 +150,8 @@ def main() -> None:
     rows = []
     for seed in args.seeds:
         folder = args.out / f"s{seed}"
-        timing = train(args.env, seed, folder, cpu, args.out / f"s{seed}.log")
+        timing = train(args.env, seed, folder, cpu, args.out / f"s{seed}.log",
+                       tuple(args.imitate_args))
         r, errors = held_out(folder, args.targets, args.eval_seed)
         row = {"seed": seed, **timing, **criterion_row(r, args)}
         if args.compare_with is not None:

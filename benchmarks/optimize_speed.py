@@ -22,6 +22,8 @@ from typing import Any
 
 import numba
 
+NUMBA_THREADS: int = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]
+
 
 def _busy(stop: Any) -> None:
     while not stop.is_set():
@@ -30,9 +32,10 @@ def _busy(stop: Any) -> None:
 
 def cases() -> dict[str, Callable[[int], Any]]:
     from agents.openloop.dissertation import solve_dissertation
-    from agents.openloop.target import Rollouts, solve_target
+    from agents.openloop.target import solve_target
+    from agents.planning import LineRollouts
 
-    roll = Rollouts()
+    roll = LineRollouts()
     return {
         "dissertation_de_2550": lambda s: solve_dissertation("de", seed=s),
         "dissertation_cmaes_2550": lambda s: solve_dissertation("cmaes", seed=s),
@@ -73,7 +76,7 @@ def main() -> None:
         stop.set()
         for p in procs:
             p.join(5)
-    print(json.dumps({"cores": os.cpu_count(), "numba_threads": numba.config.NUMBA_NUM_THREADS,
+    print(json.dumps({"cores": os.cpu_count(), "numba_threads": NUMBA_THREADS,
                       "busy_processes": args.busy, "loadavg_before": load_before,
                       "loadavg_after": os.getloadavg(), "cases": result}, indent=2))
 

@@ -19,6 +19,7 @@ import json
 import os
 import statistics
 import time
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -27,18 +28,19 @@ from gymnasium.utils.performance import benchmark_step
 import microconveyor_env  # noqa: F401  (registers the ids)
 
 BASE = "MicroConveyor-v1"
-PERTURBED = {"action_noise": 3e-3, "friction_factor_range": (0.95, 1.05),
+PERTURBED: dict[str, Any] = {"action_noise": 3e-3, "friction_factor_range": (0.95, 1.05),
              "mass_factor_range": (0.95, 1.05)}
 
 
 def single_steps_per_s(env_id: str, seconds: float) -> float:
     env = gym.make(env_id, **PERTURBED).unwrapped
-    benchmark_step(env, target_duration=0.3, seed=0)  # warm-up (kernel load)
-    return float(benchmark_step(env, target_duration=seconds, seed=0))
+    # gymnasium annotates target_duration [s] as an int; it takes any number of seconds
+    benchmark_step(env, target_duration=0.3, seed=0)  # type: ignore[arg-type]  # warm-up
+    return float(benchmark_step(env, target_duration=seconds, seed=0))  # type: ignore[arg-type]
 
 
 def batched_steps_per_s(env_id: str, num_envs: int, seconds: float) -> float:
-    venv = gym.make_vec(env_id, num_envs=num_envs, num_threads=1, **PERTURBED)
+    venv: Any = gym.make_vec(env_id, num_envs=num_envs, num_threads=1, **PERTURBED)
     venv.reset(seed=0)
     rng = np.random.default_rng(0)
     for _ in range(3):

@@ -208,23 +208,16 @@ def train_once(out: Path, steps: int, clock: Clock | None, progress: bool,
                eval_targets: int = 100, eval_freq: int = 250_000) -> dict:
     """One training as ``microconveyor train --env MicroConveyor-v1`` runs it (its defaults),
     instrumented through ``clock``; returns the metadata and the wall time [s]."""
-    learn = T._learn
-
-    def learn_timed(model: Any, periodic: Any, total: int, s: TrainSettings) -> dict:
+    def instrumented(model: Any, periodic: Any) -> None:
         if clock is not None:
             instrument(model, periodic, clock)
-        return learn(model, periodic, total, s)
 
     settings = TrainSettings(env_id=ENV_ID, steps=steps, eval_freq=eval_freq,
                              eval_targets=eval_targets, progress_bar=progress,
                              tensorboard=clock is not None)
-    T._learn = learn_timed   # restored below: the live model and callback exist only in there
-    try:
-        t0, c0 = time.perf_counter(), time.process_time()
-        meta = T.train(out, settings)
-        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-    finally:
-        T._learn = learn
+    t0, c0 = time.perf_counter(), time.process_time()
+    meta = T.train(out, settings, on_model=instrumented)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     return {"meta": meta, "wall_s": wall, "cpu_s": cpu}
 
 

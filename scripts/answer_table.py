@@ -25,9 +25,10 @@ import numpy as np
 from agents.experiments.compare_settings import MPC_SETTINGS
 from agents.experiments.perturb import Level, perturbation_table, plan_rollout, policy_rollout
 from agents.mpc.harness import mpc_rollout
-from agents.openloop.target import Rollouts, solve_target
+from agents.openloop.target import solve_target
+from agents.planning import LineRollouts
 from agents.rl.artefacts.shipped import require_shipped
-from agents.rl.evaluation.evaluate import load_policy
+from agents.rl.evaluation.evaluate import distance_targets, load_policy
 from microconveyor_env.envs import env_config
 
 ENV_ID = "MicroConveyor-v1"
@@ -46,11 +47,6 @@ def noise_in_si(sigma: float, cfg) -> dict:
             "delay_s": sigma / 2 * (cfg.delay_range[1] - cfg.delay_range[0])}
 
 
-def targets_for(per_distance: int) -> np.ndarray:
-    offsets = np.linspace(-1e-4, 1e-4, per_distance) if per_distance > 1 else np.zeros(1)
-    return np.array([d + o for d in DISTANCES_M for o in offsets])
-
-
 def _episodes(run, cfg, targets, sigma: float, repeats: int, seed: int) -> list[dict]:
     return perturbation_table(run, cfg, targets, [Level(action_noise=sigma)], seed=seed,
                               repeats=repeats, tolerance=cfg.tolerance, per_episode=True)
@@ -64,10 +60,12 @@ def main() -> None:
     ap.add_argument("--sigma", type=float, default=3e-3)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--mpc-workers", type=int, default=1)
+    ap.add_argument("--de-budget", type=int, default=DE_BUDGET,
+                    help=f"DE's episodes per target (default {DE_BUDGET})")
     args = ap.parse_args()
 
     cfg = env_config(ENV_ID)
-    targets = targets_for(args.per_distance)
+    targets = distance_targets(cfg, DISTANCES_M, args.per_distance).reshape(-1)
     policy_dir = require_shipped(ENV_ID, "ppo_refined")
     policy = load_policy(policy_dir, cfg)
     methods: dict[str, dict] = {}
@@ -85,14 +83,14 @@ def main() -> None:
     record("ppo_refined", run, {"wall_s_per_target": (time.perf_counter() - t0) / len(targets)})
 
     # DE per target on the nominal model, its plan replayed
-    roll = Rollouts(cfg)
+    roll = LineRollouts(cfg)
     plans, wall = [], 0.0
     for k, tg in enumerate(targets):
-        r = solve_target(float(tg), "de", DE_BUDGET, args.seed + k, rollouts=roll)
+        r = solve_target(float(tg), "de", args.de_budget, args.seed + k, rollouts=roll)
         plans.append(r.plan)
         wall += r.wall_time_s
     record("de", plan_rollout(np.array(plans)),
-           {"wall_s_per_target": wall / len(targets), "budget_episodes": DE_BUDGET})
+           {"wall_s_per_target": wall / len(targets), "budget_episodes": args.de_budget})
 
     # MPC seeded by the policy's plan, re-planning after every firing on the nominal model
     with mpc_rollout(MPC_SETTINGS, workers=args.mpc_workers, prior=str(policy_dir)) as mpc:
@@ -118,7 +116,9 @@ def main() -> None:
                           .isoformat(timespec="seconds"),
                           "command": "nice python scripts/answer_table.py "
                                      f"--per-distance {args.per_distance} "
-                                     f"--noise-seeds {args.noise_seeds} --sigma {args.sigma}"}}
+                                     f"--noise-seeds {args.noise_seeds} --sigma {args.sigma}"
+                                     + (f" --de-budget {args.de_budget}"
+                                        if args.de_budget != DE_BUDGET else "")}}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(out, indent=1) + "\n")
     print(f"wrote {args.out}")

@@ -3,6 +3,7 @@ the figures and numbers of docs/agents.md §1.
 
     python scripts/dissertation_study.py [--preset conveyor] [--seeds 10] [--long-seeds 10]
         [--out docs/figures/dissertation_conveyor.json] [--figures docs/figures]
+        [--budgets 2550,25500] [--explain-seeds 10]
 
 On the chapter-4 surface (preset ``conveyor``, the default; ``feasibility`` gives the chapter-3
 record of ``dissertation.json``): DE with the dissertation's settings (population 50, 50
@@ -52,19 +53,24 @@ def main() -> None:
     ap.add_argument("--long-seeds", type=int, default=10)
     ap.add_argument("--out", default=None)
     ap.add_argument("--figures", default="docs/figures")
+    ap.add_argument("--budgets", default="2550,25500",
+                    help="episodes of the short and the long runs (default 2550,25500)")
+    ap.add_argument("--explain-seeds", type=int, default=10,
+                    help="seeds per variant of Table 4.3's explanation (default 10)")
     args = ap.parse_args()
+    short, long = (int(b) for b in args.budgets.split(","))
     fig = Path(args.figures)
     out_path = Path(args.out or fig / f"dissertation_{args.preset}.json")
     prob = DissertationProblem(config=EnvConfig.from_yaml(preset=args.preset))
     solve_dissertation("de", seed=100, budget=100, popsize=50, problem=prob)  # warm-up
     out: dict[str, Any] = {"preset": args.preset, "loadavg_before": os.getloadavg(), "runs": []}
-    for method, budget, seeds in (("de", 2550, args.seeds), ("cmaes", 2550, args.seeds),
-                                  ("de", 25500, args.long_seeds),
-                                  ("cmaes", 25500, args.long_seeds)):
+    for method, budget, seeds in (("de", short, args.seeds), ("cmaes", short, args.seeds),
+                                  ("de", long, args.long_seeds),
+                                  ("cmaes", long, args.long_seeds)):
         for seed in range(seeds):
             r = solve_dissertation(method, seed=seed, budget=budget, problem=prob)
             row = {**r.to_dict(), "budget": budget}
-            if budget > 2550:  # the long runs' cost history thinned to every 10th generation
+            if budget == long:  # the long runs' cost history thinned to every 10th generation
                 for k in ("history_episodes", "history_best_cost"):
                     row[k] = row[k][::10] + row[k][-1:]
             out["runs"].append(row)
@@ -73,7 +79,7 @@ def main() -> None:
                   file=sys.stderr, flush=True)
     out["summary"] = [{"method": m, "budget": b, **_summary(
         [r for r in out["runs"] if r["method"] == m and r["budget"] == b], prob.target_m)}
-        for m, b in (("de", 2550), ("cmaes", 2550), ("de", 25500), ("cmaes", 25500))]
+        for m, b in (("de", short), ("cmaes", short), ("de", long), ("cmaes", long))]
     out["table_4_3"] = {"dissertation": TABLE_4_3,
                         "this_model": evaluate_parameters(TABLE_4_3, prob)}
 
@@ -82,31 +88,31 @@ def main() -> None:
               f" mm, {row['de_median_travel_time_s'] * 1e3:.1f} ms, goal {row['de_goal_hits']}/"
               f"{len(row['de_seeds'])}", file=sys.stderr, flush=True)
 
-    for budget in (2550, 25500):
+    for budget in (short, long):
         t0 = time.perf_counter()
-        out[f"explain_{budget}"] = explain(prob, seeds=range(10), budget=budget,
+        out[f"explain_{budget}"] = explain(prob, seeds=range(args.explain_seeds), budget=budget,
                                            progress=progress)
         print(f"explain at {budget}: {time.perf_counter() - t0:.0f} s", file=sys.stderr)
     out["loadavg_after"] = os.getloadavg()
     out_path.write_text(json.dumps(out, indent=1))
     runs0 = {f"{m} seed 0": next((r["history_episodes"], r["history_best_cost"])
                                  for r in out["runs"]
-                                 if r["method"] == m and r["seed"] == 0 and r["budget"] == 2550)
+                                 if r["method"] == m and r["seed"] == 0 and r["budget"] == short)
              for m in ("de", "cmaes")}
     plot_cost_history(runs0, str(fig / f"dissertation_{args.preset}_cost_history.png"))
-    de = sorted((r for r in out["runs"] if r["method"] == "de" and r["budget"] == 2550),
+    de = sorted((r for r in out["runs"] if r["method"] == "de" and r["budget"] == short),
                 key=lambda r: r["final_position_m"])
     med = de[len(de) // 2]
-    far = min((r for r in out["runs"] if r["budget"] == 25500), key=lambda r: r["cost"])
+    far = min((r for r in out["runs"] if r["budget"] == long), key=lambda r: r["cost"])
 
     def label(p: dict[str, float], what: str) -> str:
         return (f"{what} ({p['frequency_hz']:.0f} Hz, {p['spacing_m'] * 1e6:.0f} µm, "
                 f"{p['delay_s'] * 1e3:.2f} ms, {p['stroke_m'] * 1e6:.0f} µm)")
 
     plot_plan_trajectories(
-        {label(med["parameters"], f"DE median seed ({med['seed']}), 2,550 ep."):
+        {label(med["parameters"], f"DE median seed ({med['seed']}), {short:,} ep."):
          trajectory(med["parameters"], prob),
-         label(far["parameters"], f"best of 25,500 ep. ({far['method']} seed {far['seed']})"):
+         label(far["parameters"], f"best of {long:,} ep. ({far['method']} seed {far['seed']})"):
          trajectory(far["parameters"], prob),
          label(TABLE_4_3, "Table 4.3"): trajectory(TABLE_4_3, prob)},
         str(fig / f"dissertation_{args.preset}_trajectory.png"), prob.target_m,

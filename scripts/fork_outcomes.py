@@ -15,13 +15,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from agents.plots.common import pyplot  # noqa: E402
-from agents.rl.artefacts.checkpoint import read_meta  # noqa: E402
+from agents.plots.common import pyplot
+from agents.rl.artefacts.checkpoint import read_meta
 
 BAR_SUCCESS = 0.90       # - : >= 90 % within +-50 um
 BAR_MEDIAN_M = 20e-6     # m : median |error| <= 20 um

@@ -132,6 +132,8 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--write", action="store_true", help=f"replace the table in {DOC.name}")
     ap.add_argument("--json", action="store_true", help="print the rows as JSON (SI units)")
+    ap.add_argument("--page", type=Path, default=DOC,
+                    help=f"with --write: the page whose table is replaced (default {DOC.name})")
     args = ap.parse_args(argv)
     rows = []
     for name in presets():
@@ -142,8 +144,8 @@ def main(argv: list[str] | None = None) -> None:
         return
     text = markdown(rows)
     if args.write:
-        write(text)
-        print(f"wrote the table into {DOC}", file=sys.stderr)
+        write(text, args.page)
+        print(f"wrote the table into {args.page}", file=sys.stderr)
     else:
         print(text)
 

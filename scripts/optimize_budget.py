@@ -21,7 +21,8 @@ import numpy as np
 
 
 def main() -> None:
-    from agents.openloop.target import Rollouts, solve_target
+    from agents.openloop.target import solve_target
+    from agents.planning import LineRollouts
     from agents.plots.optimize import plot_budget_errors
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -33,7 +34,7 @@ def main() -> None:
     args = ap.parse_args()
     targets = np.linspace(0.5e-3, 3e-3, args.targets)
     budgets = [int(b) for b in args.budgets.split(",")]
-    roll = Rollouts()
+    roll = LineRollouts()
     solve_target(1e-3, "de", 30, 0, rollouts=roll)  # warm-up
     runs, summary = [], []
     load_before = os.getloadavg()

@@ -21,17 +21,16 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
-from agents.rl.evaluation.evaluate import PLANE_TARGET_SEED, fixed_targets  # noqa: E402
-from agents.rl.artefacts.shipped import shipped_path  # noqa: E402
-from microconveyor_env.envs.plane.config import PlaneEnvConfig  # noqa: E402
+from agents.rl.evaluation.evaluate import PLANE_TARGET_SEED, fixed_targets
+from agents.rl.artefacts.shipped import shipped_path
+from microconveyor_env.envs.plane.config import PlaneEnvConfig
 
 OUT = ROOT / "docs" / "figures" / "plane_v0_errors"
 BUDGETS = (2000, 10000, 20000)
@@ -68,11 +67,12 @@ FIRINGS_SEEDS = (11, 12)
 FIRINGS_TARGETS = 1000
 
 
-def firings_scan() -> dict:
-    """The shipped v0 PPO under v1's randomisation with more firings (module docstring)."""
+def firings_scan(out: Path = FIRINGS_OUT, n_targets: int = FIRINGS_TARGETS) -> dict:
+    """The shipped v0 PPO under v1's randomisation with more firings (module docstring), on
+    ``n_targets`` targets per seed; written to ``out``."""
     from agents.rl.artefacts.policy_files import load_policy
     from agents.rl.evaluation.evaluate import figures, rollout
-    from microconveyor_env.envs.versions import scene_config
+    from microconveyor_env.envs.core.versions import scene_config
 
     pol = load_policy(shipped_path("ppo", "MicroConveyor2D-v0"))
     off = {"action_noise": 0.0, "friction_factor_range": (1.0, 1.0),
@@ -83,13 +83,12 @@ def firings_scan() -> dict:
         cfg = scene_config("MicroConveyor2D-v1", num_threads=1, max_firings=n, max_time=t,
                            **(off if level == "nominal" else {}))
         for seed in FIRINGS_SEEDS:
-            f = figures(rollout(pol, fixed_targets(cfg, FIRINGS_TARGETS, seed), cfg, seed=seed),
-                        TOL)
+            f = figures(rollout(pol, fixed_targets(cfg, n_targets, seed), cfg, seed=seed), TOL)
             rows.append({"max_firings": n, "max_time_s": t, "randomisation": level,
                          "action_noise": cfg.action_noise,
                          "friction_factor_range": list(cfg.friction_factor_range),
                          "mass_factor_range": list(cfg.mass_factor_range), "seed": seed,
-                         "n_targets": FIRINGS_TARGETS,
+                         "n_targets": n_targets,
                          **{k: f[k] for k in ("success_rate_50um", "success_rate_100um",
                                               "median_abs_error_m", "rest_rate", "detach_rate",
                                               "mean_firings")}})
@@ -97,7 +96,7 @@ def firings_scan() -> dict:
                       "randomisation)",
             "env_id": "MicroConveyor2D-v1", "tolerance_m": TOL, "rows": rows,
             "command": "python3 scripts/plane_figures.py --firings"}
-    FIRINGS_OUT.write_text(json.dumps(data, indent=1) + "\n")
+    out.write_text(json.dumps(data, indent=1) + "\n")
     return data
 
 
@@ -106,9 +105,16 @@ def main() -> None:
     p.add_argument("--de", default=None, help="folder of DE runs' de<budget>.json (default: the stored JSON's)")
     p.add_argument("--firings", action="store_true",
                    help="MicroConveyor2D-v1's firing count scan only (docs/figures/plane_v1_firings.json)")
+    p.add_argument("--out", type=Path, default=None,
+                   help="where to write: the chart's stem (STEM.png, STEM.json; default "
+                        "docs/figures/plane_v0_errors), with --firings the JSON (default "
+                        "docs/figures/plane_v1_firings.json); DE's rows are read from the "
+                        "stored JSON unless --de")
+    p.add_argument("--targets", type=int, default=FIRINGS_TARGETS,
+                   help=f"with --firings: targets per seed (default {FIRINGS_TARGETS})")
     args = p.parse_args()
     if args.firings:
-        for r in firings_scan()["rows"]:
+        for r in firings_scan(args.out or FIRINGS_OUT, args.targets)["rows"]:
             print(r["max_firings"], r["max_time_s"], r["randomisation"], r["seed"],
                   f"{r['success_rate_50um']:.3f}", f"{r['mean_firings']:.2f}")
         return
@@ -125,7 +131,7 @@ def main() -> None:
     if any(o != "rest" for o in rec["outcome"]):
         raise SystemExit("a PPO episode did not end at rest: the ECDF of errors would hide it")
     ppo_err = np.array(rec["error_m"])
-    data = {"targets": {"n": 100, "seed": PLANE_TARGET_SEED, "box_m": meta["evaluation"]
+    data: dict[str, Any] = {"targets": {"n": 100, "seed": PLANE_TARGET_SEED, "box_m": meta["evaluation"]
                         ["target_box_m"], "target_m": targets.tolist()},
             "tolerance_m": TOL,
             "ppo": {"policy": "agents/policies/MicroConveyor2D-v0/ppo", "seed": meta["seed"],
@@ -135,7 +141,9 @@ def main() -> None:
             "de": {k: {**v, **summary(np.array(v["error_m"], float))} for k, v in de.items()},
             "de_note": DE_NOTE,
             "command": "python3 scripts/plane_figures.py"}
-    OUT.with_suffix(".json").write_text(json.dumps(data, indent=1) + "\n")
+    out = args.out or OUT
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.with_suffix(".json").write_text(json.dumps(data, indent=1) + "\n")
 
     import matplotlib
     matplotlib.use("Agg")
@@ -166,7 +174,7 @@ def main() -> None:
     ax.legend(fontsize=7.5, loc="upper center", bbox_to_anchor=(0.5, -0.16), frameon=False)
     ax.grid(alpha=0.3, which="both")
     fig.tight_layout()
-    fig.savefig(OUT.with_suffix(".png"), dpi=120)
+    fig.savefig(out.with_suffix(".png"), dpi=120)
     print(json.dumps({"ppo": summary(ppo_err),
                       **{f"de{k}": summary(np.array(v["error_m"], float))
                          for k, v in de.items()}}))

@@ -6,7 +6,7 @@ episode's factors and with the nominal model.
     python scripts/positioner_sizing.py [--spacings 0.2,0.25,0.3,0.4,0.5] [--targets 100] \\
         [--out docs/figures/positioner_sizing.json]
 
-The controller (:class:`agents.mpc.positioner.BatchExpert`) fires, before every firing,
+The controller (:class:`agents.mpc.experts.BatchExpert`) fires, before every firing,
 the gentlest candidate whose predicted rest is nearest the target, with a margin from
 detachment, at most ``max_firings`` (24) times. A part comes to rest where no actuator reaches
 it when the spacing leaves gaps. JSON in SI units: per spacing and case, the share within
@@ -25,12 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
-from agents.mpc.positioner import BatchExpert  # noqa: E402
-from microconveyor_env.envs.positioner.config import PositionerConfig  # noqa: E402
-from microconveyor_env.envs.positioner.vector import MicroPositionerVectorEnv  # noqa: E402
+from agents.mpc.experts import BatchExpert
+from microconveyor_env.envs.positioner.config import PositionerConfig
+from microconveyor_env.envs.positioner.vector import MicroPositionerVectorEnv
 
 SPAN = 10.5e-3   # m: the array covers 0 to this
 CASES = {"nominal": (0.0, 0.0, False), "perturbed, model knows the factors": (3e-3, 0.05, True),

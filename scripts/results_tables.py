@@ -7,7 +7,7 @@ A generated table sits between two markers, ``<!-- results:NAME -->`` and
   noise) from ``docs/figures/answer_table.json`` (``scripts/answer_table.py`` measures it);
 * ``noise``: that table's noise level in action units and as frequency, stroke and delay jitter;
 * ``shipped``: every shipped policy's recorded evaluations, from its ``metadata.json``
-  (``scripts/record_shipped_evaluations.py`` records them);
+  (``microconveyor record`` records them);
 * ``compare``: the comparison of every method on MicroConveyor-v1 under perturbation, from
   ``docs/figures/compare_v1_mpc_ppo.json`` (``microconveyor compare --mpc-prior .../ppo``);
 * ``plane``: the shipped plane policy against DE, from ``docs/figures/plane_v0_errors.json``;
@@ -26,6 +26,7 @@ A generated table sits between two markers, ``<!-- results:NAME -->`` and
 
     python scripts/results_tables.py            # rewrite the regions in place
     python scripts/results_tables.py --check    # exit 1, naming each region that differs
+    python scripts/results_tables.py --root DIR # rewrite DIR/README.md and DIR/docs/*.md instead
 
 ``tests/test_results_tables.py`` fails when a region differs from what this script writes.
 """
@@ -71,9 +72,9 @@ def _ms(x_s: float) -> str:
 
 def wilson(k: int, n: int) -> tuple[float, float]:
     """95 % Wilson score interval of k successes in n trials."""
-    from agents.experiments.perturb import wilson as _wilson
+    from agents.experiments import perturb
 
-    lo, hi = _wilson(k, n)
+    lo, hi = perturb.wilson(k, n)
     return lo, hi
 
 
@@ -155,8 +156,7 @@ def shipped_table() -> str:
                      f"{100 * rate:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}] | {_um(med)} | "
                      f"{trained} |")
     lines.append("")
-    lines.append("Recorded by `python scripts/record_shipped_evaluations.py` (the plane's: "
-                 "`python scripts/ship_plane_policy.py`) into each policy's `metadata.json`; "
+    lines.append("Recorded by `microconveyor record` into each policy's `metadata.json`; "
                  "reproduce one with `microconveyor evaluate --env ID --policy "
                  "agents/policies/ID/NAME --targets N --seed S`.")
     return "\n".join(lines)
@@ -476,14 +476,19 @@ def regions(text: str) -> list[str]:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--check", action="store_true", help="write nothing; exit 1 if a region differs")
+    ap.add_argument("--root", type=Path, default=ROOT,
+                    help="the folder whose README.md and docs/*.md are rewritten (default: this "
+                         "repository's); the stored results are always this repository's")
     args = ap.parse_args(argv)
     gens, stale = generators(), []
     cache: dict[str, str] = {}
-    for page in PAGES:
+    pages = PAGES if args.root == ROOT else (args.root / "README.md",
+                                             *sorted((args.root / "docs").glob("*.md")))
+    for page in pages:
         text = page.read_text()
         new = render(text, gens, cache)
         if new != text:
-            stale.append(f"{page.relative_to(ROOT)}: {', '.join(regions(text))}")
+            stale.append(f"{page.relative_to(args.root)}: {', '.join(regions(text))}")
             if not args.check:
                 page.write_text(new)
     for s in stale:
