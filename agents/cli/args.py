@@ -160,7 +160,7 @@ def scene_config_of(args: argparse.Namespace, default: str = DEFAULT_ENV_ID,
                     **fixed: Any) -> Any:
     """The config of ``--env`` (``default`` if not given) with ``--env-kwargs``, then ``fixed``,
     of any registered id: the line's EnvConfig, the positioner's or the plane's config."""
-    from microconveyor_env.envs.versions import scene_config
+    from microconveyor_env.envs.core.versions import scene_config
 
     return scene_config(args.env or default, **{**env_kwargs_of(args), **fixed})
 

@@ -10,7 +10,8 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from microconveyor_env.cli.base import command, companion, count, emit, plot_path
+from microconveyor_env.cli.base import (command, companion, emit, plot_path, settings_from,
+                                        settings_options)
 from microconveyor_env.env_ids import DEFAULT_ENV_ID
 
 from .args import add_env_args, budgets, env_config_of, env_kwargs_of, levels
@@ -53,20 +54,28 @@ def mpc_budgets(text: str) -> tuple[int, int]:
     return first, replan
 
 
+def names(text: str) -> list[str]:
+    """A comma list of names (spaces around them dropped)."""
+    return [m.strip() for m in text.split(",") if m.strip()]
+
+
 def add_args(p: argparse.ArgumentParser) -> None:
     from ..experiments.compare_settings import (MPC_SETTINGS, ROBUST_MPC_SETTINGS,
-                                                CompareSettings as Defaults)
-    from ..experiments.perturb import DIAGONAL, NOISE_LADDER, SPREAD_LADDER
+                                                CompareSettings)
 
-    p.add_argument("--targets", type=count(1, 10_000), default=None,
-                   help="number of fixed targets (drawn with --seed from the default range; "
-                        f"default {Defaults.n_targets}, --quick {QUICK['targets']})")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--budgets", type=budgets, default=None,
-                   help="episodes per target for DE and CMA-ES (comma list; default "
-                        f"{','.join(map(str, Defaults.budgets))}, --quick "
-                        f"{','.join(map(str, QUICK['budgets']))})")
-    p.add_argument("--methods", default="de,cmaes", help="open-loop methods: de, cmaes or both")
+    def options(*fields: str) -> None:
+        settings_options(p, CompareSettings, list(fields), unset=("n_targets", "budgets"),
+                         parse={"budgets": budgets, "methods": names, "noise_ladder": levels,
+                                "spread_ladder": levels, "diagonal": pairs,
+                                "mpc_models": names},
+                         help_={"n_targets": "number of fixed targets (drawn with --seed from "
+                                             "the default range; default {default}, --quick "
+                                             f"{QUICK['targets']})",
+                                "budgets": "episodes per target for DE and CMA-ES (comma list; "
+                                           "default {default}, --quick "
+                                           f"{','.join(map(str, QUICK['budgets']))})"})
+
+    options("n_targets", "seed", "budgets", "methods")
     p.add_argument("--mpc-budgets", type=mpc_budgets, default=None, metavar="FIRST,REPLAN",
                    help="MPC: episodes of the model before the first firing and per re-plan "
                         f"(default {MPC_SETTINGS.first_budget},{MPC_SETTINGS.replan_budget}, "
@@ -85,8 +94,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
                         "plan on the "
                         "model seeds the MPC's searches: adds the method mpc_<folder name> "
                         "(mpc_ppo_refined) and seeds the robust MPC")
-    p.add_argument("--workers", type=count(1, 64), default=Defaults.mpc_workers,
-                   help="processes for the MPC's episodes (results do not depend on it)")
+    options("mpc_workers")
     p.add_argument("--policy", default=None,
                    help="the closed-loop policy's folder (default, 'shipped': the env's default "
                         f"shipped policy, {_defaults_text()}; on the positioner none if none is "
@@ -94,31 +102,11 @@ def add_args(p: argparse.ArgumentParser) -> None:
                         "(ppo_refined, dagger, a run folder's name)"),
     p.add_argument("--randomised-policy", default=None,
                    help="PPO trained with randomisation (default: the shipped one; '' to skip)")
-    p.add_argument("--policy-seeds", nargs="+", default=(), metavar="DIR",
-                   help="policy folders of PPO trained with other seeds: their IQM and 95 %% "
-                        "bootstrap interval, nominal and perturbed")
-    p.add_argument("--noise", type=levels, default=list(NOISE_LADDER),
-                   help="execution-noise axis σ [action units] (comma list)")
-    p.add_argument("--spread", type=levels, default=list(SPREAD_LADDER),
-                   help="model-error axis r [-]: friction and mass factors in [1-r, 1+r]")
-    p.add_argument("--diagonal", type=pairs, default=list(DIAGONAL), metavar="SIGMA:R,...",
-                   help="noise and model error together (default "
-                        + ",".join(f"{a:g}:{b:g}" for a, b in DIAGONAL) + ")")
-    p.add_argument("--mpc-models", default=None, metavar="MODELS",
-                   help="positioner: the one-step model-based controller's models, one row each "
-                        "(comma list of identified, nominal, oracle; default all three; oracle "
-                        "knows each episode's hidden friction and mass: a reference row)")
-    p.add_argument("--plan-firings", type=count(1, 24), default=Defaults.plan_firings,
-                   help="positioner: firings of each open-loop DE / CMA-ES plan")
-    p.add_argument("--full", "--full-grid", action="store_true",
-                   help="also every (σ, r) combination of the two axes (the full grid; ~20 "
-                        "levels: long)")
+    options("policy_seeds", "noise_ladder", "spread_ladder", "diagonal", "mpc_models",
+            "plan_firings", "full_grid")
     p.add_argument("--quick", action="store_true",
                    help="a short look: 20 targets, budget 300, MPC 100,50 (explicit options win)")
-    p.add_argument("--repeats", type=count(1, 1000), default=Defaults.perturb_repeats,
-                   help="perturbed replays per target and level")
-    p.add_argument("--amortise-over", type=count(1), default=Defaults.amortise_over,
-                   help="targets over which PPO's training is amortised in the chart")
+    options("perturb_repeats", "amortise_over")
     p.add_argument("--plot", type=plot_path, default=None,
                    help="chart file (success against tolerance); the compute, perturbation, "
                         "episodes-to-tolerance (and with --full grid) charts go beside it as "
@@ -134,7 +122,6 @@ def settings_of(args: Any) -> CompareSettings:
     (``--quick`` fills what is not given; explicit options win); ValueError for an env id the
     comparison does not run on, before anything else is read."""
     from ..experiments.compare_settings import MPC_SETTINGS, CompareSettings, check_env_id
-    from ..experiments.compare_settings import CompareSettings as Defaults
     from ..mpc import MPCSettings
 
     check_env_id(args.env)
@@ -146,20 +133,14 @@ def settings_of(args: Any) -> CompareSettings:
     mpc = None if mb == (0, 0) else MPCSettings(method=args.mpc_method or "de",
                                                  first_budget=mb[0], replan_budget=mb[1],
                                                  seed=args.seed)
-    given = {"n_targets": args.targets or quick.get("targets"),
-             "budgets": args.budgets or quick.get("budgets")}   # else the settings' defaults
-    return CompareSettings(
-        env_id=args.env, config=_config(args), seed=args.seed,
-        methods=[m.strip() for m in args.methods.split(",") if m.strip()],
-        **{k: v for k, v in given.items() if v is not None}, policy=None if args.policy == "shipped" else args.policy,
-        randomised_policy=args.randomised_policy,
-        policy_seeds=args.policy_seeds, amortise_over=args.amortise_over,
-        mpc=mpc, robust_mpc=_robust(args.robust_mpc, args.seed),
-        mpc_prior=_prior(args.mpc_prior, args.env), mpc_workers=args.workers,
-        noise_ladder=args.noise, spread_ladder=args.spread, diagonal=args.diagonal,
-        full_grid=args.full, perturb_repeats=args.repeats, plan_firings=args.plan_firings,
-        mpc_models=(Defaults.mpc_models if args.mpc_models is None else
-                    [m.strip() for m in args.mpc_models.split(",") if m.strip()]))
+    filled = {k: quick[q] for k, q in (("n_targets", "targets"), ("budgets", "budgets"))
+              if getattr(args, k) is None and q in quick}   # else the settings' defaults
+    return settings_from(
+        CompareSettings, args, **filled, env_id=args.env, config=_config(args),
+        policy=None if args.policy == "shipped" else args.policy,
+        randomised_policy=args.randomised_policy, mpc=mpc,
+        robust_mpc=_robust(args.robust_mpc, args.seed),
+        mpc_prior=_prior(args.mpc_prior, args.env))
 
 
 def run(args: Any) -> None:
@@ -193,7 +174,7 @@ def _config(args: Any) -> Any:
     """The config of ``--env`` with ``--env-kwargs``: the line's EnvConfig, or the scene's own
     config (the positioner's)."""
     from microconveyor_env.env_ids import REGISTRY
-    from microconveyor_env.envs.versions import scene_config
+    from microconveyor_env.envs.core.versions import scene_config
 
     if REGISTRY[args.env].geometry == "line":
         return env_config_of(args, args.env)

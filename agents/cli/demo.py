@@ -1,5 +1,7 @@
-"""The ``microconveyor demo`` command: the env package's demo plus the env's default shipped
-policy carrying a part to targets across its range, and a GIF of one long carry."""
+"""The ``microconveyor demo`` command: the physics and env parts
+(:mod:`microconveyor_env.cli.demo`: a contact report, a firing, a frequency sweep, an episode of a
+fixed schedule) and the env's default shipped policy carrying a part to targets across its range,
+with a GIF of one long carry."""
 from __future__ import annotations
 
 import argparse

@@ -37,7 +37,7 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
     """``env_kwargs`` in the result are the ones evaluated with (the policy's own updated by
     ``--env-kwargs``), ``trained_env_kwargs`` the policy's own."""
     from microconveyor_env.env_ids import DEFAULT_ENV_ID
-    from microconveyor_env.envs.versions import scene_config
+    from microconveyor_env.envs.core.versions import scene_config
 
     from ..rl.artefacts.policy_files import policy_env_kwargs, read_policy_meta
     from ..rl.artefacts.shipped import require_shipped

@@ -5,23 +5,17 @@ from __future__ import annotations
 import argparse
 import sys
 
-from microconveyor_env.cli.base import command, count, emit
+from microconveyor_env.cli.base import command, emit, settings_given, settings_options
 
 from .args import add_env_args, env_kwargs_of
 
 
 def _imitate_args(p: argparse.ArgumentParser) -> None:
+    from ..imitation.dagger import DaggerSettings
+
     p.add_argument("--out", default="runs/dagger", help="policy folder to write")
-    p.add_argument("--seed", type=count(0, 2**31 - 1), default=0, help="training seed")
-    p.add_argument("--rounds", type=count(1, 1000), default=None,
-                   help="DAgger rounds (round 0: the expert acts; later: the policy; default: "
-                        "the recipe's, 5 on MicroConveyor-v1, 10 on MicroPositioner-v0)")
-    p.add_argument("--episodes", type=count(1, 100000), default=None,
-                   help="episodes per round, played at once on the batched env (default: the "
-                        "recipe's, 256)")
-    p.add_argument("--seed-policy", default=None, metavar="NAME|PATH",
-                   help="MicroConveyor-v1: the policy that seeds the expert, a shipped policy's "
-                        "name or a policy folder (default: the recipe's, ppo_refined)")
+    settings_options(p, DaggerSettings, ["seed", "rounds", "episodes", "seed_policy"],
+                     unset=("rounds", "episodes", "seed_policy"))
     add_env_args(p, what=" (MicroConveyor-v1: the expert is the seed policy's firings with its "
                          "last re-aimed on the model; MicroPositioner-v0: the one-step "
                          "model-based search, trained under per-episode randomisation; other "
@@ -32,15 +26,13 @@ def _imitate_args(p: argparse.ArgumentParser) -> None:
                     "the states it visits itself; written as a policy folder that loads as data",
          _imitate_args)
 def cmd_imitate(args: argparse.Namespace) -> None:
-    from ..imitation.dagger import recipe
+    from ..imitation.dagger import DaggerSettings, recipe
 
     base = recipe(args.env)
-    given = {k: v for k, v in (("rounds", args.rounds), ("episodes", args.episodes),
-                               ("seed_policy", args.seed_policy)) if v is not None}
+    given = settings_given(DaggerSettings, args)   # the options given; the recipe's otherwise
     if "seed_policy" in given and base.seed_policy is None:
         raise ValueError(f"--seed-policy: {args.env}'s expert is not seeded by a policy")
-    s = recipe(args.env, env_kwargs={**base.env_kwargs, **env_kwargs_of(args)}, seed=args.seed,
-               **given)
+    s = recipe(args.env, env_kwargs={**base.env_kwargs, **env_kwargs_of(args)}, **given)
     say = (lambda line: print(line, file=sys.stderr)) if args.json else print
     from ..imitation.dagger import dagger
 

@@ -5,7 +5,7 @@ import argparse
 import sys
 from typing import Any
 
-from microconveyor_env.cli.base import command, count, emit
+from microconveyor_env.cli.base import command, count, emit, field_default
 from microconveyor_env.env_ids import DEFAULT_ENV_ID
 
 from .args import add_env_args, env_kwargs_of, level, scene_config_of, target_point
@@ -16,7 +16,6 @@ def _place_args(p: argparse.ArgumentParser) -> None:
     from ..experiments.place import DE_BUDGET, METHODS, POSITIONER_DE_BUDGET
     from ..mpc import MPCSettings
 
-    mpc = MPCSettings()
     p.add_argument("--target", type=target_point, required=True, metavar="M|X,Y",
                    help="target [m]: on the line and the positioner the distance beyond "
                         "actuator 1 (e.g. 9e-3), within the env's target range; on the plane "
@@ -40,7 +39,8 @@ def _place_args(p: argparse.ArgumentParser) -> None:
                         f"{POSITIONER_DE_BUDGET} on the positioner)")
     p.add_argument("--mpc-budgets", type=mpc_budgets, default=None, metavar="FIRST,REPLAN",
                    help="--method mpc on the line: episodes of the model before the first firing "
-                        f"and per re-plan (default {mpc.first_budget},{mpc.replan_budget})")
+                        f"and per re-plan (default {field_default(MPCSettings, 'first_budget')},"
+                        f"{field_default(MPCSettings, 'replan_budget')})")
     p.add_argument("--noise", type=level, default=0.0, metavar="SIGMA",
                    help="execution noise σ [action units] of the placement (default 0)")
     p.add_argument("--spread", type=level, default=0.0, metavar="R",
@@ -54,15 +54,12 @@ def _place_args(p: argparse.ArgumentParser) -> None:
                   "compute", _place_args)
 def cmd_place(args: argparse.Namespace) -> None:
     from ..experiments.perturb import Level
-    from ..experiments.place import (check_method, check_target, de_budget, geometry_of,
-                                     mpc_seed, place, place_text)
+    from ..experiments.place import de_budget, geometry_of, place, place_text
     from ..mpc import MPCSettings
 
     env_id = args.env or DEFAULT_ENV_ID
     cfg = scene_config_of(args)
     geometry = geometry_of(cfg)
-    check_method(args.method, cfg, env_id)
-    target = check_target(args.target, cfg, env_id)
     if args.method != "de" and args.budget is not None:
         raise ValueError("--budget is DE's search: give it with --method de")
     if args.mpc_budgets is not None and (args.method != "mpc" or geometry != "line"):
@@ -75,25 +72,18 @@ def cmd_place(args: argparse.Namespace) -> None:
     if args.mpc_budgets == (0, 0):
         raise ValueError("--mpc-budgets 0: --method mpc needs budgets (FIRST,REPLAN)")
     real = Level(args.noise, args.spread).config(cfg) if args.noise or args.spread else cfg
-    policy, actor = None, "differential evolution on the nominal model"
-    if args.method == "policy":
-        from ..experiments.demo import load_demo_policy
-
-        policy = load_demo_policy(args.policy, cfg, env_id)   # another scene is refused
-        actor = f"policy {policy.path}"
-    elif args.method == "mpc" and geometry == "line":
-        policy, actor = mpc_seed(args.policy, cfg, env_id)
-    elif args.method == "mpc":
-        actor = "the one-step controller on its model, friction identified online"
     mpc = None
     if args.mpc_budgets is not None:
         mpc = MPCSettings(first_budget=args.mpc_budgets[0], replan_budget=args.mpc_budgets[1],
                           seed=args.seed)
-    if not args.json:
-        print(f"placing with {args.method} ...", file=sys.stderr, flush=True)
-    res: dict[str, Any] = place(target, args.method, real, policy=policy, seed=args.seed,
-                                budget=args.budget or de_budget(cfg), mpc=mpc)
-    res.update(env_id=env_id, env_kwargs=env_kwargs_of(args), actor=actor,
-               noise=args.noise, spread=args.spread,
-               policy=None if policy is None else str(policy.path))
+
+    def placing() -> None:
+        if not args.json:
+            print(f"placing with {args.method} ...", file=sys.stderr, flush=True)
+
+    res: dict[str, Any] = place(args.target, args.method, real, policy=args.policy, seed=args.seed,
+                                budget=args.budget or de_budget(cfg), mpc=mpc, env_id=env_id,
+                                checked=placing)
+    res.update(env_id=env_id, env_kwargs=env_kwargs_of(args), noise=args.noise,
+               spread=args.spread)
     emit(args, res, place_text(res))

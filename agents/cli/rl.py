@@ -6,7 +6,7 @@ import argparse
 import sys
 from typing import Any
 
-from microconveyor_env.cli.base import command, count, emit
+from microconveyor_env.cli.base import command, count, emit, settings_from, settings_options
 from microconveyor_env.env_ids import DEFAULT_ENV_ID, ENV_IDS
 
 from .args import add_env_args, env_kwargs_of, minutes
@@ -25,38 +25,16 @@ def seed_arg(text: str) -> int:
     return v
 
 def _train_args(p: argparse.ArgumentParser) -> None:
-    from ..rl.training.algos import ALGO_NAMES
+    from ..rl.training.settings import TrainSettings
 
-    p.add_argument("--algo", choices=ALGO_NAMES, default="ppo",
-                   help="algorithm: ppo (stable-baselines3, on the compiled batch), sac "
-                        "(stable-baselines3), tqc (sb3-contrib); sac and tqc on "
-                        "MicroConveyorGoal-v1 use HER (default: ppo)")
+    parse = {"seed": seed_arg, "fork_seed": seed_arg, "max_minutes": minutes}
+    settings_options(p, TrainSettings, ["algo"])
     p.add_argument("--out", default=None,
                    help="run folder (model, stats, checkpoints, logs) (default: runs/ALGO)")
-    p.add_argument("--steps", type=count(1), default=None,
-                   help="total environment steps (default: n_timesteps of the conf file)")
-    p.add_argument("--seed", type=seed_arg, default=None,
-                   help="training seed (default 0); --resume continues the run's own seed and "
-                        "refuses another")
-    p.add_argument("--conf-file", default=None,
-                   help="rl-zoo3 style YAML (default: the shipped configs/ALGO.yml)")
-    p.add_argument("--resume", action="store_true",
-                   help="continue from the newest complete checkpoint in OUT/checkpoints "
-                        "(refused if there is none or the config differs)")
-    p.add_argument("--allow-config-change", action="store_true",
-                   help="with --resume: continue under a different config (recorded in the "
-                        "metadata)")
-    p.add_argument("--fork-seed", type=seed_arg, default=None,
-                   help="with --resume: continue the checkpoint under this seed instead of the "
-                        "run's (a fork: the same state, other samples; recorded in the metadata)")
-    p.add_argument("--checkpoint-freq", type=count(1), default=200_000,
-                   help="steps between checkpoints (a kill loses at most this many)")
-    p.add_argument("--eval-freq", type=count(0), default=250_000, help="0: no periodic evaluation")
-    p.add_argument("--eval-targets", type=count(0), default=100,
-                   help="targets per evaluation (0: no evaluation)")
-    p.add_argument("--max-minutes", type=minutes, default=None,
-                   help="stop after this wall time [min], resumed time included")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    settings_options(p, TrainSettings, ["steps", "seed", "conf_file", "resume",
+                                        "allow_config_change", "fork_seed", "checkpoint_freq",
+                                        "eval_freq", "eval_targets", "max_minutes",
+                                        "progress_bar"], parse=parse)
     p.add_argument("--quick", action="store_true",
                    help="a short look: PPO on v1's nearest targets (0.5-1.4 mm) with "
                         "configs/ppo_quick.yml unless --conf-file is given, --max-minutes 3 "
@@ -155,13 +133,8 @@ def _train(args: argparse.Namespace, refined: Any) -> tuple[dict[str, Any], str]
             from importlib import resources
             args.conf_file = str(resources.files("microconveyor_env.configs") / "ppo_quick.yml")
     args.out = args.out or f"runs/{args.algo}"
-    settings = TrainSettings(
-        algo=args.algo, env_id=args.env, env_kwargs=env_kwargs_of(args), steps=args.steps,
-        seed=args.seed, conf_file=args.conf_file, resume=args.resume,
-        checkpoint_freq=args.checkpoint_freq, eval_freq=args.eval_freq,
-        eval_targets=args.eval_targets, progress_bar=not args.no_progress,
-        max_minutes=args.max_minutes, allow_config_change=args.allow_config_change,
-        fork_seed=args.fork_seed)
+    settings = settings_from(TrainSettings, args, env_id=args.env,
+                             env_kwargs=env_kwargs_of(args))
     meta = train(args.out, settings, log=log)
     meta["out"] = args.out
     ev = meta["evaluation"]
@@ -183,17 +156,13 @@ def _train(args: argparse.Namespace, refined: Any) -> tuple[dict[str, Any], str]
 
 
 def _refine_args(p: argparse.ArgumentParser) -> None:
+    from ..rl.refinement.settings import RefineSettings
+
     p.add_argument("policy", help="a trained PPO policy folder of the 1-D conveyor (model.zip, "
                                   "normalization.json, metadata.json; e.g. a `train` run folder)")
     p.add_argument("--out", required=True, help="the refined policy folder to write (must not "
                                                 "exist or be empty)")
-    p.add_argument("--targets", type=count(1), default=1000,
-                   help="training targets per round, drawn from the policy's target range "
-                        "(default 1000)")
-    p.add_argument("--rounds", type=count(1), default=8, help="correct-and-fit rounds (default 8)")
-    p.add_argument("--fit-iterations", type=count(1), default=1000,
-                   help="L-BFGS iterations of each fit (default 1000)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the training targets (default 0)")
+    settings_options(p, RefineSettings, ["targets", "rounds", "fit_iterations", "seed"])
     p.add_argument("--eval-targets", type=count(0), default=100,
                    help="targets of the evaluation written to the metadata, drawn with the "
                         "policy's own evaluation seed (0: none; default 100)")
@@ -210,8 +179,7 @@ def cmd_refine(args: argparse.Namespace) -> None:
     from ..rl.refinement.settings import RefineSettings
 
     out = Path(args.out)
-    settings = RefineSettings(targets=args.targets, rounds=args.rounds,
-                              fit_iterations=args.fit_iterations, seed=args.seed)
+    settings = settings_from(RefineSettings, args)
     # checked and held before the refinement's minutes, not after them
     with NewPolicyFolder(args.out) as folder:
         res = _refine_folder(args.policy, folder, settings, args.eval_targets)

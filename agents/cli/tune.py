@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-from microconveyor_env.cli.base import command, count, emit, plot_path
+from microconveyor_env.cli.base import (command, count, emit, plot_path, settings_from,
+                                        settings_options)
 from microconveyor_env.env_ids import DEFAULT_ENV_ID
 
 from .args import add_env_args, env_kwarg, env_kwargs_of, minutes
@@ -12,54 +13,19 @@ from .evaluate import iqm_lines
 from .rl import seed_arg
 
 
-def _budget_args(p: argparse.ArgumentParser, steps_help: str) -> None:
-    p.add_argument("--workers", type=count(1), default=1,
-                   help="local worker processes (each trains on one core)")
-    p.add_argument("--conf-file", default=None,
-                   help="rl-zoo3 style YAML giving the base hyperparameters (default: the "
-                        "shipped configs/ppo.yml)")
-    p.add_argument("--eval-freq", type=count(0), default=250_000,
-                   help="steps between periodic evaluations (0: none)")
-    p.add_argument("--eval-targets", type=count(1), default=100, help="targets per evaluation")
+def _tune_args(p: argparse.ArgumentParser) -> None:
+    from ..rl.tuning.settings import TuneSettings
+
+    settings_options(p, TuneSettings, ["n_trials", "out", "storage", "study_name",
+                                       "trial_minutes", "seed", "sampler_seed", "fixed", "prune",
+                                       "best_file", "heartbeat_s"],
+                     parse={"trial_minutes": minutes, "seed": seed_arg, "sampler_seed": seed_arg,
+                            "fixed": env_kwarg})
+    p.add_argument("--quiet", action="store_true", help="no line per finished trial on stderr")
+    settings_options(p, TuneSettings, ["workers", "conf_file", "eval_freq", "eval_targets"])
     add_env_args(p, default=DEFAULT_ENV_ID,
                  what=" to train on (its entry in the conf file gives the base hyperparameters)")
-    p.add_argument("--steps", type=count(1), default=None, help=steps_help)
-
-
-def _tune_args(p: argparse.ArgumentParser) -> None:
-    from ..rl.tuning.settings import DEFAULT_STUDY
-    from ..rl.tuning.space import SPACE
-
-    p.add_argument("--trials", type=count(1), default=20,
-                   help="trials this command runs, split over its workers (other machines add "
-                        "theirs to the same study)")
-    p.add_argument("--out", default="runs/tune",
-                   help="folder of the trials' run folders (OUT/STUDY/trial-N), the default "
-                        "SQLite storage and best.yml (default: runs/tune)")
-    p.add_argument("--storage", default=None,
-                   help="Optuna storage URL shared by all workers: sqlite:///PATH (one machine) "
-                        "or a database for many machines, e.g. postgresql://USER@HOST/DB "
-                        "(default: $MICROCONVEYOR_TUNE_STORAGE, else sqlite:///OUT/optuna.db)")
-    p.add_argument("--study", default=DEFAULT_STUDY, help=f"study name (default: {DEFAULT_STUDY})")
-    p.add_argument("--trial-minutes", type=minutes, default=None,
-                   help="wall budget of one trial [min] (default: none, --steps only)")
-    p.add_argument("--seed", type=seed_arg, default=0,
-                   help="training seed of every trial")
-    p.add_argument("--sampler-seed", type=seed_arg, default=None,
-                   help="seed of the TPE sampler (worker i uses SEED + i; default: random)")
-    p.add_argument("--fix", type=env_kwarg, nargs="+", default=None, metavar="KEY:VALUE",
-                   help=f"do not tune KEY, use VALUE; keys: {', '.join(SPACE)}")
-    p.add_argument("--no-prune", action="store_true",
-                   help="no median pruning on the periodic evaluations")
-    p.add_argument("--best", default=None,
-                   help="where to write the best trial's config entry (rl-zoo3 YAML; default: "
-                        "OUT/STUDY/best.yml)")
-    p.add_argument("--heartbeat", type=count(1), default=None, metavar="SECONDS",
-                   help="a new study's heartbeat interval: a running trial without a heartbeat "
-                        "for 3x this (its worker or machine lost) is marked failed (default: "
-                        "60; a study keeps the one it was created with)")
-    p.add_argument("--quiet", action="store_true", help="no line per finished trial on stderr")
-    _budget_args(p, "environment steps per trial (default: 1,000,000)")
+    settings_options(p, TuneSettings, ["trial_steps"])
 
 
 @command("tune", "search PPO hyperparameters with Optuna: workers (here and on other machines) "
@@ -72,14 +38,9 @@ def cmd_tune(args: argparse.Namespace) -> None:
 
     url = args.storage or default_storage(args.out)
     with secrets_masked(url):   # in errors and the result, the storage's secrets never shown
-        res = masked(tune(TuneSettings(
-            out=args.out, n_trials=args.trials, workers=args.workers, storage=args.storage,
-            study_name=args.study, env_id=args.env, env_kwargs=env_kwargs_of(args) or None,
-            conf_file=args.conf_file, trial_steps=args.steps or 1_000_000,
-            trial_minutes=args.trial_minutes, eval_freq=args.eval_freq,
-            eval_targets=args.eval_targets, seed=args.seed, fixed=dict(args.fix or []),
-            prune=not args.no_prune, sampler_seed=args.sampler_seed, best_file=args.best,
-            verbose=not args.quiet, heartbeat_s=args.heartbeat)), url)
+        res = masked(tune(settings_from(
+            TuneSettings, args, env_id=args.env, env_kwargs=env_kwargs_of(args) or None,
+            fixed=dict(args.fixed or []), verbose=not args.quiet)), url)
     emit(args, res, tune_text(res))
     failed = res["failed"]
     if failed or res["died"]:
@@ -123,23 +84,26 @@ def tune_text(res: dict) -> str:
 
 
 def _seeds_args(p: argparse.ArgumentParser) -> None:
-    from ..rl.training.algos import ALGO_NAMES
+    from ..rl.training.settings import TrainSettings
 
     p.add_argument("--seeds", type=seed_arg, nargs="+", required=True,
                    help="training seeds")
     p.add_argument("--out", default="runs/seeds",
                    help="folder of the runs, one OUT/seed-S per seed (default: runs/seeds)")
-    p.add_argument("--algo", choices=ALGO_NAMES, default="ppo", help="algorithm (default: ppo)")
-    p.add_argument("--max-minutes", type=minutes, default=None,
-                   help="wall budget of each run [min]")
-    p.add_argument("--checkpoint-freq", type=count(1), default=200_000,
-                   help="steps between checkpoints")
-    p.add_argument("--resume", action="store_true",
-                   help="continue each seed's newest checkpoint, if it has one (finished seeds "
-                        "are always reused as they are)")
+    settings_options(p, TrainSettings, ["algo", "max_minutes", "checkpoint_freq", "resume"],
+                     parse={"max_minutes": minutes},
+                     help_={"resume": "continue each seed's newest checkpoint, if it has one "
+                                      "(finished seeds are always reused as they are)"})
     p.add_argument("--plot", type=plot_path, default=None, help="write the learning curves here")
     p.add_argument("--quiet", action="store_true", help="no checkpoint and evaluation lines")
-    _budget_args(p, "total environment steps per run (default: n_timesteps of the conf file)")
+    p.add_argument("--workers", type=count(1), default=1,
+                   help="local worker processes (each trains on one core)")
+    settings_options(p, TrainSettings, ["conf_file", "eval_freq", "eval_targets"],
+                     parse={"eval_targets": count(1)},
+                     help_={"eval_targets": "targets per evaluation"})
+    add_env_args(p, default=DEFAULT_ENV_ID,
+                 what=" to train on (its entry in the conf file gives the base hyperparameters)")
+    settings_options(p, TrainSettings, ["steps"])
 
 
 @command("train-seeds", "train one run per seed in parallel worker processes, then aggregate "
@@ -148,11 +112,8 @@ def cmd_train_seeds(args: argparse.Namespace) -> None:
     from ..rl.training.parallel import train_seeds
     from ..rl.training.settings import TrainSettings
 
-    settings = TrainSettings(algo=args.algo, steps=args.steps, conf_file=args.conf_file,
-                             env_id=args.env, env_kwargs=env_kwargs_of(args) or None,
-                             max_minutes=args.max_minutes, checkpoint_freq=args.checkpoint_freq,
-                             eval_freq=args.eval_freq, eval_targets=args.eval_targets,
-                             resume=args.resume)
+    settings = settings_from(TrainSettings, args, env_id=args.env,
+                             env_kwargs=env_kwargs_of(args) or None)
     res = train_seeds(args.out, args.seeds, settings, workers=args.workers,
                       verbose=not args.quiet)
     lines = [f"seed {r['seed']}: {r['status']}" + (f" ({r['error']})" if "error" in r else

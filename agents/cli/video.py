@@ -1,5 +1,5 @@
-"""The ``microconveyor video`` command: the env package's (a fixed schedule) plus ``--policy``, an
-episode of a policy folder (replaces the env package's command, as ``demo`` does); on the plane
+"""The ``microconveyor video`` command: an episode of a fixed schedule (its options and writer:
+:mod:`microconveyor_env.cli.video`) or, with ``--policy``, of a policy folder; on the plane
 (MicroConveyor2D-v0) and the positioner (MicroPositioner-v0) an episode of a policy, one frame
 per firing."""
 from __future__ import annotations
@@ -89,7 +89,7 @@ def _firing_video(args: argparse.Namespace, path: str, env_id: str) -> dict[str,
 
     from microconveyor_env.env_ids import ENTRY_POINTS
     from microconveyor_env.envs.core.video import FPS_RANGE, check_writer, write_video
-    from microconveyor_env.envs.versions import config_class, scene_config
+    from microconveyor_env.envs.core.versions import config_class, scene_config
 
     from ..rl.artefacts.policy_files import policy_env_kwargs, read_policy_meta
     from ..rl.evaluation.evaluate import load_policy

@@ -10,27 +10,53 @@ import signal
 import sys
 import threading
 import traceback
-from typing import Any, NoReturn, TypeVar
-from collections.abc import Callable
+from typing import Any, NamedTuple, NoReturn, TypeVar
+from collections.abc import Callable, Mapping
 
 from ..physics.materials import ParameterError
 
-# name -> (function(args), help); ARGS: name -> function(parser) adding the command's options
-COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], Any], str]] = {}
-ARGS: dict[str, Callable[[argparse.ArgumentParser], None]] = {}
+AddArgs = Callable[[argparse.ArgumentParser], None]
+
+
+class Command(NamedTuple):
+    """A registered command: ``run(args)``, its one-line help, ``add_args(parser)`` adding its
+    options (None: none but ``--json``)."""
+
+    run: Callable[[argparse.Namespace], Any]
+    help: str
+    add_args: AddArgs | None
+
+
+# name -> the command; filled by :func:`command` only, one module per name
+COMMANDS: dict[str, Command] = {}
 
 Handler = TypeVar("Handler", bound=Callable[[argparse.Namespace], Any])
 
 
-def command(name: str, help_: str, add_args: Callable[[argparse.ArgumentParser], None] | None = None,
+class DuplicateCommand(RuntimeError):
+    """A command name registered by a second module (or twice by one): each name is defined
+    once."""
+
+
+def command(name: str, help_: str, add_args: AddArgs | None = None,
             ) -> Callable[[Handler], Handler]:
-    """Register ``fn(args)`` as subcommand ``name`` (its options added by ``add_args``)."""
+    """Register ``fn(args)`` as subcommand ``name`` (its options added by ``add_args``); a name
+    registered before raises :class:`DuplicateCommand` naming both modules (a module imported
+    again, as by ``importlib.reload``, replaces its own command)."""
     def deco(fn: Handler) -> Handler:
-        COMMANDS[name] = (fn, help_)
-        if add_args is not None:
-            ARGS[name] = add_args
+        old = COMMANDS.get(name)
+        if old is not None and (_where(old.run) != _where(fn)):
+            raise DuplicateCommand(f"command {name!r} is defined twice: in {old.run.__module__} "
+                                   f"({old.run.__qualname__}) and in {fn.__module__} "
+                                   f"({fn.__qualname__}); each command name is defined in one "
+                                   "module")
+        COMMANDS[name] = Command(fn, help_, add_args)
         return fn
     return deco
+
+
+def _where(fn: Callable[..., Any]) -> tuple[str, str]:
+    return fn.__module__, fn.__qualname__
 
 
 def emit(args: argparse.Namespace, result: dict[str, Any], human: str = "") -> None:
@@ -105,6 +131,126 @@ def count(lo: int, hi: int | None = None) -> Callable[[str], int]:
     return parse
 
 
+# ----------------------------------------------------------------------------- settings as options
+# A settings dataclass is a command's one source of options, defaults and help: a field whose
+# ``metadata`` has "help" is an option. Its metadata (plain data, no import of this module):
+#   "help"    the help text; "{default}" in it shows the field's default (read from the class:
+#             a sequence joined by commas, pairs in it by colons, a float with :g; a format spec
+#             applies to each number)
+#   "flag"    the option string(s), a str or a tuple of aliases (default ``--name-with-dashes``)
+#   "bounds"  (lo, hi) of an integer field, checked while parsing (hi None: no upper bound)
+#   "parse"   the argparse type (default: from the field's type, int, float or str); a bool field
+#             is a switch: default False, its flag sets True; default True, its flag (e.g.
+#             ``--no-progress``) sets False
+#   "choices", "metavar", "nargs"  as argparse's
+# :func:`settings_options` adds the options (the command may give parsers and help of its own
+# for some), :func:`settings_from` builds the dataclass from the parsed arguments.
+OPTION = "help"
+
+
+def _fields(cls: Any) -> tuple[Any, ...]:
+    """The fields of a settings dataclass, or of the dataclass a ``functools.partial`` makes (a
+    maker with some fields fixed)."""
+    import dataclasses
+    import functools
+
+    made: Any = cls.func if isinstance(cls, functools.partial) else cls
+    return dataclasses.fields(made)
+
+
+def field_default(cls: type, name: str) -> Any:
+    """The default of field ``name`` of the dataclass ``cls``, read from the class (no instance is
+    built; a ``default_factory``'s value is made)."""
+    import dataclasses
+
+    f = next(f for f in _fields(cls) if f.name == name)
+    if f.default is not dataclasses.MISSING:
+        return f.default
+    if f.default_factory is not dataclasses.MISSING:
+        return f.default_factory()
+    raise ValueError(f"{cls.__name__}.{name} has no default")
+
+
+class _Shown:
+    """A default as help shows it: sequences joined by commas (pairs in them by colons, as
+    ``SIGMA:R,...``), floats with ``:g``."""
+
+    def __init__(self, value: Any, sep: str = ",") -> None:
+        self.value, self.sep = value, sep
+
+    def __format__(self, spec: str) -> str:
+        v = self.value
+        if isinstance(v, (list, tuple)):
+            return self.sep.join(format(_Shown(x, ":"), spec) for x in v)
+        if isinstance(v, float) and not spec:
+            return f"{v:g}"
+        return format(v, spec)
+
+
+def _kind(f: Any) -> str:
+    """A field's type by name (its first alternative: ``int | None`` is ``int``)."""
+    return f.type.__name__ if isinstance(f.type, type) else str(f.type).split("|")[0].strip()
+
+
+def _field_parser(f: Any, meta: Any) -> Callable[[str], Any] | None:
+    if "parse" in meta:
+        return meta["parse"]
+    kind = _kind(f)
+    if kind == "int":
+        lo, hi = meta.get("bounds", (None, None))
+        return int if lo is None else count(lo, hi)
+    return {"float": float, "str": None}.get(kind)
+
+
+def settings_options(p: argparse.ArgumentParser, cls: type, names: list[str] | None = None, *,
+                     parse: Mapping[str, Callable[[str], Any]] | None = None,
+                     help_: Mapping[str, str] | None = None, unset: tuple[str, ...] = ()) -> None:
+    """Add the options of the dataclass ``cls`` (its fields with a ``"help"`` in their metadata;
+    ``names``: these fields, in this order): flag, parser, default and help from the field.
+    ``parse`` and ``help_`` replace a field's parser or help text for this command; a field in
+    ``unset`` defaults to None (the command fills it, e.g. from another option, before
+    :func:`settings_from`; the help still shows the field's default)."""
+    fields = {f.name: f for f in _fields(cls)}
+    for name in names if names is not None else [n for n, f in fields.items()
+                                                 if OPTION in f.metadata]:
+        f = fields[name]
+        meta = f.metadata
+        if OPTION not in meta:
+            raise ValueError(f"{cls.__name__}.{name} is not an option (no help in its metadata)")
+        default = field_default(cls, name)
+        flags = meta.get("flag", "--" + name.replace("_", "-"))
+        flags = (flags,) if isinstance(flags, str) else tuple(flags)
+        text = (help_ or {}).get(name, meta[OPTION])
+        text = text.format(default=_Shown(default)) if "{" in text else text
+        kw: dict[str, Any] = {"dest": name, "help": text.replace("%", "%%")}  # plain text
+        if _kind(f) == "bool":
+            kw.update(action="store_false" if default else "store_true", default=default)
+        else:
+            kw["default"] = None if name in unset else default
+            parser = (parse or {}).get(name) or _field_parser(f, meta)
+            if parser is not None:
+                kw["type"] = parser
+            for key in ("choices", "nargs", "metavar"):
+                if key in meta:
+                    kw[key] = meta[key]
+            if "metavar" not in kw and "choices" not in kw:   # as argparse names it by the flag
+                kw["metavar"] = flags[0].lstrip("-").replace("-", "_").upper()
+        p.add_argument(*flags, **kw)
+
+
+def settings_given(cls: type, args: argparse.Namespace) -> dict[str, Any]:
+    """The parsed options of the fields of the dataclass ``cls`` that have a value (an option
+    not given whose default is None, or unset, is left out: the field's default applies)."""
+    return {f.name: getattr(args, f.name) for f in _fields(cls)
+            if OPTION in f.metadata and getattr(args, f.name, None) is not None}
+
+
+def settings_from(cls: type, args: argparse.Namespace, **fixed: Any) -> Any:
+    """The dataclass ``cls`` from the parsed options of its fields (:func:`settings_given`),
+    then ``fixed``."""
+    return cls(**{**settings_given(cls, args), **fixed})
+
+
 DEFAULT_PRESET = "feasibility"
 PRESET_HELP = ("feasibility: chapter 3's surface; conveyor: chapter 4's; ke: uncalibrated; "
                "silicon, polysilicon, silicon_oxide, silicon_nitride, gold: MEMS pairs, pure KE; "
@@ -166,11 +312,12 @@ def build_parser() -> argparse.ArgumentParser:
     """The ``microconveyor`` parser with every registered command."""
     parser = _Parser(prog="microconveyor", description=DESCRIPTION)
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    for name, (fn, help_) in COMMANDS.items():
-        p = sub.add_parser(name, help=help_, description=help_)
+    for name, cmd in COMMANDS.items():
+        p = sub.add_parser(name, help=cmd.help, description=cmd.help)
         common_args(p)
-        ARGS.get(name, lambda _p: None)(p)
-        p.set_defaults(func=fn)
+        if cmd.add_args is not None:
+            cmd.add_args(p)
+        p.set_defaults(func=cmd.run)
     return parser
 
 

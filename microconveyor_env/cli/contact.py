@@ -5,7 +5,7 @@ import argparse
 import time
 from typing import Any
 
-from .base import ARGS, command, emit, plot_path, preset_arg
+from .base import command, emit, plot_path, preset_arg
 
 
 def _contact_args(p: argparse.ArgumentParser) -> None:
@@ -16,7 +16,8 @@ def _contact_args(p: argparse.ArgumentParser) -> None:
                    help="also measure the table against direct quadrature")
 
 
-@command("contact", "contact report of a preset (pull-off, friction at weight, separations)")
+@command("contact", "contact report of a preset (pull-off, friction at weight, separations)",
+         _contact_args)
 def cmd_contact(args: argparse.Namespace) -> None:
     """Report the preset's contact characteristics (SI, unit-suffixed keys)."""
     from ..physics.contact_table import ContactTable, tabulation_error
@@ -37,5 +38,3 @@ def cmd_contact(args: argparse.Namespace) -> None:
         out["plot"] = str(plot_contact(table, args.plot, f"preset {preset.name}"))
     emit(args, out)
 
-
-ARGS["contact"] = _contact_args

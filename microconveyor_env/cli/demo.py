@@ -1,24 +1,12 @@
-"""``microconveyor demo``: the main job (charts and a summary in ``--out``)."""
+"""The physics and env part of ``microconveyor demo`` (the command: :mod:`agents.cli.demo`, which
+adds the shipped policy): a contact report, a firing, a frequency sweep and an env episode of a
+fixed schedule, charts and a summary in ``--out``."""
 from __future__ import annotations
 
 import json
 
 from ..env_ids import DEFAULT_ENV_ID
-from .base import ARGS, command, emit, json_default, preset_arg
-
-
-def _demo_args(p):
-    preset_arg(p)
-    p.add_argument("--out", default="out", help="output folder for charts and the summary JSON")
-
-
-@command("demo", "the main job: contact report, a firing, a frequency sweep and an env episode, "
-                 "charts written to --out")
-def cmd_demo(args):
-    # the episode on the default env with the same surface as the charts
-    args.env_kwargs_dict = {"preset": args.preset}
-    summary = demo_summary(args)
-    emit(args, summary, demo_text(summary))
+from .base import json_default
 
 
 def demo_text(summary: dict) -> str:
@@ -147,6 +135,3 @@ def _demo_episode(path, env_id=DEFAULT_ENV_ID, env_kwargs=None):
     return {"chart": save_frames(frames, path, title=title), "env_id": env_id,
             "env_kwargs": env_kwargs or {}, "schedule": what, "target_m": target,
             "error_m": float(error), "return": total, **info}
-
-
-ARGS["demo"] = _demo_args

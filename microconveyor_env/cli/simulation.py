@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from .base import ARGS, command, count, emit, plot_path, preset_arg
+from .base import command, count, emit, plot_path, preset_arg
 
 
 # what ``sweep`` sweeps when no parameter is given as a range or list: the frequency [Hz]
@@ -60,7 +60,7 @@ def _simulate_args(p: argparse.ArgumentParser) -> None:
                         "Parquet needs pyarrow, in the studies extra)")
 
 
-@command("simulate", "one firing of one actuator: travel, outcome, timing")
+@command("simulate", "one firing of one actuator: travel, outcome, timing", _simulate_args)
 def cmd_simulate(args: argparse.Namespace) -> None:
     """One firing of the scene (SI options); travel [m], outcome and timing [s]."""
     from ..studies.sweep import Scene
@@ -123,7 +123,15 @@ def _write_trajectory(traj: Any, path: str, fmt: str = "csv") -> str:
     return path
 
 
-@command("sweep", "travel versus one parameter (frequency by default) and the feasible window")
+def _sweep_args(p: argparse.ArgumentParser) -> None:
+    _scene_args(p, sweep=True)
+    p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    p.add_argument("--max-points", type=count(1, 10 ** 9), default=None,
+                   help="refuse sweeps of more points (default 10000; raise it if you mean it)")
+
+
+@command("sweep", "travel versus one parameter (frequency by default) and the feasible window",
+         _sweep_args)
 def cmd_sweep(args: argparse.Namespace) -> None:
     """Travel [m] versus one swept parameter (in its SI unit) and the feasible window."""
     from ..studies.sweep import SWEEPABLE, Scene, parse_values, sweep, value_key
@@ -175,15 +183,21 @@ def _sweep_text(res: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def _accuracy_args(p: argparse.ArgumentParser) -> None:
+    preset_arg(p)
+    p.add_argument("--plot", metavar="FILE.png", type=plot_path, help="write the chart")
+    p.add_argument("--repeats", type=count(1, 10_000), default=30,
+                   help="timed repeats per setting")
+    p.add_argument("--episode", action="store_true",
+                   help="whole MicroConveyor-v0 episodes (final position and outcome) instead of "
+                        "the single reference firing")
+    p.add_argument("--per-category", type=count(1, 10_000), default=60,
+                   help="--episode: episodes per category (4 categories)")
+    p.add_argument("--seed", type=int, default=0, help="--episode: seed of the episode set")
 
-def _sweep_args(p: argparse.ArgumentParser) -> None:
-    _scene_args(p, sweep=True)
-    p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
-    p.add_argument("--max-points", type=count(1, 10 ** 9), default=None,
-                   help="refuse sweeps of more points (default 10000; raise it if you mean it)")
 
-
-@command("accuracy", "speed versus accuracy of the integrator settings (chart + default choice)")
+@command("accuracy", "speed versus accuracy of the integrator settings (chart + default choice)",
+         _accuracy_args)
 def cmd_accuracy(args: argparse.Namespace) -> None:
     """The speed/accuracy study of one firing (or, ``--episode``, of whole episodes)."""
     if args.episode:
@@ -262,21 +276,19 @@ def _episode_text(study: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def _accuracy_args(p: argparse.ArgumentParser) -> None:
+def _bench_args(p: argparse.ArgumentParser) -> None:
     preset_arg(p)
-    p.add_argument("--plot", metavar="FILE.png", type=plot_path, help="write the chart")
-    p.add_argument("--repeats", type=count(1, 10_000), default=30,
-                   help="timed repeats per setting")
-    p.add_argument("--episode", action="store_true",
-                   help="whole MicroConveyor-v0 episodes (final position and outcome) instead of "
-                        "the single reference firing")
-    p.add_argument("--per-category", type=count(1, 10_000), default=60,
-                   help="--episode: episodes per category (4 categories)")
-    p.add_argument("--seed", type=int, default=0, help="--episode: seed of the episode set")
+    p.add_argument("--repeats", type=count(1, 1_000_000), default=500,
+                   help="timed repeats per mode")
+    p.add_argument("--skip-reference", action="store_true",
+                   help="do not run the (slow) plain-Python reference")
+    p.add_argument("--plane", action="store_true",
+                   help="also time one firing in the plane (docs/physics.md §10) against the same "
+                        "firing on the line: the 2-D/1-D cost ratio")
 
 
 @command("bench", "kernel speed on the reference firing, against the dissertation-style loop "
-                  "(--plane: and in the plane)")
+                  "(--plane: and in the plane)", _bench_args)
 def cmd_bench(args: argparse.Namespace) -> None:
     """Kernel wall times [s] per mode, against the plain-Python reference loop."""
     from ..studies.bench import bench_modes
@@ -299,18 +311,3 @@ def cmd_bench(args: argparse.Namespace) -> None:
         default = out["modes"]["event"]["median_wall_time_s"]
         out["speedup_vs_reference"] = ref["wall_time_s"] / default
     emit(args, out)
-
-
-def _bench_args(p: argparse.ArgumentParser) -> None:
-    preset_arg(p)
-    p.add_argument("--repeats", type=count(1, 1_000_000), default=500,
-                   help="timed repeats per mode")
-    p.add_argument("--skip-reference", action="store_true",
-                   help="do not run the (slow) plain-Python reference")
-    p.add_argument("--plane", action="store_true",
-                   help="also time one firing in the plane (docs/physics.md §10) against the same "
-                        "firing on the line: the 2-D/1-D cost ratio")
-
-
-ARGS.update({"simulate": _simulate_args, "sweep": _sweep_args, "accuracy": _accuracy_args,
-             "bench": _bench_args})

@@ -1,5 +1,6 @@
-"""``microconveyor video``: a GIF or MP4 of one episode of a fixed schedule, the part on the
-deforming surface during every stroke and slide (the agents' version adds ``--policy``)."""
+"""The env part of ``microconveyor video`` (the command: :mod:`agents.cli.video`, which adds
+``--policy``): its options, the actor of a fixed schedule and a GIF or MP4 of one episode, the
+part on the deforming surface during every stroke and slide."""
 from __future__ import annotations
 
 import argparse
@@ -9,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from .base import command, count, emit
+from .base import count
 
 DEFAULT_FRAMES = 8
 SCHEDULE = {"freq": ([950.0], "Hz"), "stroke": ([200e-6], "m"), "delay": ([0.0], "s")}
@@ -49,7 +50,8 @@ def number_list(text: str) -> list[float]:
 
 
 def video_args(p: argparse.ArgumentParser) -> None:
-    """The options every version of the command has."""
+    """The options of the episode and its video: ``--out``, ``--target``, ``--frames-per-stroke``,
+    ``--fps``, ``--seed``."""
     from ..envs.line.frames import MAX_FRAMES_PER_STROKE
     from ..envs.core.video import FPS_RANGE
 
@@ -69,20 +71,11 @@ def video_args(p: argparse.ArgumentParser) -> None:
 
 
 def schedule_args(p: argparse.ArgumentParser) -> None:
+    """``--freq``, ``--stroke``, ``--delay``: the fixed schedule, one value per firing."""
     for name, (default, unit) in SCHEDULE.items():
         p.add_argument(f"--{name}", type=number_list, default=None, metavar="V[,V...]",
                        help=f"the schedule's {name} [{unit}], one value per firing (the last "
                             f"repeats) (default: {default[0]:g})")
-
-
-def _video_args(p: argparse.ArgumentParser) -> None:
-    from ..env_ids import DEFAULT_ENV_ID
-    from ..envs import ENV_IDS
-
-    video_args(p)
-    schedule_args(p)
-    p.add_argument("--env", choices=ENV_IDS, default=DEFAULT_ENV_ID,
-                   help=f"env id (default: {DEFAULT_ENV_ID})")
 
 
 def schedule_actor(args: argparse.Namespace, config: Any) -> tuple[Callable[[Any], Any],
@@ -142,15 +135,3 @@ def video_text(r: dict[str, Any]) -> str:
             f"{r['env_id']}, {r['actor']}: target {r['target_m'] * 1e3:.3f} mm, {r['outcome']} "
             f"after {r['firings']} firing(s) at {r['final_position_m'] * 1e3:.3f} mm (error "
             f"{r['position_error_m'] * 1e6:+.0f} µm), {r['sim_time_s'] * 1e3:.2f} ms simulated")
-
-
-@command("video", "a GIF or MP4 of one episode of a fixed schedule: the part on the deforming "
-                  "surface during every stroke and slide", _video_args)
-def cmd_video(args: argparse.Namespace) -> None:
-    from ..envs import env_config
-
-    config = env_config(args.env)
-    act, schedule = schedule_actor(args, config)
-    result = make_video(args, config, act, env_id=args.env, actor="fixed schedule",
-                        schedule=schedule)
-    emit(args, result, video_text(result))

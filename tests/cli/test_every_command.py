@@ -38,7 +38,7 @@ TINY_CONF = """MicroConveyor-v0:
 TRAIN_TINY = ["--env", "MicroConveyor-v0", "--conf-file", "{conf}", "--steps", "256",
               "--eval-freq", "0", "--eval-targets", "2"]
 
-# command -> its runs (argv after the command name; {tmp}, {conf}, {pkl}, {run} are filled in)
+# command -> its runs (argv after the command name; {tmp}, {conf}, {pkl}, {run}, {root} are filled in)
 RUNS: dict[str, list[list[str]]] = {
     "contact": [["--preset", "feasibility", "--check-table", "--plot", "{tmp}/c.png"]],
     "simulate": [["--preset", "feasibility", "--freq", "900", "--stroke", "150e-6", "--x0",
@@ -110,6 +110,8 @@ RUNS: dict[str, list[list[str]]] = {
     "train-seeds": [[*TRAIN_TINY, "--out", "{tmp}/seeds", "--seeds", "0", "--workers", "1",
                      "--algo", "ppo", "--max-minutes", "5", "--checkpoint-freq", "128",
                      "--quiet", "--plot", "{tmp}/curves.png"]],
+    "record": [["MicroConveyor2D-v0/ppo", "--root", "{root}"]],
+    "ship": [[V0_POLICY, "MicroConveyor-v0/new", "--root", "{root}"]],
 }
 
 # numbers that are dimensionless and rightly in scientific notation, by command: a line matching
@@ -190,7 +192,12 @@ def _setup(name: str, tmp: Path) -> dict[str, str]:
     """Files a command's runs need: a tiny config, a trained run folder, a VecNormalize pickle."""
     conf = tmp / "tiny.yml"
     conf.write_text(TINY_CONF)
-    files = {"conf": str(conf), "run": "", "pkl": ""}
+    files = {"conf": str(conf), "run": "", "pkl": "", "root": str(tmp / "policies")}
+    if name == "record":   # a copy of a shipped policy to record into
+        import shutil
+
+        shutil.copytree(Path(__file__).parents[2] / "agents/policies/MicroConveyor2D-v0/ppo",
+                        tmp / "policies" / "MicroConveyor2D-v0" / "ppo")
     if name == "seeds":
         from agents.rl.training.settings import TrainSettings
         from agents.rl.training.train import train
@@ -213,7 +220,7 @@ def _setup(name: str, tmp: Path) -> dict[str, str]:
 
 def test_every_command_has_runs():
     assert sorted(RUNS) == sorted(COMMANDS)
-    assert len(COMMANDS) == 23
+    assert len(COMMANDS) == 25
 
 
 # commands whose modules belong to other work: what they break is reported, not fixed here

@@ -10,7 +10,9 @@ from microconveyor_env.cli import build_parser, main
 from microconveyor_env.presets import available_presets
 
 # a policy's own scene, or files only: (command, its required arguments)
-NO_SURFACE = {"refine": ("x", "--out", "y"), "seeds": ("x",), "convert-stats": ("x",)}
+NO_SURFACE = {"refine": ("x", "--out", "y"), "seeds": ("x",), "convert-stats": ("x",),
+              # a shipped policy is recorded on the surface it was trained on
+              "record": ("MicroConveyor-v1/ppo",), "ship": ("x", "MicroConveyor-v1/x")}
 
 
 def _commands() -> dict[str, argparse.ArgumentParser]:

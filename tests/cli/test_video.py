@@ -18,9 +18,9 @@ def _frames(path):
     return iio.imread(path, index=None).shape[0]
 
 
-def test_schedule_gif_env_only_command(tmp_path, capsys):
-    """The env package's own command (without the agents' --policy), called in process."""
-    from microconveyor_env.cli import video
+def test_schedule_gif_in_process(tmp_path, capsys):
+    """A fixed schedule's episode (no --policy), the command called in process."""
+    from agents.cli import video
 
     p = argparse.ArgumentParser()
     video._video_args(p)
