@@ -110,3 +110,6 @@ def test_ci_builds_a_new_virtual_environment_and_runs_the_readme_test_command():
     command = next(line for line in readme.splitlines()
                    if "pip install" in line and "pytest" in line)
     assert "python3 -m venv" in ci and command.strip() in ci
+    # then the slow tier, in the same environment, so that nothing marked slow goes unrun
+    after = ci.split(command.strip(), 1)[1]
+    assert "set -euo pipefail" in ci and "python3 -m pytest -m slow" in after
