@@ -8,7 +8,7 @@ from agents.rl.artefacts.policy_files import policy_scene
 from agents.rl.artefacts.shipped import shipped_path
 from agents.rl.evaluation.evaluate import TOLERANCES, fixed_targets, load_policy, rollout, summarize
 from microconveyor_env.envs import EnvConfig
-from microconveyor_env.envs.versions import nominal
+from microconveyor_env.envs.core.versions import nominal
 
 EPISODE_TOL_M = 1e-6
 
