@@ -13,6 +13,7 @@ import numpy as np
 from microconveyor_env.envs import EnvConfig
 from microconveyor_env.envs.core.episodes import Actor, run_episodes
 from microconveyor_env.envs.plane.config import PlaneEnvConfig
+from microconveyor_env.envs.rail.config import RailConfig
 
 from ..artefacts.policy_files import Policy, PolicyError, load_policy
 
@@ -181,7 +182,7 @@ def evaluate_at(policy: Actor, distances: Any, per_distance: int = 5, seed: int 
     if cfg is None:
         raise ValueError("evaluate: the policy names no env it was trained on; pass config=")
     grid = distance_targets(cfg, distances, per_distance)
-    assert isinstance(cfg, EnvConfig)   # distance_targets refuses the plane
+    assert isinstance(cfg, RailConfig)   # the line's or the positioner's: distance_targets refuses the plane
     tol = cfg.tolerance if tolerance is None else tolerance
     res = rollout(policy, grid.reshape(-1), cfg, seed=seed)
     n = grid.shape[1]
