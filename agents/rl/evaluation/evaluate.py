@@ -28,7 +28,7 @@ PLANE_RECORD_NAMES = {"median_abs_error_m": "median_error_m", "p90_abs_error_m":
 DISTANCE_SPREAD_M = 0.1e-3   # [m] the targets of one distance d lie on d +- this (the answer table's)
 
 
-def fixed_targets(config: EnvConfig | PlaneEnvConfig, n: int, seed: int) -> np.ndarray:
+def fixed_targets(config: RailConfig | PlaneEnvConfig, n: int, seed: int) -> np.ndarray:
     """``n`` targets [m] drawn with ``seed``: uniform on the line's target range ``(n,)``, or on
     the plane's grid box ``(n, 2)`` (x then y draws of one generator)."""
     rng = np.random.default_rng(seed)
@@ -41,7 +41,7 @@ def fixed_targets(config: EnvConfig | PlaneEnvConfig, n: int, seed: int) -> np.n
     return rng.uniform(lo, hi, n)
 
 
-def distance_targets(config: EnvConfig | PlaneEnvConfig, distances: Any,
+def distance_targets(config: RailConfig | PlaneEnvConfig, distances: Any,
                      per_distance: int) -> np.ndarray:
     """``per_distance`` targets [m] for each distance [m] of ``distances``, evenly spaced over
     d ± :data:`DISTANCE_SPREAD_M` and kept inside the target range (one target: d itself), shape
@@ -64,14 +64,14 @@ def distance_targets(config: EnvConfig | PlaneEnvConfig, distances: Any,
     return np.clip(d[:, None] + offsets[None, :], lo, hi)
 
 
-def batched_env(config: EnvConfig | PlaneEnvConfig, n: int) -> Any:
+def batched_env(config: RailConfig | PlaneEnvConfig, n: int) -> Any:
     """The batched env of ``config``'s scene with ``n`` sub-envs, same-step autoreset."""
     from microconveyor_env.envs.core.versions import vector_class_of
 
     return vector_class_of(config)(n, config=config, autoreset_mode="SameStep")
 
 
-def rollout(policy: Actor, targets: np.ndarray, config: EnvConfig | PlaneEnvConfig,
+def rollout(policy: Actor, targets: np.ndarray, config: RailConfig | PlaneEnvConfig,
             seed: int = 0, record: bool = False) -> dict:
     """One episode per target (batched, deterministic policy): final errors ``error_m`` [m]
     (module docstring), ``outcome``, ``success`` (the env's), ``time_s``, ``firings`` (fewer
@@ -146,7 +146,7 @@ def from_plane_record(record: dict) -> dict:
 
 
 def evaluate(policy: Actor, n_targets: int = 100, seed: int = 0, tolerance: float | None = None,
-             config: EnvConfig | PlaneEnvConfig | None = None) -> dict:
+             config: RailConfig | PlaneEnvConfig | None = None) -> dict:
     """Success and errors of ``policy`` on ``n_targets`` fixed targets drawn with ``seed``
     (:func:`fixed_targets`) in ``config``; ``tolerance`` [m] of the success figure (default:
     the config's). The keys of :func:`figures`, the ``seed`` and the targets' ``target_range_m``
@@ -173,7 +173,7 @@ def evaluate(policy: Actor, n_targets: int = 100, seed: int = 0, tolerance: floa
 
 def evaluate_at(policy: Actor, distances: Any, per_distance: int = 5, seed: int = 0,
                 tolerance: float | None = None,
-                config: EnvConfig | PlaneEnvConfig | None = None) -> dict:
+                config: RailConfig | PlaneEnvConfig | None = None) -> dict:
     """:func:`evaluate` on targets at given distances [m] (:func:`distance_targets`:
     ``per_distance`` targets over each d ± 0.1 mm), in the same env by default. The figures of
     every target together, and ``per_distance``: one row per distance with ``distance_m``, its
