@@ -10,7 +10,6 @@ from typing import Any
 
 import numpy as np
 
-from microconveyor_env.envs import EnvConfig
 from microconveyor_env.envs.core.episodes import Actor, run_episodes
 from microconveyor_env.envs.plane.config import PlaneEnvConfig
 from microconveyor_env.envs.rail.config import RailConfig
