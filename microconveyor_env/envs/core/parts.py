@@ -217,6 +217,12 @@ class PartsBase:
         ``position_error_m``): arrays of ``n`` rows, the single env's info takes row 0."""
         raise NotImplementedError
 
+    def errors_of(self, i: int) -> dict[str, Any]:
+        """Part ``i``'s row of :meth:`errors` as Python numbers (a float, or a tuple of them):
+        the single env's info. A scene may give it without building every part's arrays."""
+        return {key: val[i].item() if val.ndim == 1 else tuple(val[i].tolist())
+                for key, val in self.errors().items()}
+
     def check_actions(self, actions: Any, n: int | None) -> np.ndarray:
         """The actions checked straight into the input buffer (:func:`.checks.check_actions`:
         ``n`` None the single env's one action, else ``n`` of them)."""

@@ -86,13 +86,11 @@ class SingleEnv(gym.Env):
 
     def _info(self, outcome: str, success: bool) -> dict[str, Any]:
         """The info every reset and step returns: success, the part's errors (the container's
-        :meth:`~.parts.PartsBase.errors`), the outcome, the simulated time and, with
+        :meth:`~.parts.PartsBase.errors_of`), the outcome, the simulated time and, with
         randomisation on, this episode's factors."""
         c = self.conveyor
-        info: dict[str, Any] = {"is_success": success}
-        for key, val in c.errors().items():
-            info[key] = val[0].item() if val.ndim == 1 else tuple(val[0].tolist())
-        info["outcome"], info["sim_time_s"] = outcome, float(c.parts.t[0])
+        info: dict[str, Any] = {"is_success": success, **c.errors_of(0), "outcome": outcome,
+                                "sim_time_s": float(c.parts.t[0])}
         if c.randomised:
             info["friction_factor"] = float(c.friction_factor[0])
             info["mass_factor"] = float(c.mass_factor[0])

@@ -96,6 +96,10 @@ class RailParts(PartsBase):
         """``position_error_m``: each part's signed x − target [m]."""
         return {"position_error_m": self.parts.x - self.parts.target}
 
+    def errors_of(self, i: int) -> dict[str, Any]:
+        """Part ``i``'s ``position_error_m`` [m] (the same float64 subtraction as :meth:`errors`)."""
+        return {"position_error_m": float(self.parts.x[i]) - float(self.parts.target[i])}
+
 
 class OwnsRail:
     """What a rail's envs expose of the container they own (``self.conveyor``)."""
