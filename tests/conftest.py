@@ -2,12 +2,35 @@ import os
 
 import pytest
 
+TABLES = "MICROCONVEYOR_TEST_TABLES"   # the run's contact-table folder, set where the run starts
+
+
+@pytest.hookimpl(trylast=True)   # after pytest's own configure (its temporary folders)
+def pytest_configure(config):
+    """Where the run starts (the xdist controller, or the one process of ``-n 0``): one
+    contact-table folder for the whole run, which the workers inherit through the environment
+    (:func:`_isolated_cache`)."""
+    if hasattr(config, "workerinput"):
+        return
+    tables = config._tmp_path_factory.getbasetemp() / "tables"
+    tables.mkdir(exist_ok=True)
+    os.environ[TABLES] = str(tables)
+
+
+def pytest_unconfigure(config):
+    if not hasattr(config, "workerinput"):
+        os.environ.pop(TABLES, None)
+
 
 @pytest.fixture(scope="session", autouse=True)
 def _isolated_cache(tmp_path_factory):
-    """Keep the test run's contact tables out of the user's cache directory."""
+    """Keep the test run's contact tables out of the user's cache directory: in one folder for
+    the whole run, shared by the workers (the cache writes each table whole, atomically, so two
+    workers building the same table leave one good file; tests of the cache itself use folders
+    of their own)."""
     old = os.environ.get("MICROCONVEYOR_CACHE_DIR")
-    os.environ["MICROCONVEYOR_CACHE_DIR"] = str(tmp_path_factory.mktemp("cache"))
+    os.environ["MICROCONVEYOR_CACHE_DIR"] = (os.environ.get(TABLES)
+                                             or str(tmp_path_factory.mktemp("cache")))
     yield
     if old is None:
         os.environ.pop("MICROCONVEYOR_CACHE_DIR", None)

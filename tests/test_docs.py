@@ -20,7 +20,9 @@ BLOCKS = [(page, code) for page in EXAMPLE_PAGES
                                  flags=re.S)]
 
 
-@pytest.fixture(scope="module")
+# session: the test workers share out a module's tests, and a worker would build it again
+# each time it comes back to the module
+@pytest.fixture(scope="session")
 def site(tmp_path_factory):
     """The site, built by ``mkdocs build --strict`` into a temporary folder."""
     if importlib.util.find_spec("mkdocs") is None:
@@ -83,6 +85,15 @@ def test_examples_are_there():
     assert sum(page == "env.md" for page, _ in BLOCKS) >= 7
 
 
-@pytest.mark.parametrize("page, code", BLOCKS, ids=[f"{p}-{i}" for i, (p, _) in enumerate(BLOCKS)])
+# env.md's SAC + HER block trains for ~10 s: it runs with the slow tests;
+# tests/envs/test_goal_env.py::test_her_trains_a_few_hundred_steps trains the same model (SAC with
+# a HerReplayBuffer on MicroConveyorGoal-v1) in the default suite
+SLOW_BLOCKS = ("HerReplayBuffer",)
+
+
+@pytest.mark.parametrize("page, code", [
+    pytest.param(p, c, id=f"{p}-{i}",
+                 marks=[pytest.mark.slow] if any(w in c for w in SLOW_BLOCKS) else [])
+    for i, (p, c) in enumerate(BLOCKS)])
 def test_example_runs(page, code, tmp_path):
     assert_snippet_runs(code, tmp_path, timeout=300)

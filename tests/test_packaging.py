@@ -18,7 +18,9 @@ SKIP = shutil.ignore_patterns(".git", "build", "dist", "*.egg-info", "__pycache_
                               "tests")
 
 
-@pytest.fixture(scope="module")
+# session: the test workers share out a module's tests, and a worker would build it again
+# each time it comes back to the module
+@pytest.fixture(scope="session")
 def wheel(tmp_path_factory):
     pytest.importorskip("setuptools")
     pytest.importorskip("wheel")

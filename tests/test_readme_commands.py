@@ -2,12 +2,12 @@
 appended to the README's own line; argparse keeps the last value of an option). Every
 ``microconveyor`` line of the README's ``bash`` blocks must have an entry here, so an example
 added to the README without a test fails."""
+import contextlib
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from support.cli import run_cli
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 BLOCKS = re.findall(r"```bash\n(.*?)```", README.read_text(), flags=re.S)
@@ -39,9 +39,10 @@ CHAINED = {line for chain in CHAINS for line in chain}
 
 
 def _run(line: str, cwd: Path) -> None:
+    """The line in ``cwd``, in this process (the console script's process: tests/cli)."""
     argv = [*line.split()[1:], *SHORTER[line]]
-    r = subprocess.run([sys.executable, "-m", "microconveyor_env.cli", *argv], cwd=cwd,
-                       capture_output=True, text=True, timeout=600)
+    with contextlib.chdir(cwd):
+        r = run_cli(*argv)
     assert r.returncode == 0, f"{line} {' '.join(SHORTER[line])}\n{r.stderr[-3000:]}"
 
 

@@ -8,6 +8,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 
 
+@pytest.mark.slow   # a minute of one core on a checkout without mypy's cache; CI runs the slow tier
 def test_mypy_clean():
     pytest.importorskip("mypy")
     r = subprocess.run([sys.executable, "-m", "mypy", "--no-error-summary"], cwd=ROOT,

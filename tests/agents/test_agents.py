@@ -1,8 +1,6 @@
 """The agents package: PPO end to end (train, save, load, resume), the shipped policy, the
 evaluate command's errors, the reach study and the demo."""
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -14,13 +12,14 @@ from agents.rl.evaluation.evaluate import PolicyError, evaluate, load_policy  # 
 from agents.experiments.reach import reach_study, widest_robust_range  # noqa: E402
 from agents.rl.training.settings import TrainSettings  # noqa: E402
 from agents.rl.training.train import train  # noqa: E402
+from support.cli import run_cli  # noqa: E402
 
 SMALL = {"n_envs": 16, "n_steps": 32, "batch_size": 256, "n_epochs": 1}
 
 
 def run(*args):
-    return subprocess.run([sys.executable, "-m", "microconveyor_env.cli", *args],
-                          capture_output=True, text=True, timeout=300)
+    """A command in this process (tests/cli start the console script's processes)."""
+    return run_cli(*args)
 
 
 def test_ppo_config_is_rl_zoo_format():

@@ -19,6 +19,7 @@ pytest.importorskip("stable_baselines3")
 
 from agents.rl.artefacts import checkpoint as ck  # noqa: E402
 from agents.rl.artefacts.checkpoint import CheckpointError  # noqa: E402
+from support.cli import run_cli  # noqa: E402
 
 SMALL = {"n_envs": 16, "n_steps": 32, "batch_size": 256, "n_epochs": 1}
 SMALL_YAML = ("MicroConveyor-v0:\n  env_kwargs: {num_threads: 1}\n  n_envs: 16\n  n_steps: 32\n"
@@ -223,10 +224,12 @@ def test_invalid_budgets_are_refused(tmp_path, bad):
 
 
 def test_cli_refuses_bad_budgets_and_empty_resume(tmp_path):
+    """In this process (the console script's exit status 2 on a refusal: the first run of
+    test_write_failure_at_the_first_save_leaves_nothing_broken)."""
     for args in (["--max-minutes", "nan"], ["--max-minutes", "-1"], ["--max-minutes", "0"],
                  ["--resume"]):
-        r = _cli("train", "--env", "MicroConveyor-v0", "--out", str(tmp_path / "run"), *args,
-                 "--json")
+        r = run_cli("train", "--env", "MicroConveyor-v0", "--out", str(tmp_path / "run"), *args,
+                    "--json")
         assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
         assert "error" in json.loads(r.stdout)
 
@@ -300,6 +303,7 @@ def kill_and_resume(tmp_path, kills: int, seed: int = 0) -> list[dict]:
     return report
 
 
+@pytest.mark.slow   # the same property as test_kill_9_twenty_times (slow too), with 3 kills
 def test_kill_9_at_random_moments_then_resume(tmp_path):
     report = kill_and_resume(tmp_path, kills=3)
     assert len(report) == 3
@@ -331,9 +335,10 @@ def test_write_failure_at_the_first_save_leaves_nothing_broken(tmp_path):
     err = json.loads(r.stdout)["error"]
     assert "step 512 could not be written" in err and "no earlier checkpoint" in err
     assert ck.generations(out) == [] and not list((out / "checkpoints").glob(".tmp-*"))
-    r = _cli(*_train_cmd(out, conf, "--resume", "--json")[3:])
+    # the rest in this process (no file-size limit: space back)
+    r = run_cli(*_train_cmd(out, conf, "--resume", "--json")[3:])
     assert r.returncode == 2 and "nothing to resume" in r.stdout
-    r = _cli(*_train_cmd(out, conf, "--steps", "1024")[3:])   # space back: it starts afresh
+    r = run_cli(*_train_cmd(out, conf, "--steps", "1024")[3:])   # it starts afresh
     assert r.returncode == 0, r.stderr
     assert ck.latest(out).steps == 1024
 

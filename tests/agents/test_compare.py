@@ -10,6 +10,7 @@ pytest.importorskip("stable_baselines3")
 pytest.importorskip("cma")
 
 from agents.experiments.compare import crossover  # noqa: E402
+from support.cli import run_cli  # noqa: E402
 
 
 def test_crossover():
@@ -19,12 +20,13 @@ def test_crossover():
 
 def test_compare_tiny_budget_writes_its_charts(tmp_path):
     out = tmp_path / "cmp"
-    r = subprocess.run([sys.executable, "-m", "microconveyor_env.cli", "compare", "--targets", "2",
-                        "--env", "MicroConveyor-v0", "--budgets", "20,40", "--noise", "0,0.01",
-                        "--spread", "0,0.02", "--diagonal", "0.01:0.02", "--mpc-budgets",
-                        "20,10", "--mpc-prior", "shipped", "--repeats", "1", "--randomised-policy", "", "--plot",
-                        str(out / "compare.png"), "--json"],
-                       capture_output=True, text=True, timeout=600)
+    # in this process, the MPC's episodes too (they do not depend on the number of workers:
+    # tests/agents/test_mpc.py::test_one_worker_or_two_give_the_same_episodes)
+    r = run_cli("compare", "--targets", "2", "--env", "MicroConveyor-v0", "--budgets", "20,40",
+                "--noise", "0,0.01", "--spread", "0,0.02", "--diagonal", "0.01:0.02",
+                "--mpc-budgets", "20,10", "--mpc-prior", "shipped", "--repeats", "1",
+                "--randomised-policy", "", "--workers", "1", "--plot", out / "compare.png",
+                "--json")
     assert r.returncode == 0, r.stderr
     res = json.loads(r.stdout)
     methods = [(row["method"], row.get("budget")) for row in res["rows"]]
@@ -72,12 +74,10 @@ def test_compare_full_grid_and_seed_iqm(tmp_path):
 
     shipped = str(require_shipped("MicroConveyor-v1"))
     out = tmp_path / "cmp"
-    r = subprocess.run([sys.executable, "-m", "microconveyor_env.cli", "compare", "--quick",
-                        "--targets", "2", "--budgets", "20", "--mpc-budgets", "0", "--robust-mpc",
-                        "80,40", "--noise",
-                        "0.01", "--spread", "0.02", "--diagonal", "0.01:0.02", "--full",
-                        "--policy-seeds", shipped, shipped, "--plot", str(out / "c.png"),
-                        "--json"], capture_output=True, text=True, timeout=600)
+    r = run_cli("compare", "--quick", "--targets", "2", "--budgets", "20", "--mpc-budgets", "0",
+                "--robust-mpc", "80,40", "--noise", "0.01", "--spread", "0.02", "--diagonal",
+                "0.01:0.02", "--full", "--policy-seeds", shipped, shipped, "--workers", "1",
+                "--plot", out / "c.png", "--json")
     assert r.returncode == 0, r.stderr
     res = json.loads(r.stdout)
     assert res["env_id"] == "MicroConveyor-v1"
@@ -117,9 +117,16 @@ def test_seed_summary_and_episodes_to_tolerance():
     (["--mpc-budgets", "5,5"], ">= 10"), (["--robust-mpc", "x"], "FIRST,REPLAN"),
     (["--mpc-prior", "/nonexistent"], "no policy folder"), (["--workers", "0"], "workers")])
 def test_compare_rejects_bad_arguments(argv, message):
-    r = subprocess.run([sys.executable, "-m", "microconveyor_env.cli", "compare", *argv,
-                        "--json"], capture_output=True, text=True, timeout=300)
+    r = run_cli("compare", *argv, "--json")
     assert r.returncode == 2 and message in json.loads(r.stdout)["error"]
+
+
+def test_the_console_script_refuses_a_bad_argument_with_status_2():
+    """The refusals above in this process; one through the installed command's process."""
+    r = subprocess.run([sys.executable, "-m", "microconveyor_env.cli", "compare", "--workers",
+                        "0", "--json"], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2 and "workers" in json.loads(r.stdout)["error"]
+    assert len(r.stderr.strip().splitlines()) == 1, r.stderr
 
 
 def test_the_shipped_policy_is_the_ids_default_one():

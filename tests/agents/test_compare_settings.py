@@ -1,8 +1,6 @@
 """The comparison's settings object (validated once, built by the command line) and `microconveyor
 compare` on every registered env id: it runs on the line's versions and refuses the others with
 exit status 2 and one stderr line saying why."""
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -10,6 +8,7 @@ import pytest
 from agents.experiments.compare_settings import MPC_SETTINGS, CompareSettings, check_env_id
 from agents.mpc import MPCSettings
 from microconveyor_env.env_ids import DEFAULT_ENV_ID, REGISTRY
+from support.cli import run_cli
 
 
 def test_defaults_and_normalisation():
@@ -77,11 +76,9 @@ def test_compare_runs_or_refuses_on_every_registered_id(env_id):
     pytest.importorskip("cma")
     refusal = _expected_refusal(env_id)
     assert (refusal is None) == _runs(env_id)
-    r = subprocess.run([sys.executable, "-m", "microconveyor_env.cli", "compare", "--env", env_id,
-                        "--targets", "1", "--budgets", "10", "--methods", "de", "--mpc-budgets",
-                        "0", "--noise", "0", "--spread", "0", "--diagonal", "",
-                        "--randomised-policy", "", "--workers", "1"],
-                       capture_output=True, text=True, timeout=600)
+    r = run_cli("compare", "--env", env_id, "--targets", "1", "--budgets", "10", "--methods",
+                "de", "--mpc-budgets", "0", "--noise", "0", "--spread", "0", "--diagonal", "",
+                "--randomised-policy", "", "--workers", "1")
     if refusal is None:
         assert r.returncode == 0, r.stderr
         # the positioner has a PPO row once a policy is shipped for it

@@ -2,8 +2,6 @@
 evaluated on another scene is refused."""
 import argparse
 import json
-import subprocess
-import sys
 
 import pytest
 
@@ -13,6 +11,7 @@ from agents.cli.args import env_kwarg  # noqa: E402
 from agents.rl.artefacts.policy_files import PolicyError, load_policy  # noqa: E402
 from agents.rl.artefacts.shipped import shipped_path  # noqa: E402
 from microconveyor_env.envs import env_config  # noqa: E402
+from support.cli import run_cli  # noqa: E402
 
 TINY = """MicroConveyor-v1:
   env_kwargs: {num_threads: 1}
@@ -28,8 +27,8 @@ TINY = """MicroConveyor-v1:
 
 
 def _cli(*args):
-    return subprocess.run([sys.executable, "-m", "microconveyor_env.cli", *args],
-                          capture_output=True, text=True, timeout=600)
+    """A command in this process (tests/cli start the console script's processes)."""
+    return run_cli(*args)
 
 
 def test_env_kwargs_are_parsed_as_data():

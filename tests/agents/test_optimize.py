@@ -2,8 +2,6 @@
 command): seeded runs repeat exactly, budgets are never exceeded, the dissertation's cost on
 hand-computed cases, the command's JSON and charts."""
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -15,11 +13,12 @@ from agents.openloop.dissertation import TABLE_4_3, DissertationProblem, dissert
 from agents.openloop.target import replay, solve_target  # noqa: E402
 from agents.planning import LineRollouts  # noqa: E402
 from agents.openloop.search import cmaes_minimize, de_minimize, de_population, minimize  # noqa: E402
+from support.cli import run_cli  # noqa: E402
 
 
 def run(*args):
-    return subprocess.run([sys.executable, "-m", "microconveyor_env.cli", *args],
-                          capture_output=True, text=True, timeout=300)
+    """A command in this process (tests/cli start the console script's processes)."""
+    return run_cli(*args)
 
 
 @pytest.mark.parametrize("method", ["de", "cmaes"])

@@ -5,8 +5,6 @@ import json
 import os
 import pickle
 import shutil
-import subprocess
-import sys
 import zipfile
 
 import numpy as np
@@ -16,6 +14,7 @@ pytest.importorskip("stable_baselines3")
 
 from agents.rl.evaluation.evaluate import PolicyError, load_policy  # noqa: E402
 from agents.rl.artefacts.shipped import shipped_path  # noqa: E402
+from support.cli import run_cli  # noqa: E402
 
 
 class _Payload:
@@ -35,8 +34,8 @@ def _copy_shipped(tmp_path, name="ppo"):
 
 
 def _cli(*args):
-    return subprocess.run([sys.executable, "-m", "microconveyor_env.cli", *args],
-                          capture_output=True, text=True, timeout=300)
+    """A command in this process (tests/cli start the console script's processes)."""
+    return run_cli(*args)
 
 
 def _rewrite_data(zip_path, edit):

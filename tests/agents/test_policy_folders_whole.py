@@ -7,8 +7,6 @@ trained on, randomisation included, from the CLI and from Python alike."""
 import io
 import json
 import shutil
-import subprocess
-import sys
 import zipfile
 
 import numpy as np
@@ -19,6 +17,7 @@ pytest.importorskip("stable_baselines3")
 from agents.rl.artefacts.checkpoint import sha256  # noqa: E402
 from agents.rl.artefacts.policy_files import PolicyError, load_policy  # noqa: E402
 from agents.rl.artefacts.shipped import shipped_path, shipped_policies  # noqa: E402
+from support.cli import run_cli  # noqa: E402
 
 
 def _copy(tmp_path, name, env_id, as_name=None):
@@ -42,9 +41,9 @@ def _rehash(folder):
     _write_meta(folder, meta)
 
 
-def _cli(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "microconveyor_env.cli", *args],
-                          capture_output=True, text=True, timeout=300, cwd=cwd)
+def _cli(*args):
+    """A command in this process (tests/cli start the console script's processes)."""
+    return run_cli(*args)
 
 
 def _refused(r, *words):

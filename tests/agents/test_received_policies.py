@@ -16,6 +16,7 @@ pytest.importorskip("stable_baselines3")
 
 from agents.rl.artefacts.policy_files import PolicyError, load_policy  # noqa: E402
 from agents.rl.artefacts.shipped import shipped_path  # noqa: E402
+from support.cli import run_cli  # noqa: E402
 
 
 def _sac_folder(tmp_path, name="sac", dict_obs=False):
@@ -249,11 +250,12 @@ def test_a_pickle_in_policy_pth_is_one_error_without_torch_advice(tmp_path):
 
 
 def test_refine_out_is_checked_before_the_refinement(tmp_path):
+    """In this process (tests/cli start the console script's processes)."""
     dangling = tmp_path / "dangling"
     os.symlink(tmp_path / "nowhere", dangling)
     src = str(shipped_path("ppo", "MicroConveyor-v1"))
     t0 = time.perf_counter()
-    r = _cli("refine", src, "--out", str(dangling))
+    r = run_cli("refine", src, "--out", str(dangling))
     assert r.returncode == 2 and "symbolic link" in r.stderr
     locked = tmp_path / "ro"
     locked.mkdir()
@@ -264,7 +266,7 @@ def test_refine_out_is_checked_before_the_refinement(tmp_path):
             (tmp_path / "a-file").write_text("")
         else:
             target = locked / "out"
-        r = _cli("refine", src, "--out", str(target))
+        r = run_cli("refine", src, "--out", str(target))
         assert r.returncode == 2 and "cannot be written" in r.stderr, r.stderr
     finally:
         locked.chmod(0o700)

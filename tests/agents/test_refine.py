@@ -1,7 +1,5 @@
 """`refine`: Newton corrections of a policy's last firing, fitted back into the actor."""
 import json
-import subprocess
-import sys
 import zipfile
 
 import numpy as np
@@ -22,6 +20,7 @@ from agents.rl.refinement.refine import refine  # noqa: E402
 from agents.rl.refinement.settings import RefineSettings  # noqa: E402
 from agents.rl.refinement.writer import write_refined  # noqa: E402
 from agents.rl.artefacts.shipped import shipped_path  # noqa: E402
+from support.cli import run_cli  # noqa: E402
 
 
 def _shipped():
@@ -235,8 +234,8 @@ def test_a_randomised_policy_is_refused():
 
 
 def _cli(*args):
-    return subprocess.run([sys.executable, "-m", "microconveyor_env.cli", *args],
-                          capture_output=True, text=True, timeout=300)
+    """A command in this process (tests/cli start the console script's processes)."""
+    return run_cli(*args)
 
 
 def test_refine_command_writes_an_evaluated_folder_and_refuses_an_occupied_one(tmp_path):

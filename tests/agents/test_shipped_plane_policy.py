@@ -98,12 +98,10 @@ def test_shipped_plane_policy_reproduces_its_record():
 
 
 def test_cli_evaluates_the_plane_policy_and_refuses_another_env():
-    import subprocess
-    import sys
+    from support.cli import run_cli
 
-    def cli(*args):
-        return subprocess.run([sys.executable, "-m", "microconveyor_env.cli", "evaluate", *args],
-                              capture_output=True, text=True, timeout=300)
+    def cli(*args):   # in this process (tests/cli start the console script's processes)
+        return run_cli("evaluate", *args)
 
     r = cli("--env", ENV_ID, "--targets", "3", "--seed", "2026", "--json")
     assert r.returncode == 0, r.stderr

@@ -47,9 +47,12 @@ def test_a_reader_gone_before_the_output_ends_every_command_quietly(argv, status
     assert err == "", err
 
 
-def test_a_broken_pipe_of_another_file_is_an_error_line(capsys):
+def test_a_broken_pipe_of_another_file_is_an_error_line(capsys, monkeypatch):
     """Only stdout's reader going away is quiet: a broken pipe elsewhere is reported."""
-    from microconveyor_env.cli import command, main
+    from microconveyor_env.cli import base, command, main
+
+    # the command is registered in a copy of the registry: later tests in this process see none
+    monkeypatch.setattr(base, "COMMANDS", dict(base.COMMANDS))
 
     @command("broken-elsewhere", "a pipe of its own breaks")
     def broken(args):

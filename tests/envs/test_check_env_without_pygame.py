@@ -37,7 +37,9 @@ SCRIPT = textwrap.dedent("""
 """)
 
 
-@pytest.fixture(scope="module")
+# session: the test workers share out a module's tests, and a worker would build it again
+# each time it comes back to the module
+@pytest.fixture(scope="session")
 def without_pygame():
     r = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True,
                        timeout=900)

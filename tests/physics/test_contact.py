@@ -11,6 +11,7 @@ from microconveyor_env.physics.materials import ContactParams
 from microconveyor_env.physics.rough_surface import Normalised, SurfaceIntegrals, surface_forces
 from support.ke_reference import reference_forces as _reference_forces
 from support.ke_reference import reference_integrals as _reference_integrals
+from support.ke_reference import reference_normal as _reference_normal
 
 
 @pytest.mark.parametrize("d_star", [0.5, 2.0, 3.86, 4.35, 6.0])
@@ -96,12 +97,12 @@ def test_conveyor_preset_figures_against_direct_ke_evaluation():
     assert c.replace(surface__dgamma=1.0) == feas.contact
     assert conv.calibration["measured_with"] == {"dgamma": 1.0}
     table = ContactTable(c)
-    res = optimize.minimize_scalar(lambda d: _reference_forces(c, d)[0],
+    res = optimize.minimize_scalar(lambda d: _reference_normal(c, d),
                                    bounds=(table.base.d_pull - 0.5, table.base.d_pull + 0.5),
                                    method="bounded", options={"xatol": 1e-9})
     pull_off = -res.fun
     weight = c.part.weight
-    d_w = optimize.brentq(lambda d: _reference_forces(c, d)[0] - weight, 0.0, table.base.d_pull,
+    d_w = optimize.brentq(lambda d: _reference_normal(c, d) - weight, 0.0, table.base.d_pull,
                           xtol=1e-14, rtol=1e-14)
     q_w = _reference_forces(c, d_w)[1]
     forces = conv.forces()

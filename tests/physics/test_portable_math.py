@@ -89,11 +89,9 @@ def _settings():
     return out
 
 
-@pytest.mark.skipif(sys.platform != "linux" or os.uname().machine != "x86_64",
-                    reason="the BLAS core types and numpy feature names are x86-64's")
-def test_table_and_rollout_bits_do_not_depend_on_blas_or_cpu_features(tmp_path):
+def _bits_agree(tmp_path, settings):
     results = {}
-    for name, extra in _settings():
+    for name, extra in settings:
         env = {**os.environ, **extra, "MICROCONVEYOR_CACHE_DIR": str(tmp_path / "cache")}
         r = subprocess.run([sys.executable, str(CHILD)], capture_output=True, text=True,
                            env=env, timeout=300)
@@ -101,3 +99,20 @@ def test_table_and_rollout_bits_do_not_depend_on_blas_or_cpu_features(tmp_path):
         results[name] = json.loads(r.stdout.strip().splitlines()[-1])
     assert {v["table"] for v in results.values()} == {TABLE_SHA256}, results
     assert len({v["rollout"] for v in results.values()}) == 1, results
+
+
+X86_64 = pytest.mark.skipif(sys.platform != "linux" or os.uname().machine != "x86_64",
+                            reason="the BLAS core types and numpy feature names are x86-64's")
+
+
+@X86_64
+def test_table_and_rollout_bits_do_not_depend_on_blas_or_cpu_features(tmp_path):
+    """The defaults against the farthest setting from them (the oldest BLAS core type with
+    numpy's AVX2/FMA dispatch off); every setting: the slow test below."""
+    _bits_agree(tmp_path, [s for s in _settings() if s[0] in ("default", "Prescott + X86_V3 off")])
+
+
+@pytest.mark.slow
+@X86_64
+def test_table_and_rollout_bits_agree_under_every_blas_core_type_and_cpu_feature_setting(tmp_path):
+    _bits_agree(tmp_path, _settings())

@@ -1,7 +1,5 @@
 """The studies' analysis: Box-Cox, the regression, windows, the speed check, fidelity, the CLI."""
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -11,6 +9,7 @@ from microconveyor_env.studies import engage, fidelity, regression
 from microconveyor_env.studies.engine import simulator
 from microconveyor_env.studies.sensitivity import find_window
 from microconveyor_env.studies.sweep import Scene, feasible_window, sweep
+from support.cli import run_cli
 
 
 @pytest.mark.parametrize("shape", [0.5, 2.0, 8.0])
@@ -115,8 +114,8 @@ def test_fidelity_assessment_logic():
 
 
 def _cli(*args):
-    return subprocess.run([sys.executable, "-m", "microconveyor_env.cli", *args],
-                          capture_output=True, text=True, timeout=300)
+    """A command in this process (tests/cli start the console script's processes)."""
+    return run_cli(*args)
 
 
 def test_cli_studies_json_table_plot(tmp_path):

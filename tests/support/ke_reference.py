@@ -19,20 +19,31 @@ def _quad(f, a, b, points=()):
                for lo, hi in zip(edges[:-1], edges[1:], strict=True))
 
 
-def reference_integrals(norm, d):
-    """The four per-asperity integrals I_P, I_C, I_Q, I_G [-] at d* = ``d`` [-]."""
+def reference_integrals(norm, d, keys="PCQG"):
+    """The per-asperity integrals I_P, I_C, I_Q, I_G [-] at d* = ``d`` [-] (those named in
+    ``keys``)."""
     oc, e, k = norm.omega_c_star, norm.eps_star, norm.eps_over_omega_c
     top = max(d, 0) + 14
     kinks = [d + oc * c for c in asperity.adhesion_floor_crossings(k)]
     brk = [d + oc, d + 6 * oc, d + 110 * oc]
-    P = _quad(lambda z: float(asperity.load((z - d) / oc, norm.K)) * PHI(z), d, top, brk)
-    C = _quad(lambda z: float(asperity.adhesion_contact((z - d) / oc, k)) * PHI(z), d, top,
-              brk + kinks)
-    Q = _quad(lambda z: float(asperity.friction((z - d) / oc)) * PHI(z), d, d + 6 * oc,
-              [d + oc, d + oc * asperity.friction_mid_root()])
-    G = _quad(lambda z: float(asperity.adhesion_gap((d - z + e) / e)) * PHI(z), min(d, 0) - 14, d,
-              [d - e * m for m in (1, 3, 10, 30, 100, 300)])
-    return {"P": P, "C": C, "Q": Q, "G": G}
+    integrals = {
+        "P": lambda: _quad(lambda z: float(asperity.load((z - d) / oc, norm.K)) * PHI(z), d, top,
+                           brk),
+        "C": lambda: _quad(lambda z: float(asperity.adhesion_contact((z - d) / oc, k)) * PHI(z),
+                           d, top, brk + kinks),
+        "Q": lambda: _quad(lambda z: float(asperity.friction((z - d) / oc)) * PHI(z), d,
+                           d + 6 * oc, [d + oc, d + oc * asperity.friction_mid_root()]),
+        "G": lambda: _quad(lambda z: float(asperity.adhesion_gap((d - z + e) / e)) * PHI(z),
+                           min(d, 0) - 14, d, [d - e * m for m in (1, 3, 10, 30, 100, 300)])}
+    return {key: integrals[key]() for key in keys}
+
+
+def reference_normal(params, d_star):
+    """N [N] at d* = ``d_star`` [-] from :func:`reference_integrals` (without I_Q, which N does
+    not need: what a root finder or minimiser of N evaluates)."""
+    ref = reference_integrals(Normalised.from_params(params), d_star, "PCG")
+    n = params.asperity_count
+    return n * (params.critical_load * ref["P"] - params.adhesion_force_scale * (ref["C"] + ref["G"]))
 
 
 def reference_forces(params, d_star):
