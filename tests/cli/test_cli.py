@@ -4,9 +4,16 @@ import subprocess
 import sys
 
 import pytest
+from support.cli import run_cli
 
 
 def run(*args):
+    """The command in this process (what it prints and its status; tests/support/cli.py)."""
+    return run_cli(*args)
+
+
+def run_process(*args):
+    """The console script in its own interpreter (the process's contract)."""
     return subprocess.run([sys.executable, "-m", "microconveyor_env.cli", *args],
                           capture_output=True, text=True, timeout=300)
 
@@ -24,7 +31,7 @@ def test_contact_json_and_plot(tmp_path):
 
 
 def test_error_is_json_with_nonzero_status():
-    r = run("contact", "--preset", "nope", "--json")
+    r = run_process("contact", "--preset", "nope", "--json")
     assert r.returncode == 2
     assert "unknown preset" in json.loads(r.stdout)["error"]
 

@@ -1,15 +1,14 @@
 """``microconveyor demo`` on the default env: MicroConveyor-v1's surface and its default shipped
 policy carrying a part, a table per target, charts and a GIF of a long carry."""
 import json
-import subprocess
-import sys
 
 import pytest
+from support.cli import run_cli
 
 
 def run(*args):
-    return subprocess.run([sys.executable, "-m", "microconveyor_env.cli", "demo", *args],
-                          capture_output=True, text=True, timeout=600)
+    """``microconveyor demo`` in this process (what it prints and its status; tests/support/cli.py)."""
+    return run_cli("demo", *args)
 
 
 def test_demo_on_two_targets_shows_v1_and_its_default_policy(tmp_path):

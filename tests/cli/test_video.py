@@ -1,17 +1,17 @@
 """``microconveyor video``: a GIF or MP4 of one episode of a fixed schedule or of a policy."""
 import argparse
 import json
-import subprocess
 import sys
 
 import pytest
+from support.cli import run_cli
 
 iio = pytest.importorskip("imageio.v3", reason="videos need imageio (the render extra)")
 
 
 def run(*args):
-    return subprocess.run([sys.executable, "-m", "microconveyor_env.cli", "video", *args],
-                          capture_output=True, text=True, timeout=300)
+    """``microconveyor video`` in this process (what it prints and its status; tests/support/cli.py)."""
+    return run_cli("video", *args)
 
 
 def _frames(path):

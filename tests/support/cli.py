@@ -30,5 +30,9 @@ def run_cli(*args: object) -> subprocess.CompletedProcess:
         warnings.simplefilter("default")
         for category in _IGNORED:
             warnings.simplefilter("ignore", category)
-        status = main(argv)
+        try:
+            status = main(argv)
+        except SystemExit as done:   # --help and --version end the command as a process would
+            code = done.code
+            status = 0 if code is None else code if isinstance(code, int) else 1
     return subprocess.CompletedProcess(argv, status, out.getvalue(), err.getvalue())
