@@ -109,6 +109,7 @@ def test_robust_settings_are_checked():
     assert ep.episodes <= 80 * ep.firings and ep.episodes % 4 == 0
 
 
+@pytest.mark.slow   # ~11 s; CI's slow tier runs it (.ci/run)
 def test_a_dead_mpc_worker_costs_only_a_rerun_of_the_unfinished_batches():
     """A pool worker killed between calls breaks the pool: the next call runs its batches again
     in supervised processes of their own (the same episodes: results do not depend on the

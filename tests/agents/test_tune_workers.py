@@ -161,7 +161,7 @@ def _workers_end_with_parent(code: str, what: str, settle_s: float = 0.0) -> Non
 
 
 # ----------------------------------------------------------------------------- tune
-@pytest.mark.slow   # ~32 s; the default suite kills a train-seeds worker the same way
+@pytest.mark.slow   # ~32 s; the slow tier also kills a train-seeds worker the same way
 def test_a_killed_tune_worker_fails_only_its_trial(tmp_path):
     """tune --workers 2 --trials 4: one worker killed mid-trial. Its trial is failed with the
     reason at once, a new worker runs the rest of its share, the other worker's trials
@@ -198,6 +198,7 @@ def test_a_killed_tune_worker_fails_only_its_trial(tmp_path):
     assert "Traceback" not in stderr
 
 
+@pytest.mark.slow   # ~12 s; CI's slow tier runs it (.ci/run)
 def test_tune_workers_end_and_fail_their_trials_when_the_command_is_killed(tmp_path):
     out = tmp_path / "t"
     out.mkdir()
@@ -221,6 +222,7 @@ def test_tune_workers_end_and_fail_their_trials_when_the_command_is_killed(tmp_p
                                          f"{t.user_attrs['worker']} with it")
 
 
+@pytest.mark.slow   # ~25 s; a killed worker's trial: also test_a_killed_tune_worker_fails_only_its_trial
 def test_a_killed_train_seeds_worker_fails_only_its_seed(tmp_path):
     conf = tmp_path / "conf.yml"
     conf.write_text(f"{ENV}:\n  n_envs: 8\n  n_steps: 32\n  batch_size: 64\n  n_epochs: 2\n"
