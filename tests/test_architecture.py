@@ -1,8 +1,9 @@
 """The layers import downward only (docs/architecture.md): each room may import the rooms listed
 for it and nothing above. Read from the source with ``ast``, so a new import that climbs fails
 here with the file and line, not in review."""
-import ast
 from pathlib import Path
+
+from support.imports import imports
 
 ROOT = Path(__file__).resolve().parents[1]
 # room -> rooms it may import (besides itself); "mce" is microconveyor_env
@@ -44,24 +45,6 @@ def _room(module: str) -> str | None:
     return name if name in ALLOWED else top
 
 
-def _imports(path: Path, root: Path = ROOT):
-    rel = path.relative_to(root).with_suffix("")
-    module = ".".join(rel.parts[:-1] if rel.name == "__init__" else rel.parts)
-    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
-    for node in ast.walk(ast.parse(path.read_text())):
-        if isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = package.split(".")[: len(package.split(".")) - node.level + 1]
-                target = ".".join(base + ([node.module] if node.module else []))
-                names = [target] if node.module else [f"{target}.{a.name}" for a in node.names]
-            else:
-                names = [node.module or ""]
-        elif isinstance(node, ast.Import):
-            names = [a.name for a in node.names]
-        else:
-            continue
-        for name in names:
-            yield module, name, node.lineno
 
 
 def violations(root: Path) -> list[str]:
@@ -69,7 +52,7 @@ def violations(root: Path) -> list[str]:
     bad = []
     files = sorted(root.glob("microconveyor_env/**/*.py")) + sorted(root.glob("agents/**/*.py"))
     for path in files:
-        for module, target, line in _imports(path, root):
+        for module, target, line in imports(path, root):
             src, dst = _room(module), _room(target)
             if src is None or dst is None or src == dst:
                 continue
@@ -106,7 +89,7 @@ def import_graph(root: Path) -> dict[str, set[str]]:
     scripts = {p.stem: p for p in sorted(root.glob("scripts/*.py"))}
     graph: dict[str, set[str]] = {m: set() for m in [*modules, *scripts]}
     for module, path in [*modules.items(), *scripts.items()]:
-        for _, target, _ in _imports(path, root):
+        for _, target, _ in imports(path, root):
             if module in scripts:
                 if target in scripts and target != module:
                     graph[module].add(target)

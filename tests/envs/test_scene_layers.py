@@ -2,8 +2,9 @@
 scene, ``envs/rail`` (what the line and the positioner share) imports the core alone, and a scene
 imports the core, the rail it stands on and itself, never another scene. Read from the source
 with ``ast``, every import (module-level or inside a function)."""
-import ast
 from pathlib import Path
+
+from support.imports import imports
 
 ENVS = Path(__file__).resolve().parents[2] / "microconveyor_env" / "envs"
 # subpackage -> the subpackages of envs it may import (besides itself)
@@ -14,24 +15,10 @@ MAY_IMPORT = {"core": set(), "rail": {"core"}, "line": {"core", "rail"},
 def _targets(path: Path, envs: Path = ENVS):
     """(line, envs subpackage) of every import of ``path`` (under ``envs``) that reaches into
     ``envs``."""
-    package = ("microconveyor_env", "envs") + path.relative_to(envs).parts[:-1]
-    for node in ast.walk(ast.parse(path.read_text())):
-        if isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = package[: len(package) - node.level + 1]
-                names = [".".join(base + ((node.module,) if node.module else ()))]
-                if not node.module:
-                    names = [f"{names[0]}.{a.name}" for a in node.names]
-            else:
-                names = [node.module or ""]
-        elif isinstance(node, ast.Import):
-            names = [a.name for a in node.names]
-        else:
-            continue
-        for name in names:
-            parts = name.split(".")
-            if parts[:2] == ["microconveyor_env", "envs"] and len(parts) > 2:
-                yield node.lineno, parts[2]
+    for _, name, line in imports(path, envs.parents[1]):
+        parts = name.split(".")
+        if parts[:2] == ["microconveyor_env", "envs"] and len(parts) > 2:
+            yield line, parts[2]
 
 
 def crossings(envs: Path = ENVS) -> list[str]:
