@@ -106,6 +106,8 @@ class MPCSettings:
 
 
 MODELS = ("nominal", "identified", "oracle")   # the one-step controller's models
+SEARCHES = ("map", "model")
+CORNER_CHUNK = 4   # candidates whose four corners are fired at once, nearest first   # where the one-step controller ranks its candidates
 # the step below which a candidate does not count as bringing the part closer [m]
 MIN_GAIN = 0.1e-6
 
@@ -122,7 +124,11 @@ class OneStepSettings:
     ``residual_m`` [m]: the rest residual that weighs as much as one prior width;
     ``check_factor`` δ [-] and ``check_best`` [-]: the nearest ``check_best`` candidates are
     fired again with the model's friction and mass factors times 1 ± δ (four corners), and one
-    that detaches under any is passed over (0: no check), a margin for the model's error."""
+    that detaches under any is passed over (0: no check), a margin for the model's error.
+    ``search``: ``"map"`` ranks the candidates on the scene's firing map (the nominal model
+    tabulated once; a candidate in a cell the map does not trust counts as one that detaches)
+    and fires only the ``check_best`` nearest on the full model with the model's factors, twice
+    (:meth:`OneStepPlanner.choose`); ``"model"`` fires every candidate on the full model."""
 
     model: str = "identified"
     frequencies: int = 41
@@ -134,10 +140,13 @@ class OneStepSettings:
     residual_m: float = 2e-6
     check_factor: float = 0.1
     check_best: int = 16
+    search: str = "map"
 
     def __post_init__(self) -> None:
         if self.model not in MODELS:
             raise ValueError(f"model = {self.model!r} is invalid: must be one of {MODELS}")
+        if self.search not in SEARCHES:
+            raise ValueError(f"search = {self.search!r} is invalid: must be one of {SEARCHES}")
         for name, least in (("frequencies", 2), ("strokes", 2), ("margin", 0),
                             ("factor_points", 3), ("check_best", 1)):
             v = getattr(self, name)
@@ -318,10 +327,12 @@ class OneStepPlanner:
         self.scene = scene
         self.settings = settings
         self.model = scene.firing_model()
+        self.map = scene.map_model() if settings.search == "map" else None
 
     @property
     def spent(self) -> int:
-        """Model firings so far (the identification's included)."""
+        """Full-model firings so far (the identification's included; the map's queries are
+        not firings)."""
         return self.model.firings
 
     def identifier(self) -> FrictionFit | None:
@@ -337,41 +348,89 @@ class OneStepPlanner:
 
     def predict(self, state: Any, factors: tuple[float, float] = (1.0, 1.0)
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Every candidate from ``state`` (observed) on the model with ``factors``: the actions
-        ``(A, F, H, 3)``, the predicted rests [m] ``(A, F, H)`` and whether each is allowed
-        (rests, and no neighbour within the margin detaches)."""
+        """Every candidate from ``state`` (observed): the actions ``(A, F, H, 3)``, the
+        predicted rests [m] ``(A, F, H)`` and whether each is allowed (rests, and no neighbour
+        within the margin detaches). With ``search="model"`` on the full model with
+        ``factors``; with ``"map"`` on the firing map (nominal; untrusted counts as detaching)."""
         s = self.settings
         acts, n_aims = self.scene.candidates(state.position_m, s.frequencies, s.strokes)
-        x, ok = self.model.rests(with_factors(state, *factors), acts)
+        if self.map is not None:
+            x, _, ok = self.map.rests(state.position_m, acts)
+        else:
+            x, ok = self.model.rests(with_factors(state, *factors), acts)
         shape = (n_aims, s.frequencies, s.strokes)
         allowed = ~dilate(~ok.reshape(shape), s.margin)
         return acts.reshape(*shape, 3), x.reshape(shape), allowed
 
-    def choose(self, state: Any, factors: tuple[float, float] = (1.0, 1.0)) -> np.ndarray | None:
-        """The firing (action ``(3,)`` float32) whose predicted rest from ``state`` is nearest
-        its target, or None when no allowed candidate is predicted to bring the part closer.
-        With ``check_factor`` δ > 0, the ``check_best`` nearest are fired again on the model
-        with its friction and mass factors each times 1 − δ or 1 + δ (the four corners), and
-        the nearest that rests under all four is chosen (the nearest of all if none does)."""
+    def _confirm(self, state: Any, flat: np.ndarray, order: np.ndarray,
+                 factors: tuple[float, float]) -> np.ndarray:
+        """The rests [m] of the candidates ``flat[order]`` on the full model with ``factors``
+        (inf where the model part does not come to rest)."""
+        x, ok = self.model.rests(with_factors(state, *factors), flat[order])
+        return np.where(ok, x, np.inf)
+
+    def ranked(self, state: Any, factors: tuple[float, float] = (1.0, 1.0)
+               ) -> tuple[np.ndarray, np.ndarray]:
+        """The candidates (actions ``(N, 3)``) nearest the target first, at most ``check_best``
+        of them and only those predicted to bring the part closer, and their predicted rests [m]
+        on the full model with ``factors`` (for ``search="model"`` all of them).
+
+        On the map (``search="map"``) the ``check_best`` nearest on the map are fired on the
+        full model; the map's displacements are then scaled by the median ratio of the full
+        model's to the map's over those (the model's factors stretch or shorten every slide
+        alike to within a few per cent), the candidates re-ranked, and the ``check_best``
+        nearest of that ranking not yet fired are fired too: the answer is always the full
+        model's."""
         s = self.settings
         acts, x, allowed = self.predict(state, factors)
-        err = np.where(allowed, np.abs(x - state.target_m), np.inf).ravel()
-        gain = err < abs(state.position_m - state.target_m) - MIN_GAIN
-        order = np.argsort(err, kind="stable")[:s.check_best]
-        order = order[gain[order]]
-        if not order.size:
-            return None
         flat = acts.reshape(-1, 3)
+        target, now = state.target_m, abs(state.position_m - state.target_m)
+        x = np.where(allowed, x, np.inf).ravel()
+        order = np.argsort(np.abs(x - target), kind="stable")[:s.check_best]
+        order = order[np.isfinite(x[order])]
+        if self.map is None:
+            order = order[np.abs(x[order] - target) < now - MIN_GAIN]
+            return flat[order], x[order]
+        if not order.size:
+            return flat[:0], x[:0]
+        full = self._confirm(state, flat, order, factors)
+        step_map, step_full = x[order] - state.position_m, full - state.position_m
+        usable = np.isfinite(full) & (np.abs(step_map) > 1e-6)
+        if usable.any():
+            ratio = float(np.median(step_full[usable] / step_map[usable]))
+            scaled = state.position_m + ratio * (x - state.position_m)
+            more = np.argsort(np.abs(scaled - target), kind="stable")
+            more = more[np.isfinite(scaled[more]) & ~np.isin(more, order)][:s.check_best]
+            if more.size:
+                order = np.concatenate([order, more])
+                full = np.concatenate([full, self._confirm(state, flat, more, factors)])
+        by = np.argsort(np.abs(full - target), kind="stable")[:s.check_best]
+        by = by[np.abs(full[by] - target) < now - MIN_GAIN]
+        return flat[order[by]], full[by]
+
+    def choose(self, state: Any, factors: tuple[float, float] = (1.0, 1.0)) -> np.ndarray | None:
+        """The firing (action ``(3,)`` float32) whose predicted rest from ``state`` is nearest
+        its target (:meth:`ranked`), or None when no allowed candidate is predicted to bring
+        the part closer. With ``check_factor`` δ > 0, the ``check_best`` nearest are fired
+        again on the model with its friction and mass factors each times 1 − δ or 1 + δ (the
+        four corners), and the nearest that rests under all four is chosen (the nearest of all
+        if none does)."""
+        s = self.settings
+        best, _ = self.ranked(state, factors)
+        if not len(best):
+            return None
         if s.check_factor > 0.0:
             f, m = factors
             d = s.check_factor
             corners = [(f * a, m * b) for a in (1.0 - d, 1.0 + d) for b in (1.0 - d, 1.0 + d)]
-            states = [with_factors(state, a, b) for a, b in corners for _ in order]
-            _, ok = self.model.rests(states, np.tile(flat[order], (len(corners), 1)))
-            every = ok.reshape(len(corners), order.size).all(axis=0)
-            if every.any():
-                return flat[order[int(np.argmax(every))]]
-        return flat[order[0]]
+            for lo in range(0, len(best), CORNER_CHUNK):   # in order: the first that holds
+                few = best[lo:lo + CORNER_CHUNK]
+                states = [with_factors(state, a, b) for a, b in corners for _ in few]
+                _, ok = self.model.rests(states, np.tile(few, (len(corners), 1)))
+                every = ok.reshape(len(corners), len(few)).all(axis=0)
+                if every.any():
+                    return few[int(np.argmax(every))]
+        return best[0]
 
 
 class MPC:

@@ -11,7 +11,11 @@ A planner needs four things of a scene, and gets them here whatever the scene:
   own vector env (:class:`Rollouts`, :meth:`Scene.rollouts`): on the nominal model, or with
   per-episode randomisation as the real part meets it;
 * a **rollout of one firing** from many states, each on a model part with its own friction and
-  mass factors (:class:`FiringModel`, :meth:`Scene.firing_model`): the identified model.
+  mass factors (:class:`FiringModel`, :meth:`Scene.firing_model`): the identified model;
+* the same on the scene's **firing map** (:class:`MapModel`, :meth:`PositionerScene.map_model`):
+  the nominal model tabulated once (:mod:`microconveyor_env.physics.firing_map`), a few hundred
+  times faster, trusted away from detachment; a planner searches on it and confirms its choice
+  on the full model.
 
 :class:`LineScene` serves MicroConveyor-v0 and -v1 (and the line seen by the goal env);
 :class:`PositionerScene` serves MicroPositioner-v0. :func:`scene_of` picks the class for a
@@ -35,7 +39,11 @@ from microconveyor_env.envs.core.randomisation import FACTOR_BOUNDS
 from microconveyor_env.envs.positioner.config import PositionerConfig
 from microconveyor_env.envs.positioner.env import MicroPositionerEnv
 from microconveyor_env.envs.positioner.part_state import PositionerState
+from microconveyor_env.envs.positioner.state import PositionerParts
 from microconveyor_env.envs.positioner.vector import MicroPositionerVectorEnv
+from microconveyor_env.envs.rail.firing_map import firing_map
+from microconveyor_env.physics import dynamics_kernel as kernel
+from microconveyor_env.physics.forces import I_FSCALE, I_MASS
 
 PLAN_FIRINGS = 5   # firings of a positioner plan unless told (its closed-loop controller needs ~4)
 AT_REST = ("moving", "rest")   # a model firing that ends at rest (the episode going on or not)
@@ -202,6 +210,80 @@ class FiringModel:
         return env.x.copy(), ok
 
 
+class RestFiringModel(FiringModel):
+    """:class:`FiringModel` for the positioner, whose firings start from rest: the states are
+    written into the part container's arrays directly (position, time, firings, target, and the
+    friction and mass factors into each part's model constants, as a reset from the state would
+    write them; a factor left None is 1), not through the env's checked resets, so a few hundred
+    model firings cost little more than the firings themselves. The results are the reset
+    path's, bit for bit (``tests/agents/test_positioner_control.py``)."""
+
+    def __init__(self, config: PositionerConfig) -> None:
+        super().__init__(config, MicroPositionerVectorEnv)
+        self._parts: dict[int, Any] = {}
+
+    def rests(self, states: Any, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        b = len(actions)
+        c = self._parts.get(b)
+        if c is None:
+            c = self._parts[b] = PositionerParts(self.config, b, num_threads=1)
+        rows = [states] * b if isinstance(states, PositionerState) else list(states)
+        if len(rows) != b:
+            raise ValueError(f"{len(rows)} states for {b} actions")
+        p = c.parts
+        p.x[:] = [s.position_m for s in rows]
+        p.t[:] = [s.time_s for s in rows]
+        p.fired[:] = [s.fired for s in rows]
+        p.target[:] = [s.target_m for s in rows]
+        ff = np.array([1.0 if s.friction_factor is None else s.friction_factor for s in rows])
+        mf = np.array([1.0 if s.mass_factor is None else s.mass_factor for s in rows])
+        base = c.sim.params
+        P = c.consts.P
+        P[:] = base
+        P[:, I_MASS] = base[I_MASS] * mf
+        P[:, I_FSCALE] = base[I_FSCALE] * ff
+        c.friction_factor[:], c.mass_factor[:] = ff, mf
+        out = c.step(np.asarray(actions, np.float32).astype(np.float64))
+        self.firings += b
+        ok = (out.outcome == kernel.MOVING) | (out.outcome == kernel.REST)
+        return p.x.copy(), ok
+
+
+class MapModel:
+    """One firing from rest on the positioner's firing map (nominal friction and mass):
+    :meth:`rests` says where each part comes to rest, when, and whether the map trusts it
+    (away from detachment and inside the map); ``queries`` counts every firing asked."""
+
+    def __init__(self, config: PositionerConfig) -> None:
+        self.config = config
+        self.map = firing_map(config)
+        self.positions = np.asarray(config.actuator_positions, float)
+        self.AC = action_constants(config)
+        self.queries = 0
+
+    def firings(self, x: np.ndarray, actions: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The actuator each action picks from a part resting at ``x`` [m] (the env's rule) and
+        the frequency [Hz] and stroke [m] it fires (as the env decodes float32 actions)."""
+        a = np.clip(np.asarray(actions, np.float32).astype(float), -1.0, 1.0)
+        c = self.config
+        j = np.clip(np.floor((x + a[:, 0] * c.pick_reach) / c.spacing + 0.5).astype(int), 0,
+                    len(self.positions) - 1)
+        f = self.AC.f0 * np.exp((a[:, 1] + 1.0) * 0.5 * self.AC.log_span)
+        h = self.AC.h0 + (a[:, 2] + 1.0) * 0.5 * self.AC.h_span
+        return self.positions[j], f, h
+
+    def rests(self, x: Any, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Where each part comes to rest [m] ``(B,)``, the firing's duration to rest [s] and
+        whether the map trusts it, for ``actions`` ``(B, 3)`` fired from rest at ``x`` [m] (one
+        position for all, or one per action)."""
+        x = np.broadcast_to(np.asarray(x, float), (len(actions),))
+        xa, f, h = self.firings(x, actions)
+        dx, t, ok = self.map.rest(x - xa, f, h)
+        self.queries += len(actions)
+        return x + dx, t, ok
+
+
 class Scene:
     """What a planner needs of one scene (module docstring); ``config`` is the scene as the real
     env has it (its randomisation is the real part's, never the model's)."""
@@ -289,6 +371,14 @@ class PositionerScene(Scene):
         rows = [decode(float(a[1]), float(a[2]), -1.0, AC) for a in np.asarray(plan, float)]
         return {"aim": [float(a[0]) for a in np.asarray(plan, float)],
                 "frequency_hz": [r[0] for r in rows], "stroke_m": [r[1] for r in rows]}
+
+    def firing_model(self) -> FiringModel:
+        """One firing from many resting states on the scene's model (:class:`RestFiringModel`)."""
+        return RestFiringModel(self.config)
+
+    def map_model(self) -> MapModel:
+        """One firing from rest on the scene's firing map (nominal model)."""
+        return MapModel(self.config)
 
     def candidates(self, x: float, frequencies: int, strokes: int) -> tuple[np.ndarray, int]:
         """The candidate firings from a part resting at ``x`` [m]: every actuator the aim can

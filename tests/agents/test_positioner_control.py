@@ -1,6 +1,7 @@
 """MicroPositioner-v0's model-based controller and open-loop plans: a chosen firing lands where
 the model says, the identified friction is the one the firings were made with, a plan search
 returns a plan of the asked shape, and compare on the positioner writes every row and chart."""
+import dataclasses
 import json
 
 import numpy as np
@@ -10,7 +11,9 @@ from agents.mpc import MPC, OneStepSettings
 from agents.mpc.identification import FrictionFit
 from agents.openloop.target import plans_rollout, solve_target
 from agents.planning import PositionerScene
+from agents.planning.scene import FiringModel, RestFiringModel
 from microconveyor_env.envs.positioner.env import MicroPositionerEnv
+from microconveyor_env.envs.positioner.vector import MicroPositionerVectorEnv
 from microconveyor_env.envs.core.versions import scene_config
 from support.cli import run_cli
 
@@ -34,7 +37,7 @@ def test_the_chosen_firing_lands_near_the_target_on_the_nominal_model():
     cfg = scene_config(ENV)
     env = MicroPositionerEnv(config=cfg)
     env.reset(seed=0, options={"target": 1.2e-3})
-    ctl = MPC(cfg, OneStepSettings(model="nominal")).planner
+    ctl = MPC(cfg, OneStepSettings(model="nominal", search="model")).planner
     state = PositionerScene(cfg).observed(env.get_state())
     acts, x, allowed = ctl.predict(state)
     action = ctl.choose(state)
@@ -44,6 +47,48 @@ def test_the_chosen_firing_lands_near_the_target_on_the_nominal_model():
     _, _, term, _, info = env.step(action)
     assert env.x == pytest.approx(x.ravel()[i], abs=1e-12)   # the model is the env's scene
     assert abs(env.x - 1.2e-3) <= cfg.tolerance and term and info["is_success"]
+
+
+@pytest.mark.parametrize("factors", [(1.0, 1.0), (1.04, 0.96)])
+def test_a_choice_searched_on_the_map_is_the_full_models(factors):
+    # the map ranks, the full model (with the model's factors) confirms: the chosen firing
+    # lands exactly where the full model said, on a real part with those factors
+    cfg = scene_config(ENV, friction_factor_range=(factors[0],) * 2,
+                       mass_factor_range=(factors[1],) * 2)
+    env = MicroPositionerEnv(config=cfg)
+    env.reset(seed=0, options={"target": 6.3e-3})
+    ctl = MPC(scene_config(ENV), OneStepSettings(model="nominal", search="map")).planner
+    scene = PositionerScene(scene_config(ENV))
+    for _ in range(cfg.max_firings):
+        state = scene.observed(env.get_state())
+        before = ctl.spent
+        best, rests = ctl.ranked(state, factors)
+        assert ctl.spent - before <= 2 * ctl.settings.check_best   # not every candidate
+        action = ctl.choose(state, factors)
+        if action is None:
+            break
+        i = int(np.flatnonzero((best == action).all(axis=1))[0])
+        _, _, term, _, info = env.step(action)
+        assert env.x == rests[i]                     # bit for bit: the full model's answer
+        if term:
+            break
+    assert info["is_success"]
+
+
+def test_the_rest_firing_model_writes_states_as_a_reset_would():
+    cfg = scene_config(ENV)
+    env = MicroPositionerEnv(config=cfg)
+    env.reset(seed=0, options={"target": 7e-3})
+    env.step(np.array([0.3, 0.2, 0.5], np.float32))
+    state = PositionerScene(cfg).observed(env.get_state())
+    rng = np.random.default_rng(0)
+    acts = rng.uniform(-1, 1, (200, 3)).astype(np.float32)
+    states = [dataclasses.replace(state, friction_factor=float(a), mass_factor=float(b))
+              for a, b in rng.uniform(0.8, 1.2, (200, 2))]
+    x_reset, ok_reset = FiringModel(cfg, MicroPositionerVectorEnv).rests(states, acts)
+    x_fast, ok_fast = RestFiringModel(cfg).rests(states, acts)
+    assert np.array_equal(x_reset, x_fast) and np.array_equal(ok_reset, ok_fast)
+    assert 0.5 < ok_fast.mean() < 1.0          # both outcomes are in the sample
 
 
 def test_the_identified_friction_is_the_one_the_firings_were_made_with():
@@ -76,9 +121,11 @@ def test_a_plan_search_returns_a_plan_of_the_asked_shape():
             plans_rollout(r.plan[None])(cfg, np.array([3e-3]), 0)["error_m"][0], abs=1e-12)
 
 
-def test_settings_refuse_an_unknown_model():
+def test_settings_refuse_an_unknown_model_or_search():
     with pytest.raises(ValueError, match="model"):
         OneStepSettings(model="exact")
+    with pytest.raises(ValueError, match="search"):
+        OneStepSettings(search="grid")
 
 
 def test_compare_on_the_positioner_writes_every_row_and_the_chart(tmp_path):
