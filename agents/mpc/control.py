@@ -47,16 +47,27 @@ import numpy as np
 
 from microconveyor_env.envs import EnvConfig, MicroConveyorEnv, PartState
 
+from ..openloop.newton import newton_plan
 from ..openloop.search import METHODS, check_budget, minimize
 from ..openloop.target import solve_target
 from ..planning import MISS, PositionerScene, Scene, robust_cost, scene_of
 from .identification import FrictionFit, Identifier
 
 
+# the line's re-planners: a black-box search (DE, CMA-ES), or minimum-norm Gauss-Newton on the
+# remaining plan from the prior's (or the previous) plan
+PLANNERS = (*METHODS, "newton")
+NEWTON_ACCEPT = 0.04   # [-] the newton MPC stops once the plan rests this share of the tolerance
+                       # from the target (2 µm of v1's 50 µm)
+
+
 @dataclass(frozen=True)
 class MPCSettings:
-    """``method`` (``"de"`` or ``"cmaes"``); ``first_budget`` / ``replan_budget`` [episodes of
-    the model] for the first plan and each re-plan; ``seed`` [-] of the searches (re-plan ``k``
+    """``method``: ``"de"`` or ``"cmaes"`` (a black-box search over the remaining firings), or
+    ``"newton"`` (the remaining plan of the prior policy, or of the previous plan, moved by
+    minimum-norm Gauss-Newton on the model until the part rests on the target:
+    :func:`agents.openloop.newton.newton_plan`; needs a prior); ``first_budget`` /
+    ``replan_budget`` [episodes of the model] for the first plan and each re-plan; ``seed`` [-] of the searches (re-plan ``k``
     of target ``i`` uses ``seed + 1000 i + k``); ``warm_start``: start each re-plan from the
     previous plan's remainder.
 
@@ -80,8 +91,9 @@ class MPCSettings:
     factor_range: float = 0.1
 
     def __post_init__(self) -> None:
-        if self.method not in METHODS:
-            raise ValueError(f"MPC method = {self.method!r} is invalid: must be one of {METHODS}")
+        if self.method not in PLANNERS:
+            raise ValueError(f"MPC method = {self.method!r} is invalid: must be one of "
+                             f"{PLANNERS}")
         k = self.noise_copies
         if isinstance(k, bool) or not isinstance(k, int) or not 1 <= k <= 1000:
             raise ValueError(f"MPC noise_copies = {k!r} is invalid: must be an integer in "
@@ -91,6 +103,8 @@ class MPCSettings:
         if not (isinstance(self.assumed_noise, (int, float)) and 0.0 <= self.assumed_noise <= 1.0):
             raise ValueError(f"MPC assumed_noise = {self.assumed_noise!r} is invalid: must be a "
                              "sigma in [0, 1] action units")
+        if self.method == "newton" and k > 1:
+            raise ValueError("the newton MPC plans on the nominal copy: noise_copies must be 1")
         if (k > 1) != (self.assumed_noise > 0):
             raise ValueError("MPC noise_copies > 1 and assumed_noise > 0 go together (a robust "
                              "plan averages its cost over noisy copies)")
@@ -244,6 +258,14 @@ class HorizonPlanner:
         if self.prior is not None:  # the policy's plan on the model, if it beats the warm start
             prior = self.prior_plan(state)
             warm, used = self._better(state, warm, prior)
+        if s.method == "newton":
+            if warm is None or not len(warm):
+                raise ValueError("the newton MPC re-plans from a plan: give it a prior policy")
+            n = len(warm)
+            plan, eps = newton_plan(self.rollouts, np.clip(np.asarray(warm, float), -1.0, 1.0),
+                                    state.target_m, max(1, (budget - used) // (3 * n + 2)),
+                                    accept_m=NEWTON_ACCEPT * self.model.tolerance, start=state)
+            return plan, eps + used
         if warm is not None and len(warm):
             kw["x0"] = np.clip(np.asarray(warm, float).ravel(), -1.0, 1.0)
         if not s.robust:

@@ -7,7 +7,11 @@ import pytest
 
 from agents.mpc import MPC, MPCSettings, mpc_rollout
 from agents.openloop.target import solve_target
-from agents.planning import scene_of
+from agents.planning import LineRollouts, scene_of
+from agents.rl.artefacts.shipped import require_shipped
+from agents.experiments.perturb import policy_rollout
+from agents.rl.evaluation.evaluate import load_policy
+from agents.planning.scene import Rollouts
 from microconveyor_env.envs import MicroConveyorEnv, env_config
 from microconveyor_env.envs.core.versions import nominal
 
@@ -92,6 +96,51 @@ def test_identification_recovers_the_episodes_friction_without_noise():
             assert abs(ep.estimated_factors[0] / ep.estimated_factors[1]
                        - ep.friction_factor / ep.mass_factor) <= 2 * step, ep
     assert found >= 3
+
+
+def test_plans_from_a_state_on_the_container_are_the_envs_bit_for_bit():
+    # the line's rollouts from a saved state skip the env (planners re-plan from every state):
+    # the same episodes as the env's reset-from-state path
+    cfg = env_config("MicroConveyor-v1")
+    rng = np.random.default_rng(0)
+    env = MicroConveyorEnv(config=cfg)
+    seen = set()
+    for trial in range(4):
+        env.reset(seed=trial, options={"target": float(rng.uniform(0.5e-3, 10e-3))})
+        for _ in range(trial % 3):   # weak firings: the part stays on the surface
+            env.step(np.array([-0.5, -1.0, -1.0], np.float32))
+        start = env.get_state()
+        plans = rng.uniform(-1, 1, (48, cfg.n_actuators - start.fired, 3))
+        roll = LineRollouts(cfg)
+        fast = roll.run(plans, 0.0, start=start)
+        slow = Rollouts.run(roll, plans, 0.0, start=start)      # the env's path
+        for k in ("target_m", "error_m", "success", "time_s"):
+            assert np.array_equal(getattr(fast, k), getattr(slow, k)), k
+        assert list(fast.outcome) == list(slow.outcome)
+        seen |= set(fast.outcome)
+    assert {"rest", "detached"} <= seen
+
+
+def test_the_newton_mpc_corrects_its_priors_plan_on_the_model():
+    # seeded by the shipped policy (its plan from each state, on the model), the minimum-norm
+    # Gauss-Newton re-plan brings a nominal part to rest on the target, in a few dozen model
+    # episodes a firing: within 2 µm where the last actuator fires; where the env stops a part
+    # already delivered (within the tolerance) it ends there
+    cfg = env_config("MicroConveyor-v1")
+    prior = load_policy(require_shipped("MicroConveyor-v1", "ppo_refined"), cfg)
+    s = MPCSettings(method="newton", first_budget=70, replan_budget=70)
+    for target, firings in ((3.2e-3, 4), (8.6e-3, 5)):
+        alone = policy_rollout(prior)(cfg, np.array([target]), 0)
+        ep = MPC(cfg, s, prior).run(MicroConveyorEnv(config=cfg), target, seed=0)
+        assert ep.firings == firings
+        assert ep.success and ep.outcome == "rest" and abs(ep.error_m) <= cfg.tolerance
+        if ep.firings == cfg.n_actuators:
+            assert abs(ep.error_m) <= 2e-6 < abs(alone["error_m"][0])
+        assert ep.episodes <= (70 + 2) * ep.firings      # + the prior's comparison each time
+    with pytest.raises(ValueError, match="prior"):
+        MPC(cfg, s).run(MicroConveyorEnv(config=cfg), 3e-3, seed=0)
+    with pytest.raises(ValueError, match="noise_copies"):
+        MPCSettings(method="newton", noise_copies=4, assumed_noise=3e-3)
 
 
 def test_robust_settings_are_checked():
