@@ -1,4 +1,4 @@
-"""``microconveyor sensitivity | engage | fidelity | stretch``: the studies (``..studies``).
+"""``microconveyor sensitivity | engage | fidelity | firing-map | stretch``: the studies (``..studies``).
 
 Each takes ``--json`` (one JSON object on stdout), ``--plot FILE.png``, ``--out FILE.csv`` or
 ``.parquet`` (the tidy table, one row per simulation), ``--workers N`` (local Dask cluster) or
@@ -323,6 +323,49 @@ def cmd_fidelity(args: argparse.Namespace) -> None:
     emit(args, res, format_result({**shown, "scenes_run": list(scenes)}))
 
 
+# ----------------------------------------------------------------------------- firing maps
+def _map_args(p: argparse.ArgumentParser) -> None:
+    from ..studies.fidelity import MAP_ENV_IDS
+
+    p.add_argument("--env", action="append", default=None, choices=MAP_ENV_IDS,
+                   help="an env id whose firing map to check; repeat for more (default: every "
+                        f"scene with one: {', '.join(MAP_ENV_IDS)})")
+    p.add_argument("--samples", type=count(10, 10_000_000), default=5000,
+                   help="held-out strokes per map, drawn over its grid's box")
+    p.add_argument("--seed", type=count(0, 2**31 - 1), default=12345,
+                   help="seed of the held-out strokes")
+
+
+def cmd_firing_map(args: argparse.Namespace) -> None:
+    """Each scene's firing map against the full model: error [m] and wall time [s]."""
+    from ..studies.fidelity import MAP_ENV_IDS, map_rows
+
+    ids = list(dict.fromkeys(args.env or MAP_ENV_IDS))
+    t0 = time.perf_counter()
+    rows = map_rows(ids, args.samples, args.seed)
+    out = {"maps": rows, "samples": args.samples, "seed": args.seed,
+           "wall_time_s": time.perf_counter() - t0}
+    lines = []
+    for r in rows:
+        lines.append(
+            f"{r['env_id']} ({'firings from rest' if r['from_rest'] else 'moving parts'}): "
+            f"{r['nodes']:,} strokes tabulated in {r['build_s']:.1f} s; "
+            f"{'at rest' if r['from_rest'] else 'at the end of the stroke'}: trusted "
+            f"{r['trusted_share']:.0%} of {r['samples']:,} held-out strokes, error median "
+            f"{r['error_median_m'] * 1e6:.2f} µm, 99th percentile {r['error_p99_m'] * 1e6:.1f} "
+            f"µm, max {r['error_max_m'] * 1e6:.1f} µm ({r['relative_error_max']:.2%} of the "
+            f"displacement at most), {r['misclassified_detachments']} trusted strokes detach on "
+            f"the full model, {r['untrusted_on_surface_share']:.1%} untrusted that stay on; "
+            f"{r['map_query_s'] * 1e6:.2f} µs per query against "
+            f"{r['full_stroke_s'] * 1e6:.1f} µs per full-model stroke ({r['speedup']:.0f}x)")
+        if r["at_rest"]:
+            a = r["at_rest"]
+            lines.append(f"  where the part then comes to rest: error median "
+                         f"{a['error_median_m'] * 1e6:.2f} µm, 99th percentile "
+                         f"{a['error_p99_m'] * 1e6:.1f} µm, max {a['error_max_m'] * 1e6:.1f} µm")
+    emit(args, out, "\n".join(lines))
+
+
 # ----------------------------------------------------------------------------- stretch
 def _stretch_args(p: argparse.ArgumentParser) -> None:
     _engine_args(p, "stretch.csv")
@@ -374,6 +417,9 @@ for _name, _help, _fn, _add in (
          cmd_engage, _engage_args),
         ("fidelity", "which model level a scene needs: error against the most faithful level "
                      "and cost", cmd_fidelity, _fidelity_args),
+        ("firing-map", "each scene's firing map (one stroke tabulated on the full model): its "
+                       "error against the full model on held-out strokes, and its speed",
+         cmd_firing_map, _map_args),
         ("stretch", "travel versus frequency with constant and stretch-dependent roughness, and "
                     "its cost", cmd_stretch, _stretch_args)):
     command(_name, _help, _add)(_fn)

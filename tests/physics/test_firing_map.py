@@ -2,6 +2,7 @@
 grid and interpolated. Its nodes are the full model's strokes; between them its error on
 held-out strokes stays within the bound it is quoted with; nothing it trusts detaches; it is
 cached whole and rebuilt from a damaged file."""
+import json
 import math
 
 import numpy as np
@@ -13,6 +14,7 @@ from microconveyor_env.envs.rail.parts import make_simulator
 from microconveyor_env.physics import firing_map as fm
 from microconveyor_env.physics.firing_map import FiringMap, MapGrid, full_strokes
 from microconveyor_env.physics.materials import ParameterError
+from support.cli import run_cli
 
 # The bound the positioner's map is quoted with (docs/results.md, "Firing maps"): measured on
 # 20,000 held-out firings from rest its largest error was 7.0 µm (99th percentile 2.7 µm, 0.67 %
@@ -112,3 +114,16 @@ def test_the_rest_grid_spans_the_candidates_a_planner_aims_at():
     assert g.offset_m[1] >= 1.5 * cfg.spacing and g.offset_m[0] == -g.offset_m[1]
     assert g.frequency_hz[:2] == tuple(cfg.freq_range) and g.stroke_m[:2] == tuple(cfg.stroke_range)
     assert (g.offset_m[1] - g.offset_m[0]) / (g.offset_m[2] - 1) == pytest.approx(2.5e-6)
+
+
+def test_the_firing_map_command_reports_error_and_speed(positioner_map):
+    r = run_cli("firing-map", "--env", "MicroPositioner-v0", "--samples", "400", "--json")
+    assert r.returncode == 0, r.stderr
+    row, = json.loads(r.stdout)["maps"]
+    assert row["env_id"] == "MicroPositioner-v0" and row["from_rest"] and row["at_rest"] is None
+    assert row["samples"] == 400 and row["misclassified_detachments"] == 0
+    assert row["error_max_m"] <= BOUND_MAX_M and row["speedup"] > 1
+    human = run_cli("firing-map", "--env", "MicroPositioner-v0", "--samples", "400")
+    assert "MicroPositioner-v0 (firings from rest)" in human.stdout and "µs per query" in human.stdout
+    bad = run_cli("firing-map", "--env", "MicroConveyor2D-v9")
+    assert bad.returncode != 0 and "invalid choice: 'MicroConveyor2D-v9'" in bad.stderr

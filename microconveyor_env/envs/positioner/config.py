@@ -26,6 +26,7 @@ class PositionerConfig(RailConfig):
     """All settings of MicroPositioner-v0 (SI units; meanings in its YAML file)."""
 
     CONFIG_FILE: ClassVar[str] = "MicroPositioner-v0.yaml"
+    fires_from_rest: ClassVar[bool] = True   # each firing runs the part to rest
 
     pick_reach: float = 0.5e-3  # [m] action 0 (in [-1, 1]) times this: aim point's offset
     max_firings: int = 24       # [-] firings per episode at most

@@ -4,6 +4,7 @@ shares: :mod:`..core.config`; randomisation's bounds: :mod:`..core.randomisation
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 from ...env_ids import MAX_ACTUATORS
 from ...physics.materials import ParameterError
@@ -29,7 +30,10 @@ class RailConfig(SceneConfig):
     """The settings of a rail's scene (SI units; ``configs/envs/MicroConveyor-v0.yaml`` gives
     each field's meaning, unit and MicroConveyor-v0's value). ``stop_at_target`` and
     ``observe_history`` are the line's task options; a scene that fixes them checks its values
-    before these checks."""
+    before these checks. ``fires_from_rest``: every firing of the scene starts with the part at
+    rest (what its firing map tabulates: :mod:`.firing_map`)."""
+
+    fires_from_rest: ClassVar[bool] = False
 
     preset: str = "feasibility"
     n_actuators: int = 5
