@@ -20,7 +20,11 @@ A generated table sits between two markers, ``<!-- results:NAME -->`` and
 * ``positioner_sizing``: MicroPositioner-v0's spacing study, from
   ``docs/figures/positioner_sizing.json`` (``scripts/positioner_sizing.py``);
 * ``positioner_seeds``: its policies per training seed and their IQM, from
-  ``docs/figures/positioner_seeds.json`` (``scripts/positioner_policies.py``).
+  ``docs/figures/positioner_seeds.json`` (``scripts/positioner_policies.py``);
+* ``firing_maps``: each scene's firing map against the full model, from
+  ``docs/figures/firing_maps.json`` (``microconveyor firing-map --json``);
+* ``planner_speed``: MPC per target before and after the fast planners, from
+  ``docs/figures/planner_speed.json`` (``scripts/planner_speed.py``).
 
 ::
 
@@ -436,6 +440,70 @@ def breakdown_table(data: dict) -> str:
     return "\n".join(lines)
 
 
+def firing_maps_table(data: dict) -> str:
+    """Each scene's firing map against the full model (``microconveyor firing-map --json``)."""
+    lines = ["| env id: map | strokes tabulated (build) | trusted | error median / 99th pct / "
+             "max | largest relative | trusted that detach | per query : per full stroke |",
+             "|---|---|---|---|---|---|---|"]
+    for r in data["maps"]:
+        rows = [("at rest" if r["from_rest"] else "end of stroke", r)]
+        if r.get("at_rest"):
+            rows.append(("then at rest", {**r, **r["at_rest"]}))
+        for what, e in rows:
+            lines.append(
+                f"| {r['env_id']}: {'from rest' if r['from_rest'] else 'moving parts'}, {what} "
+                f"| {r['nodes']:,} ({r['build_s']:.0f} s) | {100 * e['trusted_share']:.0f} % "
+                f"| {_um(e['error_median_m'])} / {_um(e['error_p99_m'])} / "
+                f"{_um(e['error_max_m'])} | {100 * e['relative_error_max']:.2f} % "
+                f"| {e['misclassified_detachments']} | {e['map_query_s'] * 1e6:.2f} µs : "
+                f"{e['full_stroke_s'] * 1e6:.1f} µs |")
+    lines.append("")
+    lines.append(f"{data['samples']:,} held-out strokes per map, drawn uniformly over its grid "
+                 f"(log-uniformly in frequency) with seed {data['seed']}; one thread. "
+                 f"`{data['command']}` ({data['recorded_utc']}, stored in "
+                 "`docs/figures/firing_maps.json`).")
+    return "\n".join(lines)
+
+
+PLANNER_NAMES = {"v1_mpc_de": "MicroConveyor-v1: MPC seeded by `ppo_refined`, DE 300 + 100 "
+                              "per re-plan",
+                 "v1_mpc_newton": "MicroConveyor-v1: MPC seeded by `ppo_refined`, Gauss-Newton "
+                                  "re-plan",
+                 "positioner_model": "MicroPositioner-v0: one-step control, identified, "
+                                     "every candidate on the full model",
+                 "positioner_map": "MicroPositioner-v0: one-step control, identified, ranked "
+                                   "on the firing map"}
+
+
+def planner_speed_table(data: dict) -> str:
+    """MPC per target before and after the fast planners (``scripts/planner_speed.py``)."""
+    lines = ["| method | code | nominal: success, median \\|error\\| | perturbed: success, "
+             "median \\|error\\| (detached) | compute per target: nominal / perturbed | "
+             "model episodes per target |", "|---|---|---|---|---|---|"]
+    for key, levels in data["methods"].items():
+        code, method = key.split("/")
+        nom = levels["nominal"]
+        per = levels.get("noise") or levels["perturbed"]
+        lines.append(
+            f"| {PLANNER_NAMES[method]} | {code} ({data['revisions'][code]}) "
+            f"| {100 * nom['success_rate']:.0f} %, {_um(nom['median_abs_error_m'])} "
+            f"| {100 * per['success_rate']:.0f} %, {_um(per['median_abs_error_m'])} "
+            f"({100 * per['detach_rate']:.0f} %) | {_ms(nom['wall_s_per_target_mean'])} / "
+            f"{_ms(per['wall_s_per_target_mean'])} | {nom['model_episodes_mean']:,.0f} |")
+    loads = data["load_average_1_5_15"]
+    lines.append("")
+    lines.append(
+        f"MicroConveyor-v1: {data['v1_targets_per_distance']} targets at each of "
+        f"{', '.join(f'{d * 1e3:.0f}' for d in data['v1_distances_m'])} mm (the answer "
+        f"table's), nominal and under execution noise σ = 3e-3 ({data['noise_seeds']} noise "
+        f"seeds per target); MicroPositioner-v0: {data['positioner_targets']} targets (seed 0), "
+        "nominal and at σ = 3e-3, r = 5 %. The same episodes for every method; each method in a "
+        f"process of its own on one thread, alternating; load average "
+        f"{min(v[0] for v in loads):.1f}-{max(v[0] for v in loads):.1f} during the run. "
+        f"`{data['command']}` ({data['date']}, stored in `docs/figures/planner_speed.json`).")
+    return "\n".join(lines)
+
+
 def generators() -> dict:
     """Region name -> a function returning its text."""
     def load(name: str) -> dict:
@@ -453,7 +521,9 @@ def generators() -> dict:
             "positioner_seeds": lambda: positioner_seeds_table(load("positioner_seeds.json")),
             "breakdown": lambda: breakdown_table(load("train_time_breakdown.json")),
             "imitate_v1": lambda: imitate_table(load("imitate_v1_seeds.json")),
-            "imitate_v1_paths": lambda: code_paths_table(load("imitate_v1_code_paths.json"))}
+            "imitate_v1_paths": lambda: code_paths_table(load("imitate_v1_code_paths.json")),
+            "firing_maps": lambda: firing_maps_table(load("firing_maps.json")),
+            "planner_speed": lambda: planner_speed_table(load("planner_speed.json"))}
 
 
 def render(text: str, gens: dict, cache: dict) -> str:

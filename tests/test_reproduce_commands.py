@@ -102,6 +102,8 @@ RUNS: dict[str, list[str] | None] = {
                                                 "{out}/bound.json"],
     "python scripts/plane_figures.py": ["--out", "{out}/plane"],
     "python scripts/plane_figures.py --firings": ["--targets", "2", "--out", "{out}/firings.json"],
+    "python scripts/planner_speed.py": ["--noise-seeds", "1", "--per-distance", "1",
+                                        "--positioner-targets", "2", "--out", "{out}/ps.json"],
     "python scripts/sac_threads.py --steps 3000 --repeats 2": SAC,
     "python scripts/sac_threads.py": SAC,
     "python scripts/dissertation_study.py": DISSERTATION,

@@ -343,8 +343,13 @@ def cmd_firing_map(args: argparse.Namespace) -> None:
     ids = list(dict.fromkeys(args.env or MAP_ENV_IDS))
     t0 = time.perf_counter()
     rows = map_rows(ids, args.samples, args.seed)
+    import datetime
+    import sys
+
     out = {"maps": rows, "samples": args.samples, "seed": args.seed,
-           "wall_time_s": time.perf_counter() - t0}
+           "wall_time_s": time.perf_counter() - t0,
+           "command": " ".join(["microconveyor", *sys.argv[1:]]),
+           "recorded_utc": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")}
     lines = []
     for r in rows:
         lines.append(
