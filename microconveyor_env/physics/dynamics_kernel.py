@@ -29,8 +29,9 @@ import math
 from numba import njit
 
 from .events import hidden_pull_off, illinois_slip, illinois_stick, slip_event
-from .forces import EVENT, I_MASS, I_MODE, I_NMAX, I_NMIN, accel, friction_at, n_min_at, \
-    normal_load, rk4, shifted_load, stick_state
+from .forces import EVENT, I_MASS, I_MODE, I_NMAX, I_NMIN, accel_from, friction_at, load_at, \
+    load_from, motion, n_min_at, normal_load, rk4_from, shape_of, shifted_load, stick_from, \
+    stroke_constants
 from ..jit_cache import refresh as refresh_jit_cache
 
 # ---- outcome codes ----
@@ -135,20 +136,22 @@ def _next_node(tl, k, n_steps, dt, T, t_unload1, t_unload2, t_lim):
 
 
 @njit(cache=True, inline="always")
-def _karnopp_step(x, v, tl, t_end, dt, s, stuck, t0, xa, f, h, P, tu, tq, tqu, rec, out):
+def _karnopp_step(x, v, tl, t_end, dt, s, stuck, t0, xa, K, N, Yx, c, P, tu, tq, tqu, rec, out):
     """One Karnopp step from tl to t_end: stick/slip decided once, at its start, by the velocity
-    threshold ``v_th = Q dt / m``; detachment if the load is below pull-off there.
+    threshold ``v_th = Q dt / m``; detachment if the load is below pull-off there. ``N, Yx, c``:
+    the load at (x, v, tl) (:func:`.forces.normal_load`).
 
     Returns (x, v, tl, s, stuck, outcome): MOVING at t_end, or DETACHED with the state at tl.
     """
     out[O_STEPS] += 1
-    N, Yx, c, _ = normal_load(x, v, tl, xa, f, h, P)
+    f, h = K[0], K[1]
     if shifted_load(N, x, tl, xa, f, h, P, tu) < P[I_NMIN]:
         return x, v, tl, s, stuck, DETACHED
     Q = friction_at(N, x, tl, xa, f, h, P, tu, tq, tqu)
     if abs(v) < Q * dt / P[I_MASS]:
         sv = 1.0 if v > 0.0 else -1.0
-        decreasing = v != 0.0 and v * accel(x, v, tl, sv, xa, f, h, P, tu, tq, tqu) < 0.0
+        # the slip acceleration at (x, v, tl) in direction sv: Q is the friction at this load
+        decreasing = v != 0.0 and v * ((-sv * Q * c - N * Yx * c) / P[I_MASS]) < 0.0
         if decreasing or Q >= abs(N * Yx):  # sticks through the step
             if rec.shape[0] > 0:
                 _record(rec, out, t0 + t_end, x, 0.0, 0.0, xa, f, h, t_end, P, tu, tq, tqu)
@@ -156,92 +159,123 @@ def _karnopp_step(x, v, tl, t_end, dt, s, stuck, t0, xa, f, h, P, tu, tq, tqu, r
         s = 1.0 if -N * Yx > 0.0 else -1.0  # breaks away from (near) rest
     else:
         s = 1.0 if v > 0.0 else -1.0
-    x, v = rk4(x, v, tl, t_end - tl, s, xa, f, h, P, tu, tq, tqu)
+    a1 = (-s * Q * c - N * Yx * c) / P[I_MASS]
+    x, v, _, _ = rk4_from(x, v, tl, t_end - tl, s, a1, xa, K, P, tu, tq, tqu)
     if rec.shape[0] > 0:
         _record(rec, out, t0 + t_end, x, v, s, xa, f, h, t_end, P, tu, tq, tqu)
     return x, v, t_end, s, False, MOVING
 
 
 @njit(cache=True, inline="always")
-def _stuck_substep(x, tl, t_end, s, xa, f, h, P, tu, tq, tqu):
+def _stuck_substep(x, tl, t_end, s, g, xa, K, P, tu, tq, tqu):
     """A part resting at x from tl: it stays put to t_end, or the first time the stick margin or
-    the load above pull-off reaches 0 is located (:func:`illinois_stick`).
+    the load above pull-off reaches 0 is located (:func:`illinois_stick`). ``g``: the shape at x
+    (:func:`.forces.shape_of`).
 
-    Returns (tl, s, stuck, outcome, events): (t_end, s, True, MOVING, 0) if it stays put; else the
-    located time with a break-away (slip direction, False, MOVING, 1) or (.., DETACHED, 1).
+    Returns (tl, s, stuck, outcome, events, N, Yx, c): (t_end, s, True, MOVING, 0) if it stays
+    put; else the located time with a break-away (slip direction, False, MOVING, 1) or (..,
+    DETACHED, 1); (N, Yx, c) the load of the part at rest at t_end.
     """
-    m1, d1, _ = stick_state(x, t_end, xa, f, h, P, tu, tq, tqu)
+    N1, Yx1, c1, _ = load_from(x, 0.0, motion(t_end, K), g, P)
+    m1, d1, _ = stick_from(N1, Yx1, x, t_end, xa, K, P, tu, tq, tqu)
     if m1 > 0.0 and d1 > 0.0:
-        return t_end, s, True, MOVING, 0
-    tc = illinois_stick(x, tl, t_end, xa, f, h, P, tu, tq, tqu)
-    mc, dc, sc = stick_state(x, tc, xa, f, h, P, tu, tq, tqu)
+        return t_end, s, True, MOVING, 0, N1, Yx1, c1
+    tc = illinois_stick(x, tl, t_end, min(m1, d1), g, xa, K, P, tu, tq, tqu)
+    Nc, Yxc, _, _ = load_from(x, 0.0, motion(tc, K), g, P)
+    mc, dc, sc = stick_from(Nc, Yxc, x, tc, xa, K, P, tu, tq, tqu)
     if dc <= 0.0 and dc <= mc:
-        return tc, s, True, DETACHED, 1
-    return tc, sc, False, MOVING, 1
+        return tc, s, True, DETACHED, 1, N1, Yx1, c1
+    return tc, sc, False, MOVING, 1, N1, Yx1, c1
 
 
 @njit(cache=True, inline="always")
-def _slide_substep(x, v, tl, t_end, s, xa, f, h, P, tu, tq, tqu):
+def _slide_substep(x, v, tl, t_end, s, N0, Yx0, c0, xa, K, P, tu, tq, tqu):
     """A part sliding in direction s from tl: one RK4 step to t_end if the slip and the contact
     last through it (no end of slip, no load below pull-off at its end or hidden inside it,
     :func:`hidden_pull_off`); else the first such event is located (:func:`illinois_slip`) and the
-    part stops there, sticks or turns (direction of break-away), or detaches.
+    part stops there, sticks or turns (direction of break-away), or detaches. ``N0, Yx0, c0``:
+    the load at (x, v, tl) (:func:`.forces.normal_load`).
 
-    Returns (x, v, tl, s, stuck, outcome, events) with outcome MOVING or DETACHED, events 0 or 1.
+    Returns (x, v, tl, s, stuck, outcome, events, N, Yx, c): outcome MOVING or DETACHED, events 0
+    or 1; (N, Yx, c) the load at the returned state when it is the end of the step with no
+    event (events 0, MOVING), else not meaningful.
     """
+    f, h = K[0], K[1]
     n_min = P[I_NMIN]
     hs = t_end - tl
-    xn, vn = rk4(x, v, tl, hs, s, xa, f, h, P, tu, tq, tqu)
-    Nn = shifted_load(normal_load(xn, vn, t_end, xa, f, h, P)[0], xn, t_end, xa, f, h, P, tu)
+    a1 = accel_from(N0, Yx0, c0, s, x, tl, xa, K, P, tu, tq, tqu)
+    xn, vn, t4, m4 = rk4_from(x, v, tl, hs, s, a1, xa, K, P, tu, tq, tqu)
+    Nr, Yxn, cn, _ = load_from(xn, vn, m4 if t4 == t_end else motion(t_end, K),
+                               shape_of(xn, xa, K), P)
+    Nn = shifted_load(Nr, xn, t_end, xa, f, h, P, tu)
     h_ev = hs
     if s * vn > 0.0 and Nn >= n_min:
-        tm = hidden_pull_off(x, v, xn, vn, tl, hs, Nn, xa, f, h, P, tu)
-        if tm <= 0.0 or slip_event(x, v, tl, tm, s, 1.0, xa, f, h, P, tu, tq, tqu) > 0.0:
-            return xn, vn, t_end, s, False, MOVING, 0
+        N0s = shifted_load(N0, x, tl, xa, f, h, P, tu)
+        tm = -1.0 if min(N0s, Nn) >= 0.0 else hidden_pull_off(x, v, xn, vn, tl, hs, N0s, Nn, xa,
+                                                              K, P, tu)
+        if tm <= 0.0 or slip_event(x, v, tl, tm, s, a1, 1.0, xa, K, P, tu, tq, tqu) > 0.0:
+            return xn, vn, t_end, s, False, MOVING, 0, Nr, Yxn, cn
         h_ev = tm  # the load dips below pull-off inside the step: locate it
-    tau = illinois_slip(x, v, tl, h_ev, s, xa, f, h, P, tu, tq, tqu)
+    tau = illinois_slip(x, v, tl, h_ev, s, a1, xa, K, P, tu, tq, tqu)
     if tau > 0.0:
-        x, v = rk4(x, v, tl, tau, s, xa, f, h, P, tu, tq, tqu)
-        tl = tl + tau
-    Nc = normal_load(x, v, tl, xa, f, h, P)[0]
+        x, v, tl, _ = rk4_from(x, v, tl, tau, s, a1, xa, K, P, tu, tq, tqu)
+    Nc = load_at(x, v, tl, xa, K, P)[0]
     if shifted_load(Nc, x, tl, xa, f, h, P, tu) <= n_min:  # pull-off before v = 0
-        return x, v, tl, s, False, DETACHED, 1
-    mc, dc, sc = stick_state(x, tl, xa, f, h, P, tu, tq, tqu)
+        return x, v, tl, s, False, DETACHED, 1, Nr, Yxn, cn
+    Nc, Yxc, _, _ = load_at(x, 0.0, tl, xa, K, P)
+    mc, dc, sc = stick_from(Nc, Yxc, x, tl, xa, K, P, tu, tq, tqu)
     if mc >= 0.0:
-        return x, 0.0, tl, s, True, MOVING, 1
-    return x, 0.0, tl, sc, False, MOVING, 1
+        return x, 0.0, tl, s, True, MOVING, 1, Nr, Yxn, cn
+    return x, 0.0, tl, sc, False, MOVING, 1, Nr, Yxn, cn
 
 
 @njit(cache=True, inline="always")
-def _event_step(x, v, tl, t_end, s, stuck, t0, xa, f, h, P, tu, tq, tqu, rec, out):
+def _event_step(x, v, tl, t_end, s, stuck, t0, xa, K, N, Yx, c, g, g_ok, P, tu, tq, tqu, rec,
+                out):
     """One event-mode step from tl to t_end: sub-steps that each run to t_end or to the next
-    located stick/slip/detachment event, at most MAX_EVENTS_PER_STEP + 1 events.
+    located stick/slip/detachment event, at most MAX_EVENTS_PER_STEP + 1 events. ``N, Yx, c``:
+    the load at (x, v, tl) (:func:`.forces.normal_load`); ``g``: the shape at x if ``g_ok`` (a
+    resting part keeps its place, so its shape serves every step it rests).
 
-    Returns (x, v, tl, s, stuck, outcome): MOVING at t_end, or DETACHED / TOO_MANY_EVENTS with the
-    state at that moment.
+    Returns (x, v, tl, s, stuck, outcome, valid, N, Yx, c, g, g_ok): MOVING at t_end, or DETACHED
+    / TOO_MANY_EVENTS with the state at that moment; with ``valid``, (N, Yx, c) is the load at
+    the returned state (a slide to t_end with no event, or a part still at rest), for the next
+    step.
     """
     recording = rec.shape[0] > 0
     n_ev = 0
+    valid = True  # (N, Yx, c) is the load at (x, v, tl)
     while tl < t_end:
         if n_ev > MAX_EVENTS_PER_STEP:
-            return x, v, tl, s, stuck, TOO_MANY_EVENTS
+            return x, v, tl, s, stuck, TOO_MANY_EVENTS, False, N, Yx, c, g, g_ok
         out[O_STEPS] += 1
         if stuck:
-            tl, s, stuck, outcome, ev = _stuck_substep(x, tl, t_end, s, xa, f, h, P, tu, tq, tqu)
+            if not g_ok:
+                g, g_ok = shape_of(x, xa, K), True
+            tl, s, stuck, outcome, ev, N, Yx, c = _stuck_substep(x, tl, t_end, s, g, xa, K, P, tu,
+                                                                 tq, tqu)
             s_row = 0.0  # the break-away instant is recorded as sticking
+            # the load at rest at t_end: the part stays stuck, so only the next step's check of
+            # the table's range reads it, and v (+-0) changes no comparison of N there
+            valid = ev == 0
         else:
-            x, v, tl, s, stuck, outcome, ev = _slide_substep(x, v, tl, t_end, s, xa, f, h, P, tu,
-                                                             tq, tqu)
+            if not valid:
+                N, Yx, c, _ = load_at(x, v, tl, xa, K, P)
+            g_ok = False  # the part slides: its place changes
+            x, v, tl, s, stuck, outcome, ev, N, Yx, c = _slide_substep(x, v, tl, t_end, s, N, Yx,
+                                                                       c, xa, K, P, tu, tq, tqu)
             s_row = 0.0 if stuck else s
+            valid = ev == 0
         n_ev += ev
         out[O_EVENTS] += ev
         if outcome != MOVING:
-            return x, v, tl, s, stuck, outcome
+            return x, v, tl, s, stuck, outcome, False, N, Yx, c, g, g_ok
         if ev > 0 and recording:
-            _record(rec, out, t0 + tl, x, v, s_row, xa, f, h, tl, P, tu, tq, tqu)
+            _record(rec, out, t0 + tl, x, v, s_row, xa, K[0], K[1], tl, P, tu, tq, tqu)
     if recording:
-        _record(rec, out, t0 + t_end, x, v, 0.0 if stuck else s, xa, f, h, t_end, P, tu, tq, tqu)
-    return x, v, tl, s, stuck, MOVING
+        _record(rec, out, t0 + t_end, x, v, 0.0 if stuck else s, xa, K[0], K[1], t_end, P, tu,
+                tq, tqu)
+    return x, v, tl, s, stuck, MOVING, valid, N, Yx, c, g, g_ok
 
 
 @njit(cache=True, _nrt=False)  # type: ignore[call-overload]  # numba's typing omits _nrt
@@ -252,12 +286,14 @@ def stroke(x, v, t0, xa, f, h, n_steps, t_lim, P, tu, tq, tqu, rec, out):
     step grid also has nodes where the actuator's downward acceleration peaks (there the load on a
     resting part is smallest), and a sliding step whose load is tensile at an end is searched for
     a dip below pull-off inside it (:func:`hidden_pull_off`), so a detachment cannot hide inside
-    a step. Each step is a :func:`_karnopp_step` or an :func:`_event_step`.
+    a step. Each step is a :func:`_karnopp_step` or an :func:`_event_step`; the load at a step's
+    start is computed once, or taken from the step before when it ended there.
 
     Returns (x, v, outcome) with outcome MOVING (stroke finished), DETACHED, MAX_TIME,
     TOO_MANY_EVENTS or BEYOND_TABLE (the load left the contact table); the event time/place go to
     ``out``.
     """
+    K = stroke_constants(f, h, P)
     T = 1.0 / f
     dt = T / n_steps
     event = P[I_MODE] == EVENT
@@ -269,8 +305,13 @@ def stroke(x, v, t0, xa, f, h, n_steps, t_lim, P, tu, tq, tqu, rec, out):
     k = 0
     if rec.shape[0] > 0:
         _record(rec, out, t0, x, v, 0.0 if stuck else s, xa, f, h, tl, P, tu, tq, tqu)
+    valid = False  # whether (N, Yx, c) is the load at (x, v, tl)
+    N = Yx = c = 0.0
+    g, g_ok = (0.0, 0.0, 0.0), False  # the shape at x, while the part rests (event mode)
     while True:
-        if normal_load(x, v, tl, xa, f, h, P)[0] > P[I_NMAX]:  # Q(N) would extrapolate
+        if not valid:
+            N, Yx, c, _ = load_at(x, v, tl, xa, K, P)
+        if N > P[I_NMAX]:  # Q(N) would extrapolate
             return _stop(out, t0 + tl, x, v, BEYOND_TABLE)
         if tl >= T:
             break
@@ -278,11 +319,12 @@ def stroke(x, v, t0, xa, f, h, n_steps, t_lim, P, tu, tq, tqu, rec, out):
             return _stop(out, t0 + tl, x, v, MAX_TIME)
         t_end, k = _next_node(tl, k, n_steps, dt, T, t_unload1, t_unload2, t_lim)
         if event:
-            x, v, tl, s, stuck, outcome = _event_step(x, v, tl, t_end, s, stuck, t0, xa, f, h, P,
-                                                      tu, tq, tqu, rec, out)
+            x, v, tl, s, stuck, outcome, valid, N, Yx, c, g, g_ok = _event_step(
+                x, v, tl, t_end, s, stuck, t0, xa, K, N, Yx, c, g, g_ok, P, tu, tq, tqu, rec, out)
         else:
-            x, v, tl, s, stuck, outcome = _karnopp_step(x, v, tl, t_end, dt, s, stuck, t0, xa, f,
-                                                        h, P, tu, tq, tqu, rec, out)
+            x, v, tl, s, stuck, outcome = _karnopp_step(x, v, tl, t_end, dt, s, stuck, t0, xa, K,
+                                                        N, Yx, c, P, tu, tq, tqu, rec, out)
+            valid = False
         if outcome != MOVING:
             return _stop(out, t0 + tl, x, v, outcome)
     if stuck:

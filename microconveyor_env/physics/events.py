@@ -9,7 +9,8 @@ from __future__ import annotations
 
 from numba import njit
 
-from .forces import I_NMIN, accel, normal_load, rk4, shifted_load, stick_state
+from .forces import I_NMIN, load_at, load_from, motion, rk4_from, shape_of, shifted_load, \
+    stick_from
 from ..jit_cache import refresh as refresh_jit_cache
 
 GOLDEN_ITERATIONS = 20  # golden-section steps for a load minimum inside a step
@@ -34,27 +35,29 @@ def _secant(a, b, fa, fb):
     return c if a < c < b else 0.5 * (a + b)
 
 
-@njit(cache=True)
-def slip_event(x0, v0, tl, tau, s, vscale, xa, f, h, P, tu, tq, tqu):
-    """min(s v / vscale, (N - N_min) / F_pull) after an RK4 sub-step tau: > 0 while sliding on."""
-    x, v = rk4(x0, v0, tl, tau, s, xa, f, h, P, tu, tq, tqu)
-    N = normal_load(x, v, tl + tau, xa, f, h, P)[0]
-    N = shifted_load(N, x, tl + tau, xa, f, h, P, tu)
+@njit(cache=True, _nrt=False)  # type: ignore[call-overload]  # numba's typing omits _nrt
+def slip_event(x0, v0, tl, tau, s, a1, vscale, xa, K, P, tu, tq, tqu):
+    """min(s v / vscale, (N - N_min) / F_pull) after an RK4 sub-step tau from (x0, v0, tl) on
+    the stroke ``K`` (``a1``: the acceleration there): > 0 while sliding on."""
+    x, v, t, m = rk4_from(x0, v0, tl, tau, s, a1, xa, K, P, tu, tq, tqu)
+    N = load_from(x, v, m, shape_of(x, xa, K), P)[0]
+    N = shifted_load(N, x, t, xa, K[0], K[1], P, tu)
     return min(s * v / vscale, (N - P[I_NMIN]) / -P[I_NMIN])
 
 
-@njit(cache=True)
-def illinois_slip(x0, v0, tl, hmax, s, xa, f, h, P, tu, tq, tqu):
-    """First tau in (0, hmax] where the slip ends (v = 0) or the load reaches pull-off."""
-    vscale = max(abs(v0), abs(accel(x0, v0, tl, s, xa, f, h, P, tu, tq, tqu)) * hmax, 1e-300)
+@njit(cache=True, _nrt=False)  # type: ignore[call-overload]  # numba's typing omits _nrt
+def illinois_slip(x0, v0, tl, hmax, s, a1, xa, K, P, tu, tq, tqu):
+    """First tau in (0, hmax] where the slip ends (v = 0) or the load reaches pull-off
+    (``a1``: the acceleration at (x0, v0, tl) in direction s)."""
+    vscale = max(abs(v0), abs(a1) * hmax, 1e-300)
     a, b = 0.0, hmax
-    fb = slip_event(x0, v0, tl, b, s, vscale, xa, f, h, P, tu, tq, tqu)
-    fa = slip_event(x0, v0, tl, 0.0, s, vscale, xa, f, h, P, tu, tq, tqu)
+    fb = slip_event(x0, v0, tl, b, s, a1, vscale, xa, K, P, tu, tq, tqu)
+    fa = slip_event(x0, v0, tl, 0.0, s, a1, vscale, xa, K, P, tu, tq, tqu)
     if not fa > 0.0:  # starting from rest (s v = 0): find a positive lower point
         lo = hmax
         for _ in range(60):
             lo *= 0.5
-            fl = slip_event(x0, v0, tl, lo, s, vscale, xa, f, h, P, tu, tq, tqu)
+            fl = slip_event(x0, v0, tl, lo, s, a1, vscale, xa, K, P, tu, tq, tqu)
             if fl > 0.0:
                 a, fa = lo, fl
                 break
@@ -63,7 +66,7 @@ def illinois_slip(x0, v0, tl, hmax, s, xa, f, h, P, tu, tq, tqu):
     side = 0
     for _ in range(100):
         c = _secant(a, b, fa, fb)
-        fc = slip_event(x0, v0, tl, c, s, vscale, xa, f, h, P, tu, tq, tqu)
+        fc = slip_event(x0, v0, tl, c, s, a1, vscale, xa, K, P, tu, tq, tqu)
         a, b, fa, fb, side = _illinois(a, b, fa, fb, c, fc, side)
         if b - a <= 1e-15 * hmax:
             break
@@ -84,10 +87,11 @@ def screened_clear(N0: float, Nm: float, N1: float, n_min: float) -> bool:
     return low - n_min > SCREEN_MARGIN * -n_min
 
 
-@njit(cache=True)
-def hidden_pull_off(x0, v0, x1, v1, tl, hs, N1, xa, f, h, P, tu):
+@njit(cache=True, _nrt=False)  # type: ignore[call-overload]  # numba's typing omits _nrt
+def hidden_pull_off(x0, v0, x1, v1, tl, hs, N0, N1, xa, K, P, tu):
     """A dip of the load below pull-off *inside* an accepted sliding step (both ends above it).
 
+    ``N0``, ``N1``: the (shifted, :func:`.forces.shifted_load`) loads at the step's ends [N].
     Checked only while the load is tensile at an end of the step, and searched only where a
     parabola through the load at both ends and at the midpoint comes within ``SCREEN_MARGIN``
     F_pull of pull-off: then the load along the step's cubic Hermite interpolant of x(t) is
@@ -95,26 +99,25 @@ def hidden_pull_off(x0, v0, x1, v1, tl, hs, N1, xa, f, h, P, tu):
     below pull-off, else -1.
     """
     n_min = P[I_NMIN]
-    N0 = shifted_load(normal_load(x0, v0, tl, xa, f, h, P)[0], x0, tl, xa, f, h, P, tu)
     if min(N0, N1) >= 0.0:
         return -1.0
-    Nm = _load_on_hermite(0.5, x0, v0, x1, v1, tl, hs, xa, f, h, P, tu)
+    Nm = _load_on_hermite(0.5, x0, v0, x1, v1, tl, hs, xa, K, P, tu)
     if screened_clear(N0, Nm, N1, n_min):
         return -1.0
     a, b = 0.0, 1.0
     g = 0.6180339887498949
     c, d = b - g * (b - a), a + g * (b - a)
-    fc = _load_on_hermite(c, x0, v0, x1, v1, tl, hs, xa, f, h, P, tu)
-    fd = _load_on_hermite(d, x0, v0, x1, v1, tl, hs, xa, f, h, P, tu)
+    fc = _load_on_hermite(c, x0, v0, x1, v1, tl, hs, xa, K, P, tu)
+    fd = _load_on_hermite(d, x0, v0, x1, v1, tl, hs, xa, K, P, tu)
     for _ in range(GOLDEN_ITERATIONS):
         if fc < fd:
             b, d, fd = d, c, fc
             c = b - g * (b - a)
-            fc = _load_on_hermite(c, x0, v0, x1, v1, tl, hs, xa, f, h, P, tu)
+            fc = _load_on_hermite(c, x0, v0, x1, v1, tl, hs, xa, K, P, tu)
         else:
             a, c, fc = c, d, fd
             d = a + g * (b - a)
-            fd = _load_on_hermite(d, x0, v0, x1, v1, tl, hs, xa, f, h, P, tu)
+            fd = _load_on_hermite(d, x0, v0, x1, v1, tl, hs, xa, K, P, tu)
         if min(fc, fd) < n_min:
             break
     if fc < fd:
@@ -122,8 +125,8 @@ def hidden_pull_off(x0, v0, x1, v1, tl, hs, N1, xa, f, h, P, tu):
     return d * hs if fd < n_min else -1.0
 
 
-@njit(cache=True)
-def _load_on_hermite(th, x0, v0, x1, v1, tl, hs, xa, f, h, P, tu):
+@njit(cache=True, _nrt=False)  # type: ignore[call-overload]  # numba's typing omits _nrt
+def _load_on_hermite(th, x0, v0, x1, v1, tl, hs, xa, K, P, tu):
     """Normal load at fraction ``th`` of a step, on the cubic Hermite interpolant of x(t)."""
     t2 = th * th
     t3 = t2 * th
@@ -131,28 +134,43 @@ def _load_on_hermite(th, x0, v0, x1, v1, tl, hs, xa, f, h, P, tu):
          + (t3 - t2) * hs * v1)
     v = ((6 * t2 - 6 * th) * x0 / hs + (3 * t2 - 4 * th + 1) * v0 + (-6 * t2 + 6 * th) * x1 / hs
          + (3 * t2 - 2 * th) * v1)
-    return shifted_load(normal_load(x, v, tl + th * hs, xa, f, h, P)[0], x, tl + th * hs, xa, f,
-                        h, P, tu)
+    t = tl + th * hs
+    return shifted_load(load_at(x, v, t, xa, K, P)[0], x, t, xa, K[0], K[1], P, tu)
 
 
-@njit(cache=True)
-def _stick_event(x, t, xa, f, h, P, tu, tq, tqu):
-    m, d, _ = stick_state(x, t, xa, f, h, P, tu, tq, tqu)
+@njit(cache=True, inline="always")
+def _stick_event(x, t, g, xa, K, P, tu, tq, tqu):
+    """min(margin, N - N_min) of a part resting at x, whose shape values are ``g``, at t."""
+    N, Yx, _, _ = load_from(x, 0.0, motion(t, K), g, P)
+    m, d, _ = stick_from(N, Yx, x, t, xa, K, P, tu, tq, tqu)
     return min(m, d)
 
 
-@njit(cache=True)
-def illinois_stick(x, t0, t1, xa, f, h, P, tu, tq, tqu):
-    """First t in (t0, t1] where min(margin, N - N_min) of a resting part reaches 0."""
+@njit(cache=True, _nrt=False)  # type: ignore[call-overload]  # numba's typing omits _nrt
+def illinois_stick(x, t0, t1, fb, g, xa, K, P, tu, tq, tqu):
+    """First t in (t0, t1] where min(margin, N - N_min) of a resting part reaches 0 (``fb``: its
+    value at t1; ``g``: the shape values at x, :func:`.forces.shape_of`)."""
     a, b = t0, t1
-    fa = _stick_event(x, a, xa, f, h, P, tu, tq, tqu)
-    fb = _stick_event(x, b, xa, f, h, P, tu, tq, tqu)
+    fa = _stick_event(x, a, g, xa, K, P, tu, tq, tqu)
     if fa <= 0.0:
         return a
+    # the function's own values at a and b (Illinois halves fa or fb): once the bracket is as
+    # narrow as the times' resolution allows, the secant's fallback midpoint rounds to a or b
+    # and the value there is already known
+    va, vb = fa, fb
     side = 0
     for _ in range(100):
         c = _secant(a, b, fa, fb)
-        fc = _stick_event(x, c, xa, f, h, P, tu, tq, tqu)
+        if c == a:
+            fc = va
+        elif c == b:
+            fc = vb
+        else:
+            fc = _stick_event(x, c, g, xa, K, P, tu, tq, tqu)
+        if fc > 0.0:  # c becomes a (as _illinois decides)
+            va = fc
+        else:
+            vb = fc
         a, b, fa, fb, side = _illinois(a, b, fa, fb, c, fc, side)
         if b - a <= 1e-15 * (t1 - t0):
             break

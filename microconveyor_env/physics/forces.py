@@ -13,7 +13,7 @@ from numba import njit
 from numba.extending import overload
 
 from ..jit_cache import refresh as refresh_jit_cache
-from .kinematics import stroke_eval, surface_eval
+from .kinematics import shape_constant, shape_eval, shape_with, stroke_eval, stroke_with
 
 # ---- model constants array P ----
 I_MASS, I_G0, I_NMIN, I_EXACT, I_SLOPE, I_WL, I_SHAPE, I_MODE, I_NMAX = range(9)
@@ -151,10 +151,45 @@ def _ov_shifted_load(N, x, tl, xa, f, h, P, tu):
     return lambda N, x, tl, xa, f, h, P, tu: N + (P[I_NMIN] - stretch_n_min(x, tl, xa, f, h, P))
 
 
-@njit(cache=True)
-def normal_load(x, v, tl, xa, f, h, P):
-    """(N, Y_x, cos(theta), Y) at position x, velocity v, time tl into the stroke."""
-    Y, Yx, _, Ytt, Yxt, Yxx = surface_eval(x, tl, xa, f, h, int(P[I_SHAPE]), P[I_WL])
+# ---- the mechanics at one point, from its parts ----
+# A stroke's evaluations share what depends on the stroke alone (:func:`stroke_constants`, the
+# tuple ``K``); the load at a point combines the stroke's motion at its time (:func:`motion`) with
+# the shape at its place (:func:`shape_of`) in :func:`load_from`. The kernel reuses a motion or a
+# shape computed at the same time or place, and a load computed at the same point: every float
+# operation keeps its inputs and order, so the results are bit for bit those of
+# :func:`normal_load`, :func:`accel`, :func:`rk4` and :func:`stick_state`, which are built from
+# the same pieces.
+@njit(cache=True, _nrt=False)  # type: ignore[call-overload]  # numba's typing omits _nrt
+def stroke_constants(f, h, P):
+    """``K``: what every evaluation on one stroke of frequency ``f`` [Hz] and height ``h`` [m]
+    shares: (f, h, period [s], half period [s], its square [s^2], shape code, wavelength [m],
+    the shape's constant, :func:`.kinematics.shape_constant`)."""
+    period = 1.0 / f
+    half = 0.5 * period
+    kind = int(P[I_SHAPE])
+    wl = P[I_WL]
+    return (f, h, period, half, half * half, kind, wl, shape_constant(kind, wl))
+
+
+@njit(cache=True, _nrt=False)  # type: ignore[call-overload]  # numba's typing omits _nrt
+def motion(t, K):
+    """The actuator's (p [m], p_t [m/s], p_tt [m/s^2]) at ``t`` [s] into the stroke ``K``."""
+    return stroke_with(t, K[2], K[3], K[4], K[1])
+
+
+@njit(cache=True, _nrt=False)  # type: ignore[call-overload]  # numba's typing omits _nrt
+def shape_of(x, xa, K):
+    """The shape's (g, g_u [1/m], g_uu [1/m^2]) at the part's place ``x`` [m] (actuator ``xa``)."""
+    return shape_with(K[5], x - xa, K[6], K[7])
+
+
+@njit(cache=True, _nrt=False)  # type: ignore[call-overload]  # numba's typing omits _nrt
+def load_from(x, v, m, g, P):
+    """(N, Y_x, cos(theta), Y) at position x, velocity v from the stroke's motion ``m`` at the
+    time and the shape ``g`` at x (:func:`motion`, :func:`shape_of`)."""
+    p, p_t, p_tt = m
+    g0, g_u, g_uu = g
+    Y, Yx, Ytt, Yxt, Yxx = p * g0, p * g_u, p_tt * g0, p_t * g_u, p * g_uu
     Yx += P[I_SLOPE]
     Y += P[I_SLOPE] * x
     c = 1.0 / math.sqrt(1.0 + Yx * Yx)
@@ -164,33 +199,77 @@ def normal_load(x, v, tl, xa, f, h, P):
     return P[I_MASS] * c * acc, Yx, c, Y
 
 
+@njit(cache=True, _nrt=False)  # type: ignore[call-overload]  # numba's typing omits _nrt
+def load_at(x, v, t, xa, K, P):
+    """:func:`normal_load` on the stroke ``K``."""
+    return load_from(x, v, motion(t, K), shape_of(x, xa, K), P)
+
+
+@njit(cache=True, _nrt=False)  # type: ignore[call-overload]  # numba's typing omits _nrt
+def accel_from(N, Yx, c, s, x, tl, xa, K, P, tu, tq, tqu):
+    """The slip acceleration [m/s^2] in direction ``s`` from the load (N, Y_x, cos(theta)) at the
+    point (x, tl) of the stroke ``K``."""
+    Q = friction_at(N, x, tl, xa, K[0], K[1], P, tu, tq, tqu)
+    return (-s * Q * c - N * Yx * c) / P[I_MASS]
+
+
+@njit(cache=True, _nrt=False)  # type: ignore[call-overload]  # numba's typing omits _nrt
+def rk4_from(x, v, tl, dt, s, a1, xa, K, P, tu, tq, tqu):
+    """:func:`rk4` on the stroke ``K`` given its first stage ``a1`` (the acceleration at
+    (x, v, tl)). Returns (x, v) after ``dt``, the time ``tl + dt`` and the motion there."""
+    x2, v2 = x + 0.5 * dt * v, v + 0.5 * dt * a1
+    th = tl + 0.5 * dt
+    mh = motion(th, K)
+    N, Yx, c, _ = load_from(x2, v2, mh, shape_of(x2, xa, K), P)
+    a2 = accel_from(N, Yx, c, s, x2, th, xa, K, P, tu, tq, tqu)
+    x3, v3 = x + 0.5 * dt * v2, v + 0.5 * dt * a2
+    N, Yx, c, _ = load_from(x3, v3, mh, shape_of(x3, xa, K), P)
+    a3 = accel_from(N, Yx, c, s, x3, th, xa, K, P, tu, tq, tqu)
+    x4, v4 = x + dt * v3, v + dt * a3
+    t4 = tl + dt
+    m4 = motion(t4, K)
+    N, Yx, c, _ = load_from(x4, v4, m4, shape_of(x4, xa, K), P)
+    a4 = accel_from(N, Yx, c, s, x4, t4, xa, K, P, tu, tq, tqu)
+    return (x + dt / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4),
+            v + dt / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4), t4, m4)
+
+
+@njit(cache=True, _nrt=False)  # type: ignore[call-overload]  # numba's typing omits _nrt
+def stick_from(N, Yx, x, tl, xa, K, P, tu, tq, tqu):
+    """:func:`stick_state` from the load (N, Y_x) of the resting part at (x, tl)."""
+    Q = friction_at(N, x, tl, xa, K[0], K[1], P, tu, tq, tqu)
+    drive = -N * Yx
+    return Q - abs(drive), N - n_min_at(x, tl, xa, K[0], K[1], P, tu), 1.0 if drive > 0.0 else -1.0
+
+
+@njit(cache=True)
+def normal_load(x, v, tl, xa, f, h, P):
+    """(N, Y_x, cos(theta), Y) at position x, velocity v, time tl into the stroke."""
+    return load_from(x, v, stroke_eval(tl, f, h), shape_eval(int(P[I_SHAPE]), x - xa, P[I_WL]), P)
+
+
 @njit(cache=True)
 def accel(x, v, tl, s, xa, f, h, P, tu, tq, tqu):
-    N, Yx, c, _ = normal_load(x, v, tl, xa, f, h, P)
-    Q = friction_at(N, x, tl, xa, f, h, P, tu, tq, tqu)
-    return (-s * Q * c - N * Yx * c) / P[I_MASS]
+    K = stroke_constants(f, h, P)
+    N, Yx, c, _ = load_at(x, v, tl, xa, K, P)
+    return accel_from(N, Yx, c, s, x, tl, xa, K, P, tu, tq, tqu)
 
 
 @njit(cache=True)
 def rk4(x, v, tl, dt, s, xa, f, h, P, tu, tq, tqu):
-    a1 = accel(x, v, tl, s, xa, f, h, P, tu, tq, tqu)
-    x2, v2 = x + 0.5 * dt * v, v + 0.5 * dt * a1
-    a2 = accel(x2, v2, tl + 0.5 * dt, s, xa, f, h, P, tu, tq, tqu)
-    x3, v3 = x + 0.5 * dt * v2, v + 0.5 * dt * a2
-    a3 = accel(x3, v3, tl + 0.5 * dt, s, xa, f, h, P, tu, tq, tqu)
-    x4, v4 = x + dt * v3, v + dt * a3
-    a4 = accel(x4, v4, tl + dt, s, xa, f, h, P, tu, tq, tqu)
-    return (x + dt / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4),
-            v + dt / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4))
+    K = stroke_constants(f, h, P)
+    N, Yx, c, _ = load_at(x, v, tl, xa, K, P)
+    a1 = accel_from(N, Yx, c, s, x, tl, xa, K, P, tu, tq, tqu)
+    xn, vn, _, _ = rk4_from(x, v, tl, dt, s, a1, xa, K, P, tu, tq, tqu)
+    return xn, vn
 
 
 @njit(cache=True)
 def stick_state(x, tl, xa, f, h, P, tu, tq, tqu):
     """(margin Q - |N tan|, N - N_min, break-away direction) of a part at rest at x."""
-    N, Yx, c, _ = normal_load(x, 0.0, tl, xa, f, h, P)
-    Q = friction_at(N, x, tl, xa, f, h, P, tu, tq, tqu)
-    drive = -N * Yx
-    return Q - abs(drive), N - n_min_at(x, tl, xa, f, h, P, tu), 1.0 if drive > 0.0 else -1.0
+    K = stroke_constants(f, h, P)
+    N, Yx, c, _ = load_at(x, 0.0, tl, xa, K, P)
+    return stick_from(N, Yx, x, tl, xa, K, P, tu, tq, tqu)
 
 
 refresh_jit_cache(globals())

@@ -46,7 +46,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.extending import intrinsic
 
 from ..jit_cache import refresh as refresh_jit_cache
 
@@ -65,23 +67,58 @@ del _gl_x, _gl_w
 
 
 @njit(cache=True)
-def shape_eval(kind, u, wl):
-    """Shape ``g(u)`` and its derivatives ``(g, g_u [1/m], g_uu [1/m^2])`` for shape code ``kind``."""
+def shape_constant(kind, wl):
+    """The constant of shape ``kind`` that depends on the wavelength ``wl`` [m] alone: ``1/s^2``
+    [1/m^2] (Gaussian), the wavenumber ``2 pi / wl`` [1/m] (sinusoid), ``wl^3`` [m^3] (clamped
+    beam). :func:`shape_with` takes it, so a caller on one wavelength computes it once."""
     if kind == GAUSSIAN:
         s = wl / 6.0
-        inv_s2 = 1.0 / (s * s)
+        return 1.0 / (s * s)
+    if kind == SINUSOIDAL:
+        return 2.0 * math.pi / wl
+    if kind == CLAMPED_BEAM:
+        return wl * wl * wl
+    return math.nan
+
+
+@njit(cache=True)
+def shape_with(kind, u, wl, const):
+    """:func:`shape_eval` given ``const = shape_constant(kind, wl)``: the same values."""
+    if kind == GAUSSIAN:
+        inv_s2 = const
         g = math.exp(-0.5 * u * u * inv_s2)
         return g, -u * inv_s2 * g, (u * u * inv_s2 - 1.0) * inv_s2 * g
+    return _compact_shape(kind, u, wl, const)
+
+
+@intrinsic
+def _opaque(typingctx, x):
+    """``x`` (float64) unchanged, through an empty assembly statement with side effects that the
+    optimiser may neither look through nor move: what is computed from the result stays on the
+    branch that needs it (else the compiler evaluates the compact shapes' sine and cosine on the
+    Gaussian's path too, only to discard them)."""
+    def codegen(context, builder, signature, args):
+        i64 = ir.IntType(64)
+        bits = builder.bitcast(args[0], i64)
+        kept = builder.asm(ir.FunctionType(i64, [i64]), "", "=r,0", [bits], side_effect=True)
+        return builder.bitcast(kept, ir.DoubleType())
+    return types.float64(types.float64), codegen
+
+
+@njit(cache=True)
+def _compact_shape(kind, u, wl, const):
+    """The shapes of compact support (:func:`shape_with`)."""
+    u = _opaque(u)
     if kind == SINUSOIDAL:
         if abs(u) > 0.5 * wl:
             return 0.0, 0.0, 0.0
-        k = 2.0 * math.pi / wl
+        k = const
         c = math.cos(k * u)
         return 0.5 * (1.0 + c), -0.5 * k * math.sin(k * u), -0.5 * k * k * c
     if kind == CLAMPED_BEAM:
         if abs(u) > 0.5 * wl:
             return 0.0, 0.0, 0.0
-        l3 = wl * wl * wl
+        l3 = const
         v = 0.5 * wl - abs(u)                        # dv/du = -sign(u)
         g = 4.0 * v * v * (3.0 * wl - 4.0 * v) / l3
         g_v = 24.0 * v * (wl - 2.0 * v) / l3         # 0 at v = 0 and v = wl/2 (u = 0)
@@ -93,15 +130,17 @@ def shape_eval(kind, u, wl):
 
 
 @njit(cache=True)
-def stroke_eval(t, f, h):
-    """Actuator displacement ``(p [m], p_t [m/s], p_tt [m/s^2])`` at time ``t`` since stroke start.
+def shape_eval(kind, u, wl):
+    """Shape ``g(u)`` and its derivatives ``(g, g_u [1/m], g_uu [1/m^2])`` for shape code ``kind``."""
+    return shape_with(kind, u, wl, shape_constant(kind, wl))
 
-    Stroke of height ``h`` and duration ``T = 1/f``; zero outside ``[0, T]``.
-    """
-    period = 1.0 / f
+
+@njit(cache=True)
+def stroke_with(t, period, half, half2, h):
+    """:func:`stroke_eval` given ``period = 1/f`` [s], ``half = period / 2`` [s] and
+    ``half2 = half^2`` [s^2] (a caller on one stroke computes them once): the same values."""
     if t < 0.0 or t > period:
         return 0.0, 0.0, 0.0
-    half = 0.5 * period
     if t <= half:
         tau, sign = t / half, 1.0
     else:                                            # mirror image: p(t) = p(T - t)
@@ -109,8 +148,19 @@ def stroke_eval(t, f, h):
     t2 = tau * tau
     p = h * t2 * tau * (10.0 + tau * (-15.0 + 6.0 * tau))
     p_t = h * 30.0 * t2 * (1.0 + tau * (-2.0 + tau)) / half
-    p_tt = h * 60.0 * tau * (1.0 + tau * (-3.0 + 2.0 * tau)) / (half * half)
+    p_tt = h * 60.0 * tau * (1.0 + tau * (-3.0 + 2.0 * tau)) / half2
     return p, sign * p_t, p_tt
+
+
+@njit(cache=True)
+def stroke_eval(t, f, h):
+    """Actuator displacement ``(p [m], p_t [m/s], p_tt [m/s^2])`` at time ``t`` since stroke start.
+
+    Stroke of height ``h`` and duration ``T = 1/f``; zero outside ``[0, T]``.
+    """
+    period = 1.0 / f
+    half = 0.5 * period
+    return stroke_with(t, period, half, half * half, h)
 
 
 @njit(cache=True)
