@@ -79,6 +79,7 @@ def docstring_usage() -> dict[str, list[str]]:
 ANSWER = ["--per-distance", "1", "--noise-seeds", "1", "--de-budget", "30", "--out",
           "{out}/answer.json"]
 IMITATE = ["--seeds", "0", "--cpu", "-1", "--targets", "2", "--imitate-args", IMITATE_TINY]
+KERNEL = ["--firings", "16", "--repeats", "1", "--rounds", "1", "--json", "{out}/kernel.json"]
 SAC = ["--steps", "200", "--repeats", "1", "--out", "{out}/sac.json"]
 SIZING = ["--spacings", "0.5", "--targets", "2", "--out", "{out}/sizing.json"]
 BREAKDOWN = ["--steps", "4096", "--refine-rounds", "1", "--no-progress", "--json",
@@ -104,6 +105,11 @@ RUNS: dict[str, list[str] | None] = {
     "python scripts/plane_figures.py --firings": ["--targets", "2", "--out", "{out}/firings.json"],
     "python scripts/planner_speed.py": ["--noise-seeds", "1", "--per-distance", "1",
                                         "--positioner-targets", "2", "--out", "{out}/ps.json"],
+    "python benchmarks/kernel_speed.py": KERNEL,
+    # the other checkout: this one (the test runs both sides of the A/B on one tree)
+    "python benchmarks/kernel_speed.py --compare-with /tmp/base": [*KERNEL, "--compare-with",
+                                                                    str(ROOT)],
+    "python benchmarks/positioner_expert.py": ["--states", "8", "--grids", "9x3"],
     "python scripts/sac_threads.py --steps 3000 --repeats 2": SAC,
     "python scripts/sac_threads.py": SAC,
     "python scripts/dissertation_study.py": DISSERTATION,

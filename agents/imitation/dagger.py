@@ -5,8 +5,9 @@ Two experts, one per scene, picked by :func:`agents.mpc.experts.expert_for` (the
 ``configs/dagger.yml``, keyed by env id):
 
 * MicroPositioner-v0: the one-step model-based search (:class:`~agents.mpc.experts.
-  BatchExpert`): every reachable actuator, frequency and stroke fired on the nominal model from
-  where the part rests; it sees where the part rests and the target, never the episode's
+  BatchExpert`): every reachable actuator, frequency and stroke from where the part rests,
+  ranked on the scene's firing map (the nominal model tabulated once) and its choice confirmed
+  on the full nominal model; it sees where the part rests and the target, never the episode's
   friction, mass or noise;
 * MicroConveyor-v1 (the 1-D conveyor): model-predictive control seeded by a policy
   (:class:`~agents.mpc.experts.SeededExpert`): the seed policy's firing, its last firing re-aimed
@@ -48,7 +49,7 @@ from microconveyor_env.envs.positioner.config import PositionerConfig
 from microconveyor_env.env_ids import GOAL_ENV_IDS
 from microconveyor_env.envs.core.versions import check_env_id, scene_config, vector_class
 
-from ..mpc.experts import expert_for
+from ..mpc.experts import SEARCHES, expert_for
 from ..planning import PositionerScene, scene_of
 from .student import Student
 
@@ -78,7 +79,10 @@ class DaggerSettings:
 
     The positioner's expert (:class:`~agents.mpc.experts.BatchExpert`): ``frequencies``,
     ``strokes`` [-] its candidate grid, ``margin`` [-] grid cells from detachment, ``slack_m``
-    [m] how much farther a gentler firing may land, ``heavier`` [-] the heavier part it checks.
+    [m] how much farther a gentler firing may land, ``heavier`` [-] the heavier part it checks,
+    ``search`` where it ranks the candidates: ``"map"`` on the scene's firing map, its choice
+    confirmed on the full model, or ``"model"`` every candidate fired on the full model (the
+    same rule, a few times slower).
     The conveyor's expert (:class:`~agents.mpc.experts.SeededExpert`): ``seed_policy``, a shipped
     policy's name for ``env_id`` or a policy folder; ``newton_iterations`` [-] and ``accept_m``
     [m] of the re-aimed last firing."""
@@ -86,24 +90,25 @@ class DaggerSettings:
     env_id: str = ENV_ID
     env_kwargs: dict[str, Any] = field(default_factory=lambda: dict(TRAIN_KWARGS))
     seed: int = field(default=0, metadata={"help": "training seed", "bounds": (0, 2**31 - 1)})
-    rounds: int = field(default=10, metadata={
+    rounds: int = field(default=20, metadata={
         "help": "DAgger rounds (round 0: the expert acts; later: the policy; default: the "
-                "recipe's, 5 on MicroConveyor-v1, 10 on MicroPositioner-v0)", "bounds": (1, 1000)})
+                "recipe's, 5 on MicroConveyor-v1, 20 on MicroPositioner-v0)", "bounds": (1, 1000)})
     episodes: int = field(default=256, metadata={
         "help": "episodes per round, played at once on the batched env (default: the recipe's, "
                 "256)", "bounds": (1, 100000)})
-    net_arch: tuple[int, ...] = (256, 256)
+    net_arch: tuple[int, ...] = (128, 128)
     fit: str = "adam"
     epochs: int = 30
     batch_size: int = 256
     learning_rate: float = 1e-3
-    lr_decay: float = 0.7
+    lr_decay: float = 0.85
     fit_iterations: int = 1000
-    frequencies: int = 41
-    strokes: int = 6
-    margin: int = 2
+    frequencies: int = 81
+    strokes: int = 11
+    margin: int = 4
     slack_m: float = 5e-6
     heavier: float = 0.1
+    search: str = "map"
     seed_policy: str | None = field(default=None, metadata={
         "help": "MicroConveyor-v1: the policy that seeds the expert, a shipped policy's name or a "
                 "policy folder (default: the recipe's, ppo_refined)", "metavar": "NAME|PATH"})
@@ -129,6 +134,8 @@ class DaggerSettings:
             v = getattr(self, name)
             if not (isinstance(v, float) and 0.0 < v <= 1.0) or v == 1.0 and name != "lr_decay":
                 raise ValueError(f"{name} = {v!r} is invalid: must be in (0, 1)")
+        if self.search not in SEARCHES:
+            raise ValueError(f"search = {self.search!r} is invalid: must be one of {SEARCHES}")
         if not (isinstance(self.heavier, float) and 0.0 <= self.heavier <= 1.0):
             raise ValueError(f"heavier = {self.heavier!r} is invalid: must be in [0, 1]")
         for name in ("slack_m", "accept_m"):
@@ -199,7 +206,7 @@ def make_expert(s: DaggerSettings, cfg: Any) -> tuple[Labeller, dict[str, Any]]:
             "kind": "one-step model-based, nominal model, the gentlest firing within the "
                     "slack of the nearest",
             "frequencies": s.frequencies, "strokes": s.strokes, "margin": s.margin,
-            "slack_m": s.slack_m, "heavier": s.heavier}
+            "slack_m": s.slack_m, "heavier": s.heavier, "search": s.search}
     from ..rl.artefacts.checkpoint import sha256
     from ..rl.artefacts.policy_files import (PolicyError, load_policy, policy_scene,
                                             read_policy_meta)
@@ -296,6 +303,11 @@ def _train(s: DaggerSettings, progress: Any, command: str | None) -> tuple[Stude
         steps += fig["firings"]
         X, Y = np.concatenate([X, xr]), np.concatenate([Y, yr])
         if r == 0:
+            if not len(X):
+                raise ValueError("the expert allowed no firing from any state of round 0 (every "
+                                 "candidate refused: a margin of as many cells as the "
+                                 f"{s.frequencies} x {s.strokes} grid spans?); give a finer "
+                                 "grid or a smaller margin")
             student.set_stats(X)   # the observation statistics of the expert's own states
         loss = student.fit(X, Y)
         fig.update(round=r, acting="expert" if r == 0 else "policy", samples=int(len(X)),

@@ -2,7 +2,9 @@
 labelling many part states at once: :func:`expert_for` picks it.
 
 * :class:`BatchExpert`, MicroPositioner-v0's: the one-step search of
-  :class:`~.control.OneStepPlanner` batched over many parts.
+  :class:`~.control.OneStepPlanner` batched over many parts, its candidates ranked on the
+  scene's firing map and the few it would choose fired on the full model, which has the last
+  word.
 * :class:`SeededExpert`, the conveyor line's (MicroConveyor-v1): model-predictive control with
   a horizon of one firing, seeded by a policy: fire what the policy fires, and where that firing
   is the policy's last, re-aim it on the model so that the part comes to rest on the target.
@@ -40,8 +42,10 @@ from microconveyor_env.envs.line.state import Conveyor
 from microconveyor_env.envs.positioner.config import PositionerConfig
 from microconveyor_env.envs.positioner.state import PositionerParts
 from microconveyor_env.physics import dynamics_kernel as kernel
+from microconveyor_env.physics.forces import I_MASS
 
 from ..planning import PositionerScene, scene_of
+from ..planning.scene import MapModel
 from ..rl.refinement.corrections import NOOP
 from .control import dilate
 
@@ -162,17 +166,32 @@ class SeededExpert:
 
 AIMS = 3          # the reachable actuators tried per part (the nearest three)
 CHECKED = 24      # candidates per part fired again on the heavier model, in the order tried
+SEARCHES = ("map", "model")   # where BatchExpert ranks its candidates
+CONFIRM = 8       # per part, twice this many candidates confirmed on the full model (map search)
+MIN_GAIN = 0.1e-6   # [m] a firing that brings the part less closer than this does not count
 
 
 class BatchExpert:
     """The one-step search of :class:`~.control.OneStepPlanner` batched over many parts (DAgger's expert
     and the sizing study play hundreds of episodes at once): for every part, each of the
-    ``AIMS`` nearest actuators x ``frequencies`` x ``strokes`` fired on the model from where the
-    part rests, in one compiled call of the env's own step on a part container
+    ``AIMS`` nearest actuators x ``frequencies`` x ``strokes`` from where the part rests. The
+    model is nominal (or, with ``factors``, each part's friction and mass: a reference that
+    knows them, never a method); it never sees an episode's noise. Full-model firings run the
+    env's own step on a part container
     (:class:`~microconveyor_env.envs.positioner.state.PositionerParts`) whose state arrays are
-    written directly, not through resets. The model is nominal (or, with ``factors``, each
-    part's friction and mass: a reference that knows them, never a method); it never sees an
-    episode's noise.
+    written directly, not through resets.
+
+    ``search`` says where the candidates are ranked:
+
+    * ``"map"`` (nominal model): on the scene's firing map
+      (:meth:`agents.planning.PositionerScene.map_model`, under a microsecond a candidate); a
+      candidate in a cell the map does not trust (it touches a detachment, or lies off the map)
+      or that would run past the episode's time limit counts as one that detaches. The ``confirm``
+      first of the ranking below and the ``confirm`` nearest not among them are then fired on
+      the full model, and the rule below is applied again to the full model's answers alone:
+      the label's predicted landing is always the full model's (bit for bit the env's, for the
+      float32 action the label is);
+    * ``"model"``: every candidate fired on the full model (``factors`` given: always this).
 
     A candidate that detaches, or whose neighbour within ``margin`` [-] grid cells in frequency
     or stroke does, is refused; with ``heavier`` δ [-] > 0 so is one that detaches on the model
@@ -183,11 +202,17 @@ class BatchExpert:
     shortest stroke): it lands as near, accelerates the part least and makes the answer change
     smoothly with the state, which a network imitating it needs (an argmin over the grid jumps
     between firings that land equally near). The heavier model checks the first ``CHECKED`` in
-    that order (then by predicted error), and the first one it does not detach fires. ``frequencies`` and ``strokes`` [-]: candidates
-    evenly over each action's [-1, 1]; ``config``'s randomisation is the real env's, unused."""
+    that order (then by predicted error), and the first one it does not detach fires.
+    ``frequencies`` and ``strokes`` [-]: candidates evenly over each action's [-1, 1];
+    ``config``'s randomisation is the real env's, unused."""
 
     def __init__(self, config: PositionerConfig, frequencies: int = 41, strokes: int = 6,
-                 margin: int = 1, slack: float = 5e-6, heavier: float = 0.0) -> None:
+                 margin: int = 1, slack: float = 5e-6, heavier: float = 0.0,
+                 search: str = "map", confirm: int = CONFIRM) -> None:
+        if search not in SEARCHES:
+            raise ValueError(f"search = {search!r} is invalid: must be one of {SEARCHES}")
+        if isinstance(confirm, bool) or not isinstance(confirm, int) or confirm < 1:
+            raise ValueError(f"confirm = {confirm!r} is invalid: must be an integer >= 1")
         self.config = dataclasses.replace(config, action_noise=0.0, num_threads=1,
                                           friction_factor_range=FACTOR_BOUNDS,
                                           mass_factor_range=FACTOR_BOUNDS)
@@ -196,10 +221,19 @@ class BatchExpert:
         self.margin = margin
         self.slack = slack
         self.heavier = heavier
+        self.search = search
+        self.confirm = confirm
         self.per_part = AIMS * frequencies * strokes
         self._parts: dict[int, PositionerParts] = {}
         self._factored: dict[int, bool] = {}   # a container whose rows hold other factors
         self.positions = np.asarray(config.actuator_positions)
+        # candidates are ordered aim, frequency, stroke; gentleness ranks them by frequency,
+        # then stroke, then aim
+        f, h = frequencies, strokes
+        self._rank = (np.arange(f)[None, :, None] * (h * AIMS) + np.arange(h)[None, None, :] * AIMS
+                      + np.arange(AIMS)[:, None, None]).ravel()
+        self.map = MapModel(self.config) if search == "map" else None
+        self.full_firings = 0   # full-model firings so far (map queries are not firings)
 
     def _container(self, n: int) -> PositionerParts:
         if n not in self._parts:
@@ -224,9 +258,103 @@ class BatchExpert:
         """For parts resting at ``x`` [m] at time ``t`` [s] with ``target`` [m]: the expert's
         actions ``(M, 3)`` and whether each has one (False: no allowed firing brings the part
         closer). ``factors`` ``(M, 2)``: each part's friction and mass factors [-] for the
-        model (a controller that knows them: a reference, never a method); None: nominal."""
+        model (a controller that knows them: a reference, never a method; searched on the full
+        model); None: nominal."""
+        acts, ok, _ = self.choose(x, t, target, factors)
+        return acts, ok
+
+    def choose(self, x: np.ndarray, t: np.ndarray, target: np.ndarray,
+               factors: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`act`'s actions and flags, and where the full model puts each part after its
+        action [m] (inf where no candidate comes to rest)."""
+        x, t, target = (np.asarray(a, float) for a in (x, t, target))
+        if self.map is None or factors is not None:
+            return self._act_model(x, t, target, factors)
+        return self._act_map(x, t, target)
+
+    def fire(self, x: np.ndarray, t: np.ndarray, target: np.ndarray, actions: np.ndarray,
+             mass_factor: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+        """One firing of ``actions`` ``(B, 3)`` on the full model (nominal friction, the mass
+        times ``mass_factor``) from parts resting at ``x`` [m] at ``t`` [s] with ``target``
+        [m] (arrays of B): where each comes to rest [m] and whether it does (no detachment, no
+        time limit)."""
+        b = len(actions)
+        cap = 1 << max(b - 1, 0).bit_length()   # containers by powers of two, the rest idle
+        c = self._container(cap)
+        P = c.consts.P
+        P[:] = c.sim.params
+        P[:, I_MASS] = c.sim.params[I_MASS] * mass_factor
+        self._factored[cap] = mass_factor != 1.0
+        p = c.parts
+        for arr, val in ((p.x, x), (p.t, t), (p.target, target)):
+            arr[:b] = val
+            arr[b:] = 0.0
+        p.fired[:] = 0
+        a = np.zeros((cap, 3))
+        a[:b] = actions
+        active = np.zeros(cap, bool)
+        active[:b] = True
+        out = c.step(a, active)
+        self.full_firings += b
+        code = out.outcome[:b]
+        return p.x[:b].copy(), (code == kernel.MOVING) | (code == kernel.REST)
+
+    def _ordered(self, err: np.ndarray, rank: np.ndarray) -> np.ndarray:
+        """Each row's candidates in the expert's order: those within the slack of the row's
+        nearest by ``rank`` (gentlest first), then the others by error ``err`` [m]."""
+        least = err.min(axis=1, keepdims=True)
+        by_err = np.argsort(np.argsort(err, axis=1, kind="stable"), axis=1)
+        key = np.where(err <= least + self.slack, rank, rank.size + by_err)
+        return np.argsort(key, axis=1, kind="stable")
+
+    def _act_map(self, x: np.ndarray, t: np.ndarray,
+                 target: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`act` ranked on the map and confirmed on the full model (class docstring)."""
+        assert self.map is not None
+        m, per = len(x), self.per_part
+        rows = np.arange(m)
+        shape = (m, AIMS, len(self.fa), len(self.ha))
+        acts = self.candidates(x).astype(np.float32).reshape(m, per, 3)   # as the label fires
+        xr, tr, trusted = self.map.rests(np.repeat(x, per), acts.reshape(-1, 3))
+        late = np.repeat(t, per) + np.nan_to_num(tr, nan=np.inf) > self.config.max_time
+        bad = (~trusted | late).reshape(shape)
+        err = np.where(dilate(bad, self.margin), np.inf,
+                       np.abs(xr.reshape(shape) - target[:, None, None, None])).reshape(m, per)
+        # the confirm first in the expert's order and the confirm nearest not among them
+        k = min(self.confirm, per)
+        first = self._ordered(err, self._rank[None, :])[:, :k]
+        taken = np.zeros((m, per), bool)
+        taken[rows[:, None], first] = True
+        near = np.argsort(err, axis=1, kind="stable")
+        fresh = np.argsort(taken[rows[:, None], near], axis=1, kind="stable")[:, :k]
+        pick = np.concatenate([first, near[rows[:, None], fresh]], axis=1)
+        mapped = np.isfinite(np.take_along_axis(err, pick, axis=1))
+        sel = acts[rows[:, None], pick]                             # (m, 2k, 3)
+        c = pick.shape[1]
+        sel64 = sel.reshape(-1, 3).astype(np.float64)
+        xf, ok = self.fire(np.repeat(x, c), np.repeat(t, c), np.repeat(target, c), sel64)
+        full = np.where(mapped & ok.reshape(m, c), np.abs(xf.reshape(m, c) - target[:, None]),
+                        np.inf)
+        order = self._ordered(full, self._rank[pick])
+        best = order[:, 0]
+        if self.heavier > 0.0:   # the first in that order that a heavier part survives
+            top = order[:, :min(CHECKED, c)]
+            kk = top.shape[1]
+            _, hok = self.fire(np.repeat(x, kk), np.repeat(t, kk), np.repeat(target, kk),
+                               sel64.reshape(m, c, 3)[rows[:, None], top].reshape(-1, 3),
+                               1.0 + self.heavier)
+            survives = hok.reshape(m, kk) & np.isfinite(np.take_along_axis(full, top, axis=1))
+            best = np.where(survives.any(axis=1), top[rows, np.argmax(survives, axis=1)], best)
+        ok_best = full[rows, best] < np.abs(x - target) - MIN_GAIN
+        rest = np.where(np.isfinite(full[rows, best]),
+                        xf.reshape(m, c)[rows, best], np.inf)
+        return sel[rows, best], ok_best, rest
+
+    def _act_model(self, x: np.ndarray, t: np.ndarray, target: np.ndarray,
+                   factors: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`act` with every candidate fired on the full model (class docstring)."""
         m = len(x)
-        acts = self.candidates(np.asarray(x, float))
+        acts = self.candidates(x).astype(np.float32).astype(np.float64)   # as the label fires
         flat = acts.reshape(-1, 3)
         c = self._container(len(flat))
         p = c.parts
@@ -245,20 +373,13 @@ class BatchExpert:
         p.fired[:] = 0
         shape = (m, AIMS, len(self.fa), len(self.ha))
         c.step(flat)
+        self.full_firings += len(flat)
         code = c.out.outcome.reshape(shape)
         grown = dilate(~((code == kernel.MOVING) | (code == kernel.REST)), self.margin)
         err = np.abs(p.x.reshape(code.shape) - np.asarray(target)[:, None, None, None])
         err = np.where(grown, np.inf, err).reshape(m, -1)
-        least = err.min(axis=1, keepdims=True)
-        # the gentlest within the slack first (candidates are ordered aim, frequency, stroke;
-        # ranked by frequency, then stroke, then aim), then the others by predicted error
-        f, h = len(self.fa), len(self.ha)
-        rank = (np.arange(f)[None, :, None] * (h * AIMS) + np.arange(h)[None, None, :] * AIMS
-                + np.arange(AIMS)[:, None, None]).ravel()
-        n = rank.size
-        by_err = np.argsort(np.argsort(err, axis=1, kind="stable"), axis=1)
-        key = np.where(err <= least + self.slack, rank[None, :], n + by_err)
-        order = np.argsort(key, axis=1, kind="stable")
+        order = self._ordered(err, self._rank[None, :])
+        n = self._rank.size
         best = order[:, 0]
         if self.heavier > 0.0:   # the first of the CHECKED in that order that a heavier part survives
             k = min(CHECKED, n)
@@ -274,20 +395,28 @@ class BatchExpert:
             hp.x[:], hp.t[:] = np.repeat(x, k), np.repeat(t, k)
             hp.target[:], hp.fired[:] = np.repeat(target, k), 0
             hc.step(acts.reshape(m, -1, 3)[np.arange(m)[:, None], top].reshape(-1, 3))
+            self.full_firings += m * k
             hcode = hc.out.outcome.reshape(m, k)
             survives = ((hcode == kernel.MOVING) | (hcode == kernel.REST)) & \
                 np.isfinite(np.take_along_axis(err, top, axis=1))
             first = np.argmax(survives, axis=1)
             best = np.where(survives.any(axis=1), top[np.arange(m), first], best)
         now = np.abs(np.asarray(x) - np.asarray(target))
-        ok = err[np.arange(m), best] < now - 0.1e-6
-        return acts.reshape(m, -1, 3)[np.arange(m), best].astype(np.float32), ok
+        ok = err[np.arange(m), best] < now - MIN_GAIN
+        rest = np.where(np.isfinite(err[np.arange(m), best]),
+                        p.x.reshape(m, -1)[np.arange(m), best], np.inf)
+        return acts.reshape(m, -1, 3)[np.arange(m), best].astype(np.float32), ok, rest
 
     def label(self, obs: np.ndarray, venv: Any,
               live: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        """DAgger's labels for the parts of the batched env ``venv``: the actions, which have
-        one (:meth:`act`), and no re-aim flags."""
-        acts, ok = self.act(venv.x.copy(), venv.t.copy(), venv.target.copy())
+        """DAgger's labels for the parts of the batched env ``venv``, its rows ``live`` only
+        (the others get the weakest firing of a far actuator and no label): the actions, which
+        have one (:meth:`act`), and no re-aim flags."""
+        live = np.asarray(live, bool)
+        acts = np.tile(np.array([1.0, -1.0, -1.0], np.float32), (len(live), 1))
+        ok = np.zeros(len(live), bool)
+        if live.any():
+            acts[live], ok[live] = self.act(venv.x[live], venv.t[live], venv.target[live])
         return acts, ok, None
 
 
@@ -297,5 +426,5 @@ def expert_for(config: Any, settings: Any, seed: Any = None) -> BatchExpert | Se
     one-step search; on the line the seeded expert of the policy ``seed`` (its ``act``)."""
     if isinstance(scene_of(config), PositionerScene):
         return BatchExpert(config, settings.frequencies, settings.strokes, settings.margin,
-                           settings.slack_m, settings.heavier)
+                           settings.slack_m, settings.heavier, settings.search)
     return SeededExpert(config, seed, settings.newton_iterations, accept_m=settings.accept_m)

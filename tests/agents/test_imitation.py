@@ -89,7 +89,7 @@ def test_recipes_are_the_settings_of_configs_dagger_yml() -> None:
 def test_short_dagger_run_writes_a_policy_that_loads_as_data(tmp_path) -> None:
     from agents.rl.evaluation.evaluate import fixed_targets, load_policy, rollout
 
-    s = DaggerSettings(rounds=2, episodes=4, epochs=2, frequencies=5, strokes=2)
+    s = DaggerSettings(rounds=2, episodes=4, epochs=2, frequencies=5, strokes=2, margin=2)
     meta = dagger(tmp_path / "p", s, progress=lambda line: None)
     assert meta["trained_by"] == "dagger" and len(meta["rounds"]) == 2
     assert meta["rounds"][0]["acting"] == "expert" and meta["steps"] > 0
@@ -103,13 +103,14 @@ def test_short_dagger_run_writes_a_policy_that_loads_as_data(tmp_path) -> None:
 @pytest.mark.parametrize("heavier, detached", [(0.0, 6), (0.3, 0)])
 def test_expert_keeps_away_from_what_detaches_a_heavier_part(heavier: float,
                                                             detached: int) -> None:
-    """Towards far targets the nearest-landing firings sit at the edge of detachment: without
-    margins (no grid margin, no slack) they all detach a part 30 % heavier; checked on that
-    heavier part, none does."""
+    """Towards far targets the nearest-landing firings sit at the edge of detachment: searched
+    on the full model without margins (no grid margin, no slack) they all detach a part 30 %
+    heavier; checked on that heavier part, none does."""
     cfg = PositionerConfig.from_yaml(None)
     x = np.array([-0.15e-3, -0.1e-3, -0.05e-3, 2.1e-3, 4.45e-3, 0.7e-3])
     target = np.full(6, 9.9e-3)
-    expert = BatchExpert(cfg, frequencies=21, strokes=3, margin=0, slack=0.0, heavier=heavier)
+    expert = BatchExpert(cfg, frequencies=21, strokes=3, margin=0, slack=0.0, heavier=heavier,
+                         search="model")   # the map's trust keeps its own distance
     acts, ok = expert.act(x, np.zeros(6), target)
     assert ok.all()
     heavy = MicroPositionerEnv(mass_factor_range=(1.3, 1.3))
