@@ -103,6 +103,10 @@ RUNS: dict[str, list[str] | None] = {
                                                 "{out}/bound.json"],
     "python scripts/plane_figures.py": ["--out", "{out}/plane"],
     "python scripts/plane_figures.py --firings": ["--targets", "2", "--out", "{out}/firings.json"],
+    "python scripts/planner_speed.py --noise-seeds 3 --positioner-targets 100 --compare-with "
+    "/tmp/old --out docs/figures/planner_speed.json": [
+        "--noise-seeds", "1", "--per-distance", "1", "--positioner-targets", "2",
+        "--compare-with", str(ROOT), "--out", "{out}/ps.json"],
     "python scripts/planner_speed.py": ["--noise-seeds", "1", "--per-distance", "1",
                                         "--positioner-targets", "2", "--out", "{out}/ps.json"],
     "python benchmarks/kernel_speed.py": KERNEL,
@@ -117,8 +121,8 @@ RUNS: dict[str, list[str] | None] = {
     "python scripts/positioner_sizing.py": SIZING,
     # the runs of `microconveyor imitate --env MicroPositioner-v0 --seed S` replaced by the
     # shipped policy's folder
-    "python scripts/positioner_policies.py runs/dagger-s0 runs/dagger-s1 runs/dagger-s2 "
-    "--targets 1000 --seed 1 --out docs/figures/positioner_seeds.json": [
+    "python scripts/positioner_policies.py runs/dagger-s0 runs/dagger-s1 runs/dagger-s2 runs/da"
+    "gger-s3 runs/dagger-s4 runs/dagger-s5 runs/dagger-s6 runs/dagger-s7 runs/dagger-s8 runs/dagger-s9 --targets 1000 --seed 1 --out docs/figures/positioner_seeds.json": [
         "--targets", "2", "--out", "{out}/seeds.json"],
     "python scripts/positioner_policies.py": [POLICY, "--targets", "2", "--out",
                                               "{out}/seeds.json"],
