@@ -165,7 +165,7 @@ def test_imitate_killed_between_files_leaves_no_folder_that_loads(tmp_path, monk
         raise OSError("killed between files")
 
     monkeypatch.setattr(ck, "sha256", killed)
-    s = DaggerSettings(rounds=1, episodes=2, epochs=1, frequencies=5, strokes=2)
+    s = DaggerSettings(rounds=1, episodes=2, epochs=1, frequencies=5, strokes=2, margin=2)
     with pytest.raises(OSError, match="killed between files"):
         dagger(tmp_path / "p", s, progress=lambda line: None)
     assert list(tmp_path.iterdir()) == []
