@@ -63,6 +63,7 @@ RUNS: dict[str, list[list[str]]] = {
                 "--out", "{tmp}/e.csv", "--plot", "{tmp}/e.png"]],
     "fidelity": [["--scenes", "single", "--repeats", "1", "--no-progress", "--out",
                   "{tmp}/f.csv", "--plot", "{tmp}/f.png"]],
+    "firing-map": [["--env", "MicroPositioner-v0", "--samples", "50", "--seed", "3"]],
     "stretch": [["--freq", "900,950", "--stroke", "200e-6", "--x0", "0.125e-3", "--profile",
                  "gaussian", "--wavelength", "0.6e-3", "--kinematics", "reduced", "--repeats",
                  "1", "--n-sigma", "21", "--no-progress", "--out", "{tmp}/s.csv", "--plot",
@@ -220,7 +221,7 @@ def _setup(name: str, tmp: Path) -> dict[str, str]:
 
 def test_every_command_has_runs():
     assert sorted(RUNS) == sorted(COMMANDS)
-    assert len(COMMANDS) == 25
+    assert len(COMMANDS) == 26
 
 
 # commands whose modules belong to other work: what they break is reported, not fixed here

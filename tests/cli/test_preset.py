@@ -12,7 +12,9 @@ from microconveyor_env.presets import available_presets
 # a policy's own scene, or files only: (command, its required arguments)
 NO_SURFACE = {"refine": ("x", "--out", "y"), "seeds": ("x",), "convert-stats": ("x",),
               # a shipped policy is recorded on the surface it was trained on
-              "record": ("MicroConveyor-v1/ppo",), "ship": ("x", "MicroConveyor-v1/x")}
+              "record": ("MicroConveyor-v1/ppo",), "ship": ("x", "MicroConveyor-v1/x"),
+              # a firing map is of its scene's own surface
+              "firing-map": ("--env", "MicroPositioner-v0")}
 
 
 def _commands() -> dict[str, argparse.ArgumentParser]:

@@ -70,5 +70,5 @@ def test_every_command_name_is_defined_in_one_module():
     twice = {name: mods for name, mods in defs.items() if len(mods) > 1}
     assert not twice, twice
     # every registered command is found (the studies' loop registers names from a table)
-    literal = set(defs) | {"sensitivity", "engage", "fidelity", "stretch"}
+    literal = set(defs) | {"sensitivity", "engage", "fidelity", "firing-map", "stretch"}
     assert set(COMMANDS) <= literal, set(COMMANDS) - literal
