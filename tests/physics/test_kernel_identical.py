@@ -172,7 +172,11 @@ def stored() -> dict[str, Any]:
     return json.loads(FILE.read_text())
 
 
-@pytest.mark.parametrize("name", sorted(SCENES))
+FAST = {"v1_event"}   # the envs' path; the others each compile a kernel of their own (slow tier)
+
+
+@pytest.mark.parametrize("name", [n if n in FAST else pytest.param(n, marks=pytest.mark.slow)
+                                  for n in sorted(SCENES)])
 def test_line_kernel_gives_the_stored_bits(stored, name):
     sim, P = line_simulator(name)
     runs = [{k: v if isinstance(v, bool) else _unhex(v) for k, v in r.items()}
