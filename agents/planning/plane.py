@@ -17,9 +17,13 @@ map (:mod:`microconveyor_env.physics.plane.firing_map`) answers that in under a 
 * :class:`PlaneController`: from many parts at once, rank every candidate on the map (a
   candidate next to one the map does not trust, within ``margin`` cells of frequency and stroke,
   is refused: a margin from detachment), fire the best few on the full model, and choose the one
-  whose confirmed rest is nearest the target (among those within ``slack_m`` of the nearest, the
-  gentlest: lowest frequency, then smallest stroke); optionally only if a part ``1 + heavier``
-  times heavier does not detach under it. :meth:`PlaneController.label` is DAgger's labeller
+  whose confirmed rest scores best (among those within ``slack_m`` of the best, the gentlest:
+  lowest frequency, then smallest stroke); optionally only if a part ``1 + heavier`` times
+  heavier does not detach under it. The score is the rest's distance to the target; with
+  ``lookahead`` a rest outside the tolerance scores what one more firing could reach from it
+  (:meth:`PlaneScene.next_error`): the part is first put on a line through an actuator and the
+  target, then pulled along it onto the target, rather than stopped wherever the first landing
+  inside the tolerance happens to be (the episode ends there). :meth:`PlaneController.label` is DAgger's labeller
   for a batched plane env; :func:`play` runs the controller on a batched env, one episode per
   target.
 
@@ -56,15 +60,16 @@ class PlaneSettings:
     """The controller: ``frequencies`` and ``strokes`` [-] candidates evenly over actions 2 and
     3 in [-1, 1]; ``margin`` [-] cells of that grid from a candidate the map does not trust;
     ``confirm`` [-] per part, this many first in the controller's order and this many nearest
-    not among them are fired on the full model; ``slack_m`` [m] how much farther than the
-    nearest a gentler firing may land (0: the nearest); ``heavier`` δ [-]: a firing that
+    not among them are fired on the full model; ``slack_m`` [m] how much worse than the best
+    score a gentler firing may score (0: the best); ``heavier`` δ [-]: a firing that
     detaches a part 1 + δ times heavier is passed over (0: no check); ``delay_factor`` [-] and
     ``delay_margin_s`` [s]: the delay is the nominal time the part takes to come to rest times
     the factor plus the margin (:meth:`PlaneScene.delay_s`). ``lookahead``: a firing that
     leaves the part outside the tolerance is scored by where the next firing could then put it
     (:meth:`PlaneScene.next_error`), plus ``extra_step_m`` [m] and ``step_error`` [-] times that
     next firing's travel (what noise and unknown factors make of it), except in the last
-    ``greedy_last`` [-] firings of the episode; off: every firing is scored by its own
+    ``greedy_last`` [-] firings of the episode and for parts resting farther than
+    ``lookahead_within_m`` [m] from their target; off: every firing is scored by its own
     landing's distance to the target."""
 
     frequencies: int = 41
@@ -76,6 +81,7 @@ class PlaneSettings:
     delay_factor: float = 1.5
     delay_margin_s: float = 2e-3
     lookahead: bool = True
+    lookahead_within_m: float = math.inf
     greedy_last: int = 3
     extra_step_m: float = 3e-6
     step_error: float = 0.05
@@ -91,6 +97,9 @@ class PlaneSettings:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and 0.0 <= v <= hi) or isinstance(v, bool):
                 raise ValueError(f"{name} = {v!r} is invalid: must be in [0, {hi:g}]")
+        if not (isinstance(self.lookahead_within_m, (int, float)) and self.lookahead_within_m > 0):
+            raise ValueError(f"lookahead_within_m = {self.lookahead_within_m!r} is invalid: "
+                             "must be > 0 m (inf: everywhere)")
         if self.delay_factor < 1.0:
             raise ValueError(f"delay_factor = {self.delay_factor!r} is invalid: must be >= 1 "
                              "(a shorter delay starts the stroke on a moving part)")
@@ -461,7 +470,11 @@ class PlaneController:
         per = acts[0].size // 5
         acts = acts.reshape(m, per, 5)
         target = np.stack([s.tx, s.ty], 1)
-        last = (s.fired >= self.scene.config.max_firings - max(st.greedy_last, 1))[:, None]
+        last = s.fired >= self.scene.config.max_firings - max(st.greedy_last, 1)
+        if math.isfinite(st.lookahead_within_m):
+            rest0, _ = sc.coast(s)
+            last = last | (np.hypot(*(rest0 - target).T) > st.lookahead_within_m)
+        last = last[:, None]
         err = np.where(allowed.reshape(m, per),
                        sc.score(xr.reshape(m, per, 2), target[:, None, :], last, st), np.inf)
         k = min(st.confirm, per)
@@ -528,6 +541,20 @@ class PlaneController:
         firing brings the part closer on the full nominal model) and no re-aim flags."""
         acts, ok, _ = self.act(venv, live)
         return acts, ok & np.asarray(live, bool), None
+
+
+# DAgger's labels: the nearest landing without lookahead (what a network imitates best: the
+# lookahead's staging firings depend on the target's geometry in ways a small network does not
+# learn in minutes), the gentlest within 20 µm of it, 3 cells from detachment on a 21 x 4 grid
+LABEL_SETTINGS = PlaneSettings(frequencies=21, strokes=4, margin=3, slack_m=20e-6,
+                               lookahead=False)
+
+
+def labeller(config: PlaneEnvConfig, settings: PlaneSettings = LABEL_SETTINGS
+             ) -> PlaneController:
+    """DAgger's expert for a plane scene: ``labeller(config).label(obs, venv, live)`` gives the
+    labels of a batched env's parts (:meth:`PlaneController.label`)."""
+    return PlaneController(config, settings)
 
 
 @dataclass

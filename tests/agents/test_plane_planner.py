@@ -147,3 +147,24 @@ def test_the_scene_serves_the_plane_only():
         PlaneScene(scene_config("MicroPositioner-v0"))
     with pytest.raises(ValueError, match="delay_factor"):
         PlaneSettings(delay_factor=0.5)
+
+
+def test_the_lookahead_sees_a_part_on_a_line_through_an_actuator_and_the_target(controller):
+    sc = controller.scene
+    act = np.array([1.0e-3, 1.0e-3])                  # an actuator
+    target = act + np.array([0.2e-3, 0.0])
+    on_line = act + np.array([0.35e-3, 0.0])          # pulled 150 µm towards it: on target
+    off_line = act + np.array([0.35e-3, 0.03e-3])
+    err, travel = sc.next_error(np.stack([on_line, off_line]), np.stack([target, target]),
+                                SMALL)
+    assert err[0] <= 1e-9 and travel[0] == pytest.approx(150e-6)
+    assert 0.0 < err[1] <= 30e-6
+    # and the full model agrees: some firing of that actuator lands within a micrometre
+    s = PartStates(*(np.array([v]) for v in (*on_line, 0.0, 0.0, 0.0, 0, *target)))
+    a = np.zeros((41 * 11, 5), np.float32)
+    a[:, 0] = -0.7
+    F, H = np.meshgrid(np.linspace(-1, 1, 41), np.linspace(-1, 1, 11), indexing="ij")
+    a[:, 2], a[:, 3], a[:, 4] = F.ravel(), H.ravel(), -1.0
+    land, _, code = sc.fire(s.take(np.zeros(len(a), int)), a)
+    d = np.where(code == k1.REST, np.hypot(*(land - target).T), np.inf)
+    assert d.min() <= 3e-6
