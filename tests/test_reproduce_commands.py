@@ -153,7 +153,9 @@ RUNS: dict[str, list[str] | None] = {
     "python benchmarks/imitate_wall_time.py --seeds 0-9": IMITATE,
 }
 # the positional folders a quoted command names, replaced by ones that exist here
-SUBSTITUTE = {"runs/dagger-s0 runs/dagger-s1 runs/dagger-s2": POLICY,
+# longest first: the ten-seed list is replaced whole, the three-seed list inside shorter commands
+SUBSTITUTE = {" ".join(f"runs/dagger-s{s}" for s in range(10)): POLICY,
+              "runs/dagger-s0 runs/dagger-s1 runs/dagger-s2": POLICY,
               "runs/rec_s0_f21,runs/rec_s1_f21": SHIPPED_V1,
               "runs/kl_s0_f21": str(ROOT / "agents/policies/MicroConveyor-v1/ppo_refined")}
 # commands that need an earlier command's output (in order); run together
