@@ -18,8 +18,10 @@ def _imitate_args(p: argparse.ArgumentParser) -> None:
                      unset=("rounds", "episodes", "seed_policy"))
     add_env_args(p, what=" (MicroConveyor-v1: the expert is the seed policy's firings with its "
                          "last re-aimed on the model; MicroPositioner-v0: the one-step "
-                         "model-based search, trained under per-episode randomisation; other "
-                         "ids are refused; --env-kwargs are added to the recipe's)")
+                         "model-based search, trained under per-episode randomisation; "
+                         "MicroConveyor2D-v1: the plane's one-step search on its firing map, "
+                         "under v1's randomisation; other ids are refused; --env-kwargs are "
+                         "added to the recipe's)")
 
 
 @command("imitate", "train a policy by DAgger: a network that imitates a model-based expert on "

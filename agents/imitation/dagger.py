@@ -1,7 +1,7 @@
 """DAgger: a policy network that imitates a model-based expert on the states it visits itself,
 saved as a policy folder that loads as data like every trained policy.
 
-Two experts, one per scene, picked by :func:`agents.mpc.experts.expert_for` (their settings:
+Three experts, one per scene, picked by :func:`agents.mpc.experts.expert_for` (their settings:
 ``configs/dagger.yml``, keyed by env id):
 
 * MicroPositioner-v0: the one-step model-based search (:class:`~agents.mpc.experts.
@@ -9,6 +9,9 @@ Two experts, one per scene, picked by :func:`agents.mpc.experts.expert_for` (the
   ranked on the scene's firing map (the nominal model tabulated once) and its choice confirmed
   on the full nominal model; it sees where the part rests and the target, never the episode's
   friction, mass or noise;
+* MicroConveyor2D-v0/-v1 (the plane): the same one-step search around every actuator the aim
+  can pick (:func:`agents.planning.plane.labeller`), ranked on the plane's firing map and
+  confirmed on the full nominal model, each stroke started once the part has come to rest;
 * MicroConveyor-v1 (the 1-D conveyor): model-predictive control seeded by a policy
   (:class:`~agents.mpc.experts.SeededExpert`): the seed policy's firing, its last firing re-aimed
   on the nominal model so that the part rests on the target.
@@ -45,6 +48,7 @@ import numpy as np
 import yaml
 
 from microconveyor_env.envs.line.config import EnvConfig
+from microconveyor_env.envs.plane.config import PlaneEnvConfig
 from microconveyor_env.envs.positioner.config import PositionerConfig
 from microconveyor_env.env_ids import GOAL_ENV_IDS
 from microconveyor_env.envs.core.versions import check_env_id, scene_config, vector_class
@@ -57,9 +61,8 @@ ENV_ID = "MicroPositioner-v0"   # the dataclass defaults are the positioner's re
 # the positioner's per-episode randomisation: the level its policy is meant to hold
 TRAIN_KWARGS = {"action_noise": 3e-3, "friction_factor_range": (0.95, 1.05),
                 "mass_factor_range": (0.95, 1.05)}
-NO_FIRING = np.array([1.0, -1.0, -1.0], np.float32)  # the weakest firing of a far actuator
 FITS = ("adam", "lbfgs")
-# an expert's answers for a batch: (actions (M, 3) float32, whether each has one, whether each
+# an expert's answers for a batch: (actions (M, components) float32, whether each has one, whether each
 # was corrected by the model rather than taken from a seed; None: not that kind of expert)
 Labels = tuple[np.ndarray, np.ndarray, "np.ndarray | None"]
 # label(observations, the batched env, which sub-envs are still in their episode) -> Labels
@@ -68,7 +71,7 @@ Labeller = Callable[[np.ndarray, Any, np.ndarray], Labels]
 
 @dataclass(frozen=True)
 class DaggerSettings:
-    """One DAgger run. ``env_id``: a positioner or a 1-D conveyor (Box observations), with
+    """One DAgger run. ``env_id``: a positioner, a 1-D conveyor or the plane (Box observations), with
     ``env_kwargs`` (``gym.make`` overrides, SI; default: :data:`TRAIN_KWARGS`); ``seed`` [-];
     ``rounds`` [-] (round 0: the expert acts); ``episodes`` [-] per round; ``net_arch`` [-]
     hidden layer widths.
@@ -83,6 +86,12 @@ class DaggerSettings:
     ``search`` where it ranks the candidates: ``"map"`` on the scene's firing map, its choice
     confirmed on the full model, or ``"model"`` every candidate fired on the full model (the
     same rule, a few times slower).
+    The plane's expert (:func:`agents.planning.plane.labeller`): the same grid, ``margin``,
+    ``slack_m`` and ``heavier`` around every actuator the aim can pick, ranked on the plane's
+    firing map and confirmed on the full model; ``lookahead``: a landing outside the tolerance
+    is scored by what one more firing could reach from it (off: by its own distance), for parts
+    resting within ``lookahead_within_m`` [m] of their target (farther ones: by the landing's
+    own distance; None: every part).
     The conveyor's expert (:class:`~agents.mpc.experts.SeededExpert`): ``seed_policy``, a shipped
     policy's name for ``env_id`` or a policy folder; ``newton_iterations`` [-] and ``accept_m``
     [m] of the re-aimed last firing."""
@@ -92,10 +101,11 @@ class DaggerSettings:
     seed: int = field(default=0, metadata={"help": "training seed", "bounds": (0, 2**31 - 1)})
     rounds: int = field(default=20, metadata={
         "help": "DAgger rounds (round 0: the expert acts; later: the policy; default: the "
-                "recipe's, 5 on MicroConveyor-v1, 20 on MicroPositioner-v0)", "bounds": (1, 1000)})
+                "recipe's, 5 on MicroConveyor-v1, 20 on MicroPositioner-v0, 16 on "
+                "MicroConveyor2D-v1)", "bounds": (1, 1000)})
     episodes: int = field(default=256, metadata={
         "help": "episodes per round, played at once on the batched env (default: the recipe's, "
-                "256)", "bounds": (1, 100000)})
+                "256; 128 on MicroConveyor2D-v1)", "bounds": (1, 100000)})
     net_arch: tuple[int, ...] = (128, 128)
     fit: str = "adam"
     epochs: int = 30
@@ -109,6 +119,8 @@ class DaggerSettings:
     slack_m: float = 5e-6
     heavier: float = 0.1
     search: str = "map"
+    lookahead: bool = False
+    lookahead_within_m: float | None = None
     seed_policy: str | None = field(default=None, metadata={
         "help": "MicroConveyor-v1: the policy that seeds the expert, a shipped policy's name or a "
                 "policy folder (default: the recipe's, ppo_refined)", "metavar": "NAME|PATH"})
@@ -136,6 +148,12 @@ class DaggerSettings:
                 raise ValueError(f"{name} = {v!r} is invalid: must be in (0, 1)")
         if self.search not in SEARCHES:
             raise ValueError(f"search = {self.search!r} is invalid: must be one of {SEARCHES}")
+        if not isinstance(self.lookahead, bool):
+            raise ValueError(f"lookahead = {self.lookahead!r} is invalid: true or false")
+        within = self.lookahead_within_m
+        if within is not None and not (isinstance(within, float) and 0.0 < within < 1.0):
+            raise ValueError(f"lookahead_within_m = {within!r} is invalid: must be in (0, 1) m "
+                             "(None: every part)")
         if not (isinstance(self.heavier, float) and 0.0 <= self.heavier <= 1.0):
             raise ValueError(f"heavier = {self.heavier!r} is invalid: must be in [0, 1]")
         for name in ("slack_m", "accept_m"):
@@ -147,15 +165,15 @@ class DaggerSettings:
             raise ValueError(f"seed_policy = {self.seed_policy!r} is invalid: a shipped "
                              "policy's name or a policy folder")
 
-    def config(self) -> PositionerConfig | EnvConfig:
+    def config(self) -> PositionerConfig | EnvConfig | PlaneEnvConfig:
         cfg = scene_config(self.env_id, **self.env_kwargs)
-        if isinstance(cfg, PositionerConfig):
+        if isinstance(cfg, (PositionerConfig, PlaneEnvConfig)):
             if self.seed_policy is not None:
                 raise ValueError(f"seed_policy: {self.env_id}'s expert is not seeded by a policy")
             return cfg
         if not isinstance(cfg, EnvConfig):
-            raise ValueError(f"{self.env_id} is neither a positioner nor a 1-D conveyor: DAgger "
-                             "has an expert for MicroPositioner-v0 and MicroConveyor-v1")
+            raise ValueError(f"{self.env_id} is not a scene DAgger has an expert for "
+                             "(MicroPositioner-v0, MicroConveyor-v1, MicroConveyor2D-v0/-v1)")
         if self.seed_policy is None:
             raise ValueError(f"{self.env_id}: the conveyor's expert is seeded by a policy; "
                              "give seed_policy (a shipped policy's name or a policy folder)")
@@ -171,7 +189,7 @@ def recipe(env_id: str, **overrides: Any) -> DaggerSettings:
     if env_id not in data:
         raise ValueError(f"configs/dagger.yml has no recipe for {env_id!r} (it has "
                          f"{', '.join(map(str, data))}): DAgger's experts plan "
-                         "MicroPositioner-v0 and MicroConveyor-v1")
+                         "MicroPositioner-v0, MicroConveyor-v1 and MicroConveyor2D-v1")
     entry = dict(data[env_id])
     names = {f.name for f in dataclasses.fields(DaggerSettings)}
     unknown = sorted(set(entry) - names)
@@ -201,6 +219,14 @@ def seed_policy_path(s: DaggerSettings) -> Path:
 def make_expert(s: DaggerSettings, cfg: Any) -> tuple[Labeller, dict[str, Any]]:
     """The expert of ``cfg``'s scene as ``label(obs, venv)`` and its description for the
     metadata."""
+    if isinstance(cfg, PlaneEnvConfig):
+        return expert_for(cfg, s).label, {
+            "kind": "one-step model-based on the plane, nominal model, ranked on the plane's "
+                    "firing map and confirmed on the full model, the gentlest firing within "
+                    "the slack of the nearest",
+            "frequencies": s.frequencies, "strokes": s.strokes, "margin": s.margin,
+            "slack_m": s.slack_m, "heavier": s.heavier, "lookahead": s.lookahead,
+            "lookahead_within_m": s.lookahead_within_m}
     if isinstance(scene_of(cfg), PositionerScene):
         return expert_for(cfg, s).label, {
             "kind": "one-step model-based, nominal model, the gentlest firing within the "
@@ -228,12 +254,32 @@ def make_expert(s: DaggerSettings, cfg: Any) -> tuple[Labeller, dict[str, Any]]:
         "newton_iterations": s.newton_iterations, "accept_m": s.accept_m}
 
 
+def no_firing(venv: Any) -> np.ndarray:
+    """The action a sub-env the expert has no firing for fires: the weakest firing, of a far
+    actuator on a line (actions ``[1, -1, -1]``), of the nearest actuator with no delay on the
+    plane (``[0, 0, -1, -1, -1]``)."""
+    if isinstance(venv.config, PlaneEnvConfig):
+        from ..planning.plane import NO_LABEL
+
+        return NO_LABEL
+    return np.array([1.0, -1.0, -1.0], np.float32)
+
+
+def _distance(info: dict[str, Any]) -> np.ndarray:
+    """Each part's distance to its target [m] from a batched env's info: the plane's Euclidean
+    ``distance_m``, a line's ``|position_error_m|``."""
+    if "distance_m" in info:
+        return np.asarray(info["distance_m"], float)
+    return np.abs(np.asarray(info["position_error_m"], float))
+
+
 def _play(venv: Any, label: Labeller, act: Any,
           seed: int) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
     """One episode per sub-env: ``act(obs)`` fires (None: the expert); every state visited
     before a firing is labelled with the expert's action. Returns (observations, labels,
     figures of the episodes)."""
     n = venv.num_envs
+    none = no_firing(venv)
     obs, _ = venv.reset(seed=seed)
     done = np.zeros(n, bool)
     err = np.zeros(n)
@@ -252,16 +298,16 @@ def _play(venv: Any, label: Labeller, act: Any,
             corrected += int((fixed & live).sum())
         a = lab.copy() if act is None else np.asarray(act(obs), np.float32)
         if act is None:
-            a[~ok] = NO_FIRING
+            a[~ok] = none
         obs, _, term, trunc, info = venv.step(a)
         firings += int(live.sum())
         end = live & (term | trunc)
-        err[end] = info["position_error_m"][end]
+        err[end] = _distance(info)[end]
         outcome[end] = info["outcome"][end]
         done |= end
-    hit = (outcome == "rest") & (np.abs(err) <= venv.config.tolerance)
+    hit = (outcome == "rest") & (err <= venv.config.tolerance)
     fig = {"episodes": n, "firings": firings, "success_rate": float(hit.mean()),
-           "median_abs_error_m": float(np.median(np.abs(err))),
+           "median_abs_error_m": float(np.median(err)),
            "detach_rate": float(np.mean(outcome == "detached"))}
     if seeded:   # how many labels the model re-aimed rather than took from the seed
         fig["labels_corrected"] = corrected
@@ -295,7 +341,7 @@ def _train(s: DaggerSettings, progress: Any, command: str | None) -> tuple[Stude
     label, expert_meta = make_expert(s, cfg)
     student = Student(s, cfg)
     X = np.zeros((0, venv.conveyor.obs_dim), np.float32)
-    Y = np.zeros((0, 3), np.float32)
+    Y = np.zeros((0, len(venv.conveyor.components)), np.float32)
     rounds, steps = [], 0
     for r in range(s.rounds):
         xr, yr, fig = _play(venv, label, None if r == 0 else student.act,

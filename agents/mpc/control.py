@@ -51,6 +51,7 @@ from ..openloop.newton import newton_plan
 from ..openloop.search import METHODS, check_budget, minimize
 from ..openloop.target import solve_target
 from ..planning import MISS, PositionerScene, Scene, robust_cost, scene_of
+from ..planning.rest_expert import MIN_GAIN   # a step below this does not bring a part closer [m]
 from .identification import FrictionFit, Identifier
 
 
@@ -122,8 +123,6 @@ class MPCSettings:
 MODELS = ("nominal", "identified", "oracle")   # the one-step controller's models
 SEARCHES = ("map", "model")
 CORNER_CHUNK = 4   # candidates whose four corners are fired at once, nearest first   # where the one-step controller ranks its candidates
-# the step below which a candidate does not count as bringing the part closer [m]
-MIN_GAIN = 0.1e-6
 
 
 @dataclass(frozen=True)

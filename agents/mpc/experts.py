@@ -32,6 +32,7 @@ nominal; per-episode randomisation is not modelled (v1's criterion is on the nom
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any
 
 import numpy as np
@@ -39,12 +40,15 @@ import numpy as np
 from microconveyor_env.envs.core.randomisation import FACTOR_BOUNDS, apply_factors
 from microconveyor_env.envs.line.config import EnvConfig
 from microconveyor_env.envs.line.state import Conveyor
+from microconveyor_env.envs.plane.config import PlaneEnvConfig
 from microconveyor_env.envs.positioner.config import PositionerConfig
 from microconveyor_env.envs.positioner.state import PositionerParts
 from microconveyor_env.physics import dynamics_kernel as kernel
 from microconveyor_env.physics.forces import I_MASS
 
 from ..planning import PositionerScene, scene_of
+from ..planning.plane import LABEL_SETTINGS, PlaneController, labeller
+from ..planning.rest_expert import MIN_GAIN, RestRanking, check_integers
 from ..planning.scene import MapModel
 from ..rl.refinement.corrections import NOOP
 from .control import dilate
@@ -168,7 +172,6 @@ AIMS = 3          # the reachable actuators tried per part (the nearest three)
 CHECKED = 24      # candidates per part fired again on the heavier model, in the order tried
 SEARCHES = ("map", "model")   # where BatchExpert ranks its candidates
 CONFIRM = 8       # per part, twice this many candidates confirmed on the full model (map search)
-MIN_GAIN = 0.1e-6   # [m] a firing that brings the part less closer than this does not count
 
 
 class BatchExpert:
@@ -199,10 +202,9 @@ class BatchExpert:
     pull-off, so an unknown mass is what turns a firing near the edge into a detachment); so is
     one that does not bring the part closer. Of the rest, among those predicted to come to rest
     within ``slack`` [m] of the nearest, the gentlest fires (the lowest frequency, then the
-    shortest stroke): it lands as near, accelerates the part least and makes the answer change
-    smoothly with the state, which a network imitating it needs (an argmin over the grid jumps
-    between firings that land equally near). The heavier model checks the first ``CHECKED`` in
-    that order (then by predicted error), and the first one it does not detach fires.
+    shortest stroke): the rest scenes' rule (:mod:`agents.planning.rest_expert`). The heavier
+    model checks the first ``CHECKED`` in that order (then by predicted error), and the first
+    one it does not detach fires.
     ``frequencies`` and ``strokes`` [-]: candidates evenly over each action's [-1, 1];
     ``config``'s randomisation is the real env's, unused."""
 
@@ -211,8 +213,8 @@ class BatchExpert:
                  search: str = "map", confirm: int = CONFIRM) -> None:
         if search not in SEARCHES:
             raise ValueError(f"search = {search!r} is invalid: must be one of {SEARCHES}")
-        if isinstance(confirm, bool) or not isinstance(confirm, int) or confirm < 1:
-            raise ValueError(f"confirm = {confirm!r} is invalid: must be an integer >= 1")
+        self.confirm = confirm
+        check_integers(self, [("confirm", 1)])
         self.config = dataclasses.replace(config, action_noise=0.0, num_threads=1,
                                           friction_factor_range=FACTOR_BOUNDS,
                                           mass_factor_range=FACTOR_BOUNDS)
@@ -222,16 +224,14 @@ class BatchExpert:
         self.slack = slack
         self.heavier = heavier
         self.search = search
-        self.confirm = confirm
         self.per_part = AIMS * frequencies * strokes
         self._parts: dict[int, PositionerParts] = {}
         self._factored: dict[int, bool] = {}   # a container whose rows hold other factors
         self.positions = np.asarray(config.actuator_positions)
         # candidates are ordered aim, frequency, stroke; gentleness ranks them by frequency,
         # then stroke, then aim
-        f, h = frequencies, strokes
-        self._rank = (np.arange(f)[None, :, None] * (h * AIMS) + np.arange(h)[None, None, :] * AIMS
-                      + np.arange(AIMS)[:, None, None]).ravel()
+        self.ranking = RestRanking(AIMS, frequencies, strokes, slack, confirm)
+        self._rank = self.ranking.rank
         self.map = MapModel(self.config) if search == "map" else None
         self.full_firings = 0   # full-model firings so far (map queries are not firings)
 
@@ -299,14 +299,6 @@ class BatchExpert:
         code = out.outcome[:b]
         return p.x[:b].copy(), (code == kernel.MOVING) | (code == kernel.REST)
 
-    def _ordered(self, err: np.ndarray, rank: np.ndarray) -> np.ndarray:
-        """Each row's candidates in the expert's order: those within the slack of the row's
-        nearest by ``rank`` (gentlest first), then the others by error ``err`` [m]."""
-        least = err.min(axis=1, keepdims=True)
-        by_err = np.argsort(np.argsort(err, axis=1, kind="stable"), axis=1)
-        key = np.where(err <= least + self.slack, rank, rank.size + by_err)
-        return np.argsort(key, axis=1, kind="stable")
-
     def _act_map(self, x: np.ndarray, t: np.ndarray,
                  target: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`act` ranked on the map and confirmed on the full model (class docstring)."""
@@ -321,13 +313,7 @@ class BatchExpert:
         err = np.where(dilate(bad, self.margin), np.inf,
                        np.abs(xr.reshape(shape) - target[:, None, None, None])).reshape(m, per)
         # the confirm first in the expert's order and the confirm nearest not among them
-        k = min(self.confirm, per)
-        first = self._ordered(err, self._rank[None, :])[:, :k]
-        taken = np.zeros((m, per), bool)
-        taken[rows[:, None], first] = True
-        near = np.argsort(err, axis=1, kind="stable")
-        fresh = np.argsort(taken[rows[:, None], near], axis=1, kind="stable")[:, :k]
-        pick = np.concatenate([first, near[rows[:, None], fresh]], axis=1)
+        pick = self.ranking.shortlist(err)
         mapped = np.isfinite(np.take_along_axis(err, pick, axis=1))
         sel = acts[rows[:, None], pick]                             # (m, 2k, 3)
         c = pick.shape[1]
@@ -335,16 +321,16 @@ class BatchExpert:
         xf, ok = self.fire(np.repeat(x, c), np.repeat(t, c), np.repeat(target, c), sel64)
         full = np.where(mapped & ok.reshape(m, c), np.abs(xf.reshape(m, c) - target[:, None]),
                         np.inf)
-        order = self._ordered(full, self._rank[pick])
+        order = self.ranking.ordered(full, self._rank[pick])
         best = order[:, 0]
         if self.heavier > 0.0:   # the first in that order that a heavier part survives
-            top = order[:, :min(CHECKED, c)]
-            kk = top.shape[1]
-            _, hok = self.fire(np.repeat(x, kk), np.repeat(t, kk), np.repeat(target, kk),
-                               sel64.reshape(m, c, 3)[rows[:, None], top].reshape(-1, 3),
-                               1.0 + self.heavier)
-            survives = hok.reshape(m, kk) & np.isfinite(np.take_along_axis(full, top, axis=1))
-            best = np.where(survives.any(axis=1), top[rows, np.argmax(survives, axis=1)], best)
+            def survives(top: np.ndarray) -> np.ndarray:
+                kk = top.shape[1]
+                _, hok = self.fire(np.repeat(x, kk), np.repeat(t, kk), np.repeat(target, kk),
+                                   sel64.reshape(m, c, 3)[rows[:, None], top].reshape(-1, 3),
+                                   1.0 + self.heavier)
+                return hok.reshape(m, kk)
+            best = self.ranking.first_surviving(order, full, CHECKED, survives)
         ok_best = full[rows, best] < np.abs(x - target) - MIN_GAIN
         rest = np.where(np.isfinite(full[rows, best]),
                         xf.reshape(m, c)[rows, best], np.inf)
@@ -378,29 +364,26 @@ class BatchExpert:
         grown = dilate(~((code == kernel.MOVING) | (code == kernel.REST)), self.margin)
         err = np.abs(p.x.reshape(code.shape) - np.asarray(target)[:, None, None, None])
         err = np.where(grown, np.inf, err).reshape(m, -1)
-        order = self._ordered(err, self._rank[None, :])
-        n = self._rank.size
+        order = self.ranking.ordered(err, self._rank[None, :])
         best = order[:, 0]
         if self.heavier > 0.0:   # the first of the CHECKED in that order that a heavier part survives
-            k = min(CHECKED, n)
-            top = order[:, :k]
-            fac = np.ones((m, 2)) if factors is None else np.asarray(factors, float)
-            hc = self._container(m * k)
-            self._factored[m * k] = True
-            for i in range(m):
-                apply_factors(hc.sim.params, hc.consts.P[i * k], fac[i, 0],
-                              fac[i, 1] * (1.0 + self.heavier))
-                hc.consts.P[i * k + 1:(i + 1) * k] = hc.consts.P[i * k]
-            hp = hc.parts
-            hp.x[:], hp.t[:] = np.repeat(x, k), np.repeat(t, k)
-            hp.target[:], hp.fired[:] = np.repeat(target, k), 0
-            hc.step(acts.reshape(m, -1, 3)[np.arange(m)[:, None], top].reshape(-1, 3))
-            self.full_firings += m * k
-            hcode = hc.out.outcome.reshape(m, k)
-            survives = ((hcode == kernel.MOVING) | (hcode == kernel.REST)) & \
-                np.isfinite(np.take_along_axis(err, top, axis=1))
-            first = np.argmax(survives, axis=1)
-            best = np.where(survives.any(axis=1), top[np.arange(m), first], best)
+            def survives(top: np.ndarray) -> np.ndarray:
+                k = top.shape[1]
+                fac = np.ones((m, 2)) if factors is None else np.asarray(factors, float)
+                hc = self._container(m * k)
+                self._factored[m * k] = True
+                for i in range(m):
+                    apply_factors(hc.sim.params, hc.consts.P[i * k], fac[i, 0],
+                                  fac[i, 1] * (1.0 + self.heavier))
+                    hc.consts.P[i * k + 1:(i + 1) * k] = hc.consts.P[i * k]
+                hp = hc.parts
+                hp.x[:], hp.t[:] = np.repeat(x, k), np.repeat(t, k)
+                hp.target[:], hp.fired[:] = np.repeat(target, k), 0
+                hc.step(acts.reshape(m, -1, 3)[np.arange(m)[:, None], top].reshape(-1, 3))
+                self.full_firings += m * k
+                hcode = hc.out.outcome.reshape(m, k)
+                return (hcode == kernel.MOVING) | (hcode == kernel.REST)
+            best = self.ranking.first_surviving(order, err, CHECKED, survives)
         now = np.abs(np.asarray(x) - np.asarray(target))
         ok = err[np.arange(m), best] < now - MIN_GAIN
         rest = np.where(np.isfinite(err[np.arange(m), best]),
@@ -420,10 +403,19 @@ class BatchExpert:
         return acts, ok, None
 
 
-def expert_for(config: Any, settings: Any, seed: Any = None) -> BatchExpert | SeededExpert:
+def expert_for(config: Any, settings: Any,
+               seed: Any = None) -> BatchExpert | SeededExpert | PlaneController:
     """The expert of ``config``'s scene (:func:`agents.planning.scene_of`) with DAgger's
     ``settings`` (:class:`agents.imitation.dagger.DaggerSettings`): on the positioner the batched
-    one-step search; on the line the seeded expert of the policy ``seed`` (its ``act``)."""
+    one-step search; on the plane its one-step controller (:func:`agents.planning.plane.
+    labeller`); on the line the seeded expert of the policy ``seed`` (its ``act``)."""
+    if isinstance(config, PlaneEnvConfig):
+        return labeller(config, dataclasses.replace(
+            LABEL_SETTINGS, frequencies=settings.frequencies, strokes=settings.strokes,
+            margin=settings.margin, slack_m=settings.slack_m, heavier=settings.heavier,
+            lookahead=settings.lookahead,
+            lookahead_within_m=(math.inf if settings.lookahead_within_m is None
+                                else settings.lookahead_within_m)))
     if isinstance(scene_of(config), PositionerScene):
         return BatchExpert(config, settings.frequencies, settings.strokes, settings.margin,
                            settings.slack_m, settings.heavier, settings.search)

@@ -48,9 +48,10 @@ from microconveyor_env.envs.plane.vector import MicroConveyor2DVectorEnv
 from microconveyor_env.physics import dynamics_kernel as kernel
 from microconveyor_env.physics.plane import kernel as plane_kernel
 
+from .rest_expert import MIN_GAIN, RestRanking, check_in, check_integers
+
 AIMS = 9                 # at most 3 x 3 actuators an aim picks from any part
 MODEL_FACTORS = (0.5, 2.0)   # the model container's factor bounds (a model part's factors)
-MIN_GAIN = 0.1e-6        # [m] a firing that brings the part less closer than this does not count
 CHECKED = 8              # candidates per part checked on the heavier part, in the order chosen
 NO_LABEL = np.array([0.0, 0.0, -1.0, -1.0, -1.0], np.float32)   # the weakest firing, no delay
 
@@ -87,16 +88,10 @@ class PlaneSettings:
     step_error: float = 0.05
 
     def __post_init__(self) -> None:
-        for name, least in (("frequencies", 2), ("strokes", 2), ("margin", 0), ("confirm", 1),
-                            ("greedy_last", 0)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < least:
-                raise ValueError(f"{name} = {v!r} is invalid: must be an integer >= {least}")
-        for name, hi in (("slack_m", 1e-3), ("heavier", 1.0), ("delay_factor", 10.0),
-                         ("delay_margin_s", 1.0), ("extra_step_m", 1e-3), ("step_error", 1.0)):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and 0.0 <= v <= hi) or isinstance(v, bool):
-                raise ValueError(f"{name} = {v!r} is invalid: must be in [0, {hi:g}]")
+        check_integers(self, (("frequencies", 2), ("strokes", 2), ("margin", 0), ("confirm", 1),
+                              ("greedy_last", 0)))
+        check_in(self, (("slack_m", 1e-3), ("heavier", 1.0), ("delay_factor", 10.0),
+                        ("delay_margin_s", 1.0), ("extra_step_m", 1e-3), ("step_error", 1.0)))
         if not (isinstance(self.lookahead_within_m, (int, float)) and self.lookahead_within_m > 0):
             raise ValueError(f"lookahead_within_m = {self.lookahead_within_m!r} is invalid: "
                              "must be > 0 m (inf: everywhere)")
@@ -443,18 +438,9 @@ class PlaneController:
         self.scene = scene if scene is not None else PlaneScene(config)
         self.settings = settings or PlaneSettings()
         s = self.settings
-        F, H = s.frequencies, s.strokes
-        # gentleness: the lowest frequency, then the smallest stroke, then the aim
-        self._rank = (np.arange(F)[None, :, None] * (H * AIMS) + np.arange(H)[None, None, :]
-                      * AIMS + np.arange(AIMS)[:, None, None]).ravel()
-
-    def _ordered(self, err: np.ndarray, rank: np.ndarray) -> np.ndarray:
-        """Each row's candidates in the controller's order: those within the slack of the
-        row's nearest by ``rank`` (gentlest first), then the others by error ``err`` [m]."""
-        least = err.min(axis=1, keepdims=True)
-        by_err = np.argsort(np.argsort(err, axis=1, kind="stable"), axis=1)
-        key = np.where(err <= least + self.settings.slack_m, rank, rank.size + by_err)
-        return np.argsort(key, axis=1, kind="stable")
+        # the rest scenes' rule (gentleness: the lowest frequency, then the smallest stroke,
+        # then the aim)
+        self.ranking = RestRanking(AIMS, s.frequencies, s.strokes, s.slack_m, s.confirm)
 
     def choose(self, s: PartStates) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """For each part of ``s``: the firing (actions ``(M, 5)`` float32), whether it brings
@@ -477,13 +463,7 @@ class PlaneController:
         last = last[:, None]
         err = np.where(allowed.reshape(m, per),
                        sc.score(xr.reshape(m, per, 2), target[:, None, :], last, st), np.inf)
-        k = min(st.confirm, per)
-        first = self._ordered(err, self._rank[None, :])[:, :k]
-        taken = np.zeros((m, per), bool)
-        taken[rows[:, None], first] = True
-        near = np.argsort(err, axis=1, kind="stable")
-        fresh = np.argsort(taken[rows[:, None], near], axis=1, kind="stable")[:, :k]
-        pick = np.concatenate([first, near[rows[:, None], fresh]], axis=1)
+        pick = self.ranking.shortlist(err)
         mapped = np.isfinite(np.take_along_axis(err, pick, axis=1))
         sel = acts[rows[:, None], pick]                                    # (m, c, 5)
         c = pick.shape[1]
@@ -492,21 +472,21 @@ class PlaneController:
         xf = xf.reshape(m, c, 2)
         rests = mapped & (code.reshape(m, c) == kernel.REST)
         full = np.where(rests, sc.score(xf, target[:, None, :], last, st), np.inf)
-        order = self._ordered(full, self._rank[pick])
+        order = self.ranking.ordered(full, self.ranking.rank[pick])
         best = order[:, 0]
         if st.heavier > 0.0:   # the first in that order that a heavier part survives
-            top = order[:, :min(CHECKED, c)]
-            kk = top.shape[1]
-            cand = np.isfinite(np.take_along_axis(full, top, axis=1))
-            idx = np.flatnonzero(cand.ravel())
-            survives = np.zeros(m * kk, bool)
-            if idx.size:
-                _, _, hcode = sc.fire(s.take(np.repeat(rows, kk)[idx]),
-                                      sel[rows[:, None], top].reshape(-1, 5)[idx],
-                                      mass_factor=1.0 + st.heavier)
-                survives[idx] = hcode == kernel.REST
-            survives = survives.reshape(m, kk)
-            best = np.where(survives.any(axis=1), top[rows, np.argmax(survives, axis=1)], best)
+            def survives(top: np.ndarray) -> np.ndarray:
+                kk = top.shape[1]
+                cand = np.isfinite(np.take_along_axis(full, top, axis=1))
+                idx = np.flatnonzero(cand.ravel())
+                out = np.zeros(m * kk, bool)
+                if idx.size:   # only those that rest on the nominal model are fired again
+                    _, _, hcode = sc.fire(s.take(np.repeat(rows, kk)[idx]),
+                                          sel[rows[:, None], top].reshape(-1, 5)[idx],
+                                          mass_factor=1.0 + st.heavier)
+                    out[idx] = hcode == kernel.REST
+                return out.reshape(m, kk)
+            best = self.ranking.first_surviving(order, full, CHECKED, survives)
         now = sc.score(rest, target, np.zeros(m, bool), st)
         ok = full[rows, best] < now - MIN_GAIN
         landing = np.where(np.isfinite(full[rows, best])[:, None], xf[rows, best], np.nan)

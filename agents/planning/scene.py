@@ -445,11 +445,12 @@ class PositionerScene(Scene):
 def scene_of(config: Any) -> Scene:
     """The planners' view of ``config``'s scene: :class:`PositionerScene` for a
     :class:`PositionerConfig`, :class:`LineScene` for the line's :class:`EnvConfig`; any other
-    scene (the plane) is refused in one sentence."""
+    scene (the plane, served by :mod:`.plane`) is refused in one sentence."""
     if isinstance(config, PositionerConfig):
         return PositionerScene(config)
     if isinstance(config, EnvConfig):
         return LineScene(config)
     raise ValueError(f"no planner serves {type(config).__name__}'s scene: planners search the "
                      "firings of the conveyor line (MicroConveyor-v0, -v1) and the positioner "
-                     "(MicroPositioner-v0)")
+                     "(MicroPositioner-v0); the plane has its own one-step controller "
+                     "(agents.planning.plane)")

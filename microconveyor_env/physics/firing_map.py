@@ -256,6 +256,26 @@ class MapError:
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
 
+    @classmethod
+    def summary(cls, err: np.ndarray, moved: np.ndarray, trusted: np.ndarray, on: np.ndarray,
+                map_query_s: float, full_stroke_s: float, to_rest: bool,
+                **extra: Any) -> Any:
+        """The figures of held-out strokes: ``err`` [m] the map's error and ``moved`` [m] how
+        far the full model moved the part, over the strokes the map trusts that stay on the
+        surface (``trusted & on``); ``trusted`` and ``on`` over all of them; the timings [s];
+        ``extra``: a subclass's fields."""
+        big = moved >= RELATIVE_FROM_M
+        rel = err[big] / moved[big]
+        pct = np.percentile(err, [50, 90, 99, 100]) if err.size else np.full(4, np.nan)
+        return cls(samples=len(trusted), trusted_share=float(trusted.mean()),
+                   error_median_m=float(pct[0]), error_p90_m=float(pct[1]),
+                   error_p99_m=float(pct[2]), error_max_m=float(pct[3]),
+                   relative_error_max=float(rel.max()) if rel.size else math.nan,
+                   misclassified_detachments=int((trusted & ~on).sum()),
+                   untrusted_on_surface_share=float((~trusted & on).mean()),
+                   map_query_s=map_query_s, full_stroke_s=full_stroke_s, to_rest=bool(to_rest),
+                   **extra)
+
 
 class FiringMap:
     """One stroke's outcome on a regular grid (module docstring); build with :meth:`build`."""
@@ -385,17 +405,9 @@ class FiringMap:
         on = r.code != kernel.DETACHED
         on &= np.isin(r.code, (kernel.REST, kernel.MOVING))
         good = trusted & on
-        err = np.abs(pred[good] - true[good])
-        big = np.abs(true[good]) >= RELATIVE_FROM_M
-        rel = err[big] / np.abs(true[good][big])
-        pct = np.percentile(err, [50, 90, 99, 100]) if err.size else np.full(4, np.nan)
-        return MapError(samples=n, trusted_share=float(trusted.mean()),
-                        error_median_m=float(pct[0]), error_p90_m=float(pct[1]),
-                        error_p99_m=float(pct[2]), error_max_m=float(pct[3]),
-                        relative_error_max=float(rel.max()) if rel.size else math.nan,
-                        misclassified_detachments=int((trusted & ~on).sum()),
-                        untrusted_on_surface_share=float((~trusted & on).mean()),
-                        map_query_s=t_map, full_stroke_s=t_full, to_rest=bool(to_rest))
+        error: MapError = MapError.summary(np.abs(pred[good] - true[good]), np.abs(true[good]),
+                                           trusted, on, t_map, t_full, to_rest)
+        return error
 
 
 refresh_jit_cache(globals())

@@ -60,8 +60,9 @@ def test_settings_refused(bad: dict, word: str) -> None:
 
 
 def test_dagger_refuses_what_it_has_no_expert_for() -> None:
-    with pytest.raises(ValueError, match="neither a positioner nor a 1-D conveyor"):
-        DaggerSettings(env_id="MicroConveyor2D-v1", env_kwargs={}).config()
+    # the plane has an expert (tests/agents/test_plane_dagger.py), seeded by no policy
+    with pytest.raises(ValueError, match="not seeded"):
+        DaggerSettings(env_id="MicroConveyor2D-v1", env_kwargs={}, seed_policy="ppo").config()
     with pytest.raises(ValueError, match="seed_policy"):
         DaggerSettings(env_id="MicroConveyor-v1", env_kwargs={}).config()
     with pytest.raises(ValueError, match="not seeded"):

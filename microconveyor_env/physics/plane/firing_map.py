@@ -40,7 +40,7 @@ from numba import njit, prange
 
 from ...jit_cache import refresh as refresh_jit_cache
 from .. import dynamics_kernel as kernel1d
-from ..firing_map import RELATIVE_FROM_M, FiringMap, MapError, MapGrid, lookup
+from ..firing_map import FiringMap, MapError, MapGrid, lookup
 from ..materials import ParameterError
 from ..table_cache import cache_dir
 from . import kernel
@@ -299,20 +299,12 @@ class PlaneFiringMap(FiringMap):
                        true[same, 1] - axis[same, 0] * e[same, 1])
         perp = np.abs(true[on, 1] * e[on, 0] - true[on, 0] * e[on, 1])
         good = trusted & on
-        err = np.hypot(*(pred[good] - true[good]).T)
-        moved = np.hypot(*(true[good] - part[good]).T)
-        big = moved >= RELATIVE_FROM_M
-        rel = err[big] / moved[big]
-        pct = np.percentile(err, [50, 90, 99, 100]) if err.size else np.full(4, np.nan)
-        return PlaneMapError(
-            samples=n, trusted_share=float(trusted.mean()), error_median_m=float(pct[0]),
-            error_p90_m=float(pct[1]), error_p99_m=float(pct[2]), error_max_m=float(pct[3]),
-            relative_error_max=float(rel.max()) if rel.size else math.nan,
-            misclassified_detachments=int((trusted & ~on).sum()),
-            untrusted_on_surface_share=float((~trusted & on).mean()), map_query_s=t_map,
-            full_stroke_s=t_full, to_rest=True,
+        error: PlaneMapError = PlaneMapError.summary(
+            np.hypot(*(pred[good] - true[good]).T), np.hypot(*(true[good] - part[good]).T),
+            trusted, on, t_map, t_full, True,
             perpendicular_max_m=float(perp.max()) if perp.size else math.nan,
             rotation_max_m=float(rot.max()) if rot.size else math.nan)
+        return error
 
 
 refresh_jit_cache(globals())
