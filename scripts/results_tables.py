@@ -24,7 +24,9 @@ A generated table sits between two markers, ``<!-- results:NAME -->`` and
 * ``firing_maps``: each scene's firing map against the full model, from
   ``docs/figures/firing_maps.json`` (``microconveyor firing-map --json``);
 * ``planner_speed``: MPC per target before and after the fast planners, from
-  ``docs/figures/planner_speed.json`` (``scripts/planner_speed.py``).
+  ``docs/figures/planner_speed.json`` (``scripts/planner_speed.py``);
+* ``dagger_breakdown``: where each DAgger recipe's time goes, from
+  ``docs/figures/dagger_breakdown_*.json`` (``benchmarks/dagger_breakdown.py``).
 
 ::
 
@@ -504,6 +506,33 @@ def planner_speed_table(data: dict) -> str:
     return "\n".join(lines)
 
 
+DAGGER_PARTS = (("expert_setup", "expert construction"), ("expert", "expert labelling"),
+                ("env", "env stepping"), ("student_act", "student acting"),
+                ("fit", "fitting the network"), ("other", "setup and other"))
+
+
+def dagger_breakdown_table(runs: list[dict]) -> str:
+    """CPU time per part of each DAgger recipe (``benchmarks/dagger_breakdown.py``), one column
+    per env id."""
+    lines = ["| part | " + " | ".join(f"{r['env_id']}: CPU, share" for r in runs) + " |",
+             "|---|" + "---|" * len(runs)]
+    for key, label in DAGGER_PARTS:
+        cells = [f"{r['parts'][key]['cpu_s']:.1f} s, "
+                 f"{100 * r['parts'][key]['cpu_s'] / r['total_cpu_s']:.0f} %" for r in runs]
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    lines.append("| **total** (wall) | " + " | ".join(
+        f"**{r['total_cpu_s']:.0f} s** ({r['total_wall_s']:.0f} s)" for r in runs) + " |")
+    lines.append("")
+    lines.append("; ".join(
+        f"{r['env_id']}: seed {r['seed']}, {r['rounds']} rounds x {r['episodes_per_round']} "
+        f"episodes, last round {100 * r['final_round_success_rate']:.0f} % within tolerance, "
+        f"load average {r['load_average_before'][0]:.1f} before and "
+        f"{r['load_average_after'][0]:.1f} after, `{r['command']}` ({r['date']})"
+        for r in runs) + ". One pinned core shared with other jobs: the wall seconds are upper "
+        "bounds, the CPU shares the measure (stored in `docs/figures/dagger_breakdown_*.json`).")
+    return "\n".join(lines)
+
+
 def generators() -> dict:
     """Region name -> a function returning its text."""
     def load(name: str) -> dict:
@@ -523,7 +552,10 @@ def generators() -> dict:
             "imitate_v1": lambda: imitate_table(load("imitate_v1_seeds.json")),
             "imitate_v1_paths": lambda: code_paths_table(load("imitate_v1_code_paths.json")),
             "firing_maps": lambda: firing_maps_table(load("firing_maps.json")),
-            "planner_speed": lambda: planner_speed_table(load("planner_speed.json"))}
+            "planner_speed": lambda: planner_speed_table(load("planner_speed.json")),
+            "dagger_breakdown": lambda: dagger_breakdown_table(
+                [json.loads(f.read_text())
+                 for f in sorted(RESULTS.glob("dagger_breakdown_*.json"))])}
 
 
 def render(text: str, gens: dict, cache: dict) -> str:

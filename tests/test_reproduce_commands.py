@@ -129,6 +129,14 @@ RUNS: dict[str, list[str] | None] = {
     "python scripts/positioner_policies.py runs/dagger-s0 runs/dagger-s1 runs/dagger-s2": [
         "--targets", "2", "--out", "{out}/seeds.json"],
     "python scripts/plane_scene_scan.py": ["--samples", "2"],
+    "python benchmarks/dagger_breakdown.py": ["--rounds", "1", "--episodes", "4", "--json",
+                                              "{out}/breakdown.json"],
+    "python benchmarks/dagger_breakdown.py --env MicroConveyor2D-v1 --json "
+    "docs/figures/dagger_breakdown_plane.json": ["--rounds", "1", "--episodes", "4", "--json",
+                                                 "{out}/breakdown.json"],
+    "python benchmarks/dagger_breakdown.py --env MicroPositioner-v0 --json "
+    "docs/figures/dagger_breakdown_positioner.json": ["--rounds", "1", "--episodes", "4",
+                                                      "--json", "{out}/breakdown.json"],
     "python scripts/optimize_budget.py": ["--targets", "1", "--budgets", "20", "--out",
                                           "{out}/budget.json", "--plot", "{out}/budget.png"],
     "python scripts/fork_outcomes.py --out docs/figures/ppo_v1_forks \"the "
