@@ -191,30 +191,38 @@ def _cheapest(rows: list[dict[str, Any]]) -> dict[str, Any] | None:
 
 
 # ----------------------------------------------------------------------------- firing maps
-MAP_ENV_IDS = ("MicroPositioner-v0", "MicroConveyor-v1")   # the scenes whose maps are reported
+# the scenes whose maps are reported
+MAP_ENV_IDS = ("MicroPositioner-v0", "MicroConveyor-v1", "MicroConveyor2D-v1")
 
 
 def map_rows(env_ids: Sequence[str] = MAP_ENV_IDS, samples: int = 5000,
              seed: int = 12345) -> list[dict[str, Any]]:
-    """Each scene's firing map (:mod:`microconveyor_env.envs.rail.firing_map`) against the full
-    model on ``samples`` [-] held-out strokes drawn with ``seed`` [-]: one row per env id with
+    """Each scene's firing map (:mod:`microconveyor_env.envs.rail.firing_map`, the plane's
+    :mod:`microconveyor_env.envs.plane.firing_map`) against the full model on ``samples`` [-]
+    held-out strokes drawn with ``seed`` [-] (the plane's in every direction, each coasted to
+    rest, with the full model's largest move off the actuator's line ``perpendicular_max_m``
+    [m]): one row per env id with
     the grid, its build time [s] (as cached), the error figures of
     :class:`~microconveyor_env.physics.firing_map.MapError` [m] and the wall time per map query
     and per full-model stroke [s] (one thread), and their ratio; for a map of moving parts
     (errors at the end of the stroke) also ``at_rest``, the same figures where the part then
     comes to rest (the coast multiplies an error of the end velocity)."""
     from ..envs.core.versions import scene_config
-    from ..envs.rail.firing_map import firing_map
+    from ..envs.plane import firing_map as plane_map
+    from ..envs.plane.config import PlaneEnvConfig
+    from ..envs.rail import firing_map as rail_map
 
     rows = []
     for env_id in env_ids:
         cfg = scene_config(env_id)
-        m = firing_map(cfg)
+        plane = isinstance(cfg, PlaneEnvConfig)
+        from_rest = plane or bool(cfg.fires_from_rest)
+        m = (plane_map if plane else rail_map).firing_map(cfg)
         e = m.verify(samples, seed)
         # a moving part's error at the end of the stroke, and where it then comes to rest
-        landing = None if cfg.fires_from_rest else m.verify(samples, seed, to_rest=True)
+        landing = None if from_rest else m.verify(samples, seed, to_rest=True)
         g = m.grid
-        rows.append({"env_id": env_id, "from_rest": bool(cfg.fires_from_rest),
+        rows.append({"env_id": env_id, "from_rest": from_rest,
                      "nodes": m.nodes, "offset_m": list(g.offset_m[:2]),
                      "velocity_m_s": list(g.velocity_m_s[:2]),
                      "frequency_hz": list(g.frequency_hz[:2]), "stroke_m": list(g.stroke_m[:2]),

@@ -137,3 +137,22 @@ def test_the_plane_map_is_cached_and_a_damaged_file_is_rebuilt(tmp_path, monkeyp
     assert np.array_equal(c.dx, a.dx)
     with np.load(files[0]) as z:
         assert np.array_equal(z["dx"], a.dx)
+
+
+def test_the_firing_map_command_reports_the_plane(plane_map):
+    """``microconveyor firing-map --env MicroConveyor2D-v1``: the plane's row, from rest, within
+    the bound, in JSON (SI) and for people (µm, µs)."""
+    import json
+
+    from microconveyor_env.studies.fidelity import MAP_ENV_IDS
+
+    from support.cli import run_cli
+
+    assert ENV in MAP_ENV_IDS
+    r = run_cli("firing-map", "--env", ENV, "--samples", "300", "--json")
+    assert r.returncode == 0, r.stderr
+    row, = json.loads(r.stdout)["maps"]
+    assert row["env_id"] == ENV and row["from_rest"] and row["at_rest"] is None
+    assert row["misclassified_detachments"] == 0 and row["error_max_m"] <= BOUND_MAX_M
+    human = run_cli("firing-map", "--env", ENV, "--samples", "300")
+    assert f"{ENV} (firings from rest)" in human.stdout and "µs per query" in human.stdout
