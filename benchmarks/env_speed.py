@@ -5,7 +5,9 @@
 Prints JSON with two columns, ``idle`` and ``loaded`` (as many busy processes as cores, as when
 PPO, an evaluation or a browser share the machine): gymnasium's ``benchmark_step`` on the single
 env (random actions, resets included) and the batched env's firings per second with N parts for
-``num_threads`` = 1 (serial), all cores (numba parallel) and ``None`` (the automatic choice).
+``num_threads`` = 1 (serial), all cores (numba parallel) and ``None`` (the automatic choice),
+and the parallel/serial ratio of the firings per second (the batched env's parallel efficiency
+times the cores).
 NEXT_STEP autoreset steps fire nothing and are not counted. ``--randomise`` turns the per-episode
 randomisation on (``RANDOMISE``: action noise, friction and mass factors). Timings are noisy:
 compare within one run.
@@ -65,6 +67,8 @@ def measure(num_envs: int, seconds: float, **kw) -> dict:
     for label, nt in (("serial", 1), ("parallel", NUMBA_THREADS),
                       ("auto", None)):
         out[f"batched_{label}"] = batched_firings_per_s(num_envs, seconds, nt, **kw)
+    out["parallel_over_serial"] = round(out["batched_parallel"]["firings_per_s"]
+                                        / out["batched_serial"]["firings_per_s"], 3)
     return out
 
 

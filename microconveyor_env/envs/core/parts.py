@@ -10,7 +10,7 @@ same code and give bit-identical rollouts.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any, NamedTuple, TypeVar
 
 import numba
@@ -168,6 +168,25 @@ class PartsBase:
             self.config, streams, self.sim.params, self.consts.P[i],
             noise[i] if noise.size else None)
 
+    def _draw_randomisation_many(self, rows: np.ndarray,
+                                 rngs: Sequence[np.random.Generator]) -> None:
+        """:meth:`_draw_randomisation` for the parts ``rows`` (an index array) at once, part
+        ``rows[k]`` from ``rngs[k]``: the same draws, the per-part work only what each part's
+        own streams must do."""
+        if not self.randomised or not len(rows):
+            return
+        streams, src = self._streams, self._stream_src
+        mine = []
+        for i, rng in zip(rows.tolist(), rngs, strict=True):
+            s = streams[i]
+            if s is None or src[i] is not rng:  # seeded anew: new streams
+                s = streams[i] = randomisation.streams(rng)
+                src[i] = rng
+            mine.append(s)
+        noise = self.consts.noise
+        self.friction_factor[rows], self.mass_factor[rows] = randomisation.draw_many(
+            self.config, mine, self.sim.params, self.consts.P, rows, noise if noise.size else None)
+
     def _restore_randomisation(self, i: int, state: Any) -> None:
         """Part ``i``'s factors and noise from a checked saved ``state`` (its fields left None
         keep this episode's draws)."""
@@ -241,6 +260,20 @@ class PartsBase:
     def get_state(self, i: int, env_id: str | None = None) -> SavedState:
         """Part ``i``'s state now, naming ``env_id`` and the config's scene."""
         raise NotImplementedError
+
+    def reset_part(self, i: int, rng: np.random.Generator, target: Any = None,
+                   state: Any = None) -> None:
+        """Start part ``i``'s next episode, drawing from ``rng``: ``target`` and ``state`` (the
+        scene's, as :meth:`check_reset` gives them; None: drawn) override the draws."""
+        raise NotImplementedError
+
+    def reset_parts(self, rows: np.ndarray, rngs: Sequence[np.random.Generator]) -> None:
+        """Start the next episode of the parts ``rows`` (an index array, ascending), part
+        ``rows[k]`` drawing from ``rngs[k]``, without reset options: the batched env's
+        autoreset. The same state and draws as :meth:`reset_part` part by part; a scene may
+        do it with whole-array writes."""
+        for i, rng in zip(rows.tolist(), rngs, strict=True):
+            self.reset_part(i, rng)
 
     def check_reset(self, options: dict[str, Any] | None, batched: bool,
                     env_id: str | None = None) -> Resets:

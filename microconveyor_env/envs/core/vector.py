@@ -23,6 +23,7 @@ from .checks import check_render_mode, config_of, spec_id
 from .parts import PartsBase
 
 MAX_ENVS = 1_000_000  # parts in one batch (each costs ~1 kB of state)
+OUTCOME_NAMES = np.array(kernel.OUTCOMES, dtype=object)  # the info's outcome of each code
 
 
 class BatchedEnv(VectorEnv):
@@ -102,6 +103,16 @@ class BatchedEnv(VectorEnv):
         self.conveyor.reset_part(i, self.rngs[i], *args)
         self.done[i] = False
 
+    def _reset_many(self, rows: np.ndarray) -> None:
+        """Reset the sub-envs ``rows`` (an index array, ascending) without options: the same
+        draws as one ``_reset_one`` each, the parts' state written whole
+        (:meth:`~.parts.PartsBase.reset_parts`)."""
+        if not len(rows):
+            return
+        rngs = self.rngs
+        self.conveyor.reset_parts(rows, [rngs[i] for i in rows.tolist()])
+        self.done[rows] = False
+
     def reset(self, *, seed: int | list | None = None,
               options: dict | None = None) -> tuple[np.ndarray, dict]:
         # every option checked before anything changes
@@ -112,8 +123,11 @@ class BatchedEnv(VectorEnv):
             if len(seeds) != self.num_envs:
                 raise ValueError(f"{len(seeds)} seeds for {self.num_envs} envs")
             self.rngs = [seeding.np_random(s)[0] for s in seeds]
-        for i in range(self.num_envs):
-            self._reset_one(i, *resets.of(i))
+        if resets.targets is None and resets.states is None:
+            self._reset_many(np.arange(self.num_envs))
+        else:
+            for i in range(self.num_envs):
+                self._reset_one(i, *resets.of(i))
         self._started = True
         return self._obs(), self._reset_infos()
 
@@ -124,8 +138,7 @@ class BatchedEnv(VectorEnv):
         a = self.conveyor.check_actions(actions, self.num_envs)
         resetting = self.done.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP else \
             np.zeros(self.num_envs, dtype=bool)
-        for i in np.flatnonzero(resetting):
-            self._reset_one(int(i))
+        self._reset_many(np.flatnonzero(resetting))
         active = ~resetting
         out = self.conveyor.step(a, active)  # inactive parts report reward 0, MOVING, no firing
         codes = out.outcome.copy()
@@ -134,7 +147,7 @@ class BatchedEnv(VectorEnv):
         rew = np.where(active, out.reward, 0.0)
         self.done = terminated | truncated
         obs = self.conveyor.obs.copy()
-        infos = self._infos(np.array(kernel.OUTCOMES, dtype=object)[codes], active & out.success)
+        infos = self._infos(OUTCOME_NAMES[codes], active & out.success)
         for key, field, _ in self.conveyor.step_info:
             infos[key], infos["_" + key] = getattr(out, field).copy(), active.copy()
         if self.autoreset_mode == AutoresetMode.SAME_STEP and self.done.any():
@@ -158,9 +171,9 @@ class BatchedEnv(VectorEnv):
                 shaped = mask.reshape((-1,) + (1,) * (val.ndim - 1))
                 final_info[key] = np.where(shaped, val, blank)
                 final_info["_" + key] = mask
-        for i in idx:
+        for i in idx.tolist():
             final_obs[i] = obs[i].copy()
-            self._reset_one(int(i))
+        self._reset_many(idx)
         reset = self._reset_infos()
         infos = dict(infos)
         for key, val in reset.items():

@@ -19,6 +19,7 @@ Everything Gym-specific (spaces, seeding, info dicts, autoreset, rendering) stay
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -26,7 +27,7 @@ import numpy as np
 from ...physics import dynamics_kernel as kernel
 from ..core import actions
 from ..core.versions import scene_of
-from ..rail.parts import RailParts, initial_state
+from ..rail.parts import RailParts, initial_state, initial_states
 from ..rail.step import OBS_BOUND
 from . import task
 from .config import EnvConfig
@@ -112,6 +113,19 @@ class Conveyor(RailParts):
             self.obs[i, task.OBS_DIM:] = 0.0  # a new episode remembers no firing
         if state is not None:
             self._set_state(i, state)
+
+    def reset_parts(self, rows: np.ndarray, rngs: Sequence[np.random.Generator]) -> None:
+        """:meth:`reset_part` without options for the parts ``rows`` (ascending), part
+        ``rows[k]`` drawing from ``rngs[k]``: the same draws, each part's state written with
+        whole-array writes."""
+        x0, tgt = initial_states(self.config, rngs)
+        self._draw_randomisation_many(rows, rngs)
+        p = self.parts
+        p.x[rows], p.v[rows], p.t[rows] = x0, 0.0, 0.0
+        p.fired[rows] = 0
+        p.target[rows] = tgt
+        if self.history_len:
+            self.obs[rows, task.OBS_DIM:] = 0.0  # a new episode remembers no firing
 
     def get_state(self, i: int, env_id: str | None = None) -> PartState:
         """Part ``i``'s state now (with randomisation on, its factors and noise too; not the

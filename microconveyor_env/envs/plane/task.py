@@ -29,6 +29,7 @@ from numba import njit
 from ...jit_cache import refresh as refresh_jit_cache
 from ...physics import dynamics_kernel as kernel
 from ...physics.plane import kernel as plane_kernel
+from ..core.randomisation import uniform
 from ..core.reward import is_success, potential, reward, reward_constants
 
 __all__ = ["LENGTH_SCALE", "OBS_BOUND", "OBS_DIM", "PlaneTaskConstants", "constants",
@@ -77,11 +78,11 @@ def initial_state(cfg: Any, rng: np.random.Generator,
     (already checked). The target is drawn first, then the jitter, so the jitter does not change
     the targets of a seed."""
     (x0, x1), (y0, y1) = cfg.grid_box
-    tx, ty = rng.uniform(x0, x1), rng.uniform(y0, y1)
+    tx, ty = uniform(rng, x0, x1), uniform(rng, y0, y1)
     sx, sy = cfg.start
     if cfg.start_jitter:
-        sx += rng.uniform(-1.0, 1.0) * cfg.start_jitter
-        sy += rng.uniform(-1.0, 1.0) * cfg.start_jitter
+        sx += uniform(rng, -1.0, 1.0) * cfg.start_jitter
+        sy += uniform(rng, -1.0, 1.0) * cfg.start_jitter
     if target is not None:
         tx, ty = target
     return float(sx), float(sy), float(tx), float(ty)

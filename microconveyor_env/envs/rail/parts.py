@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -16,6 +17,7 @@ from ...physics.simulator import Simulator
 from ...presets import simulator
 from ..core import actions
 from ..core.parts import PartsBase, check_table_reach, for_part
+from ..core.randomisation import AFFINE_UNIFORM, uniform
 from .config import RailConfig
 from .step import MAX_TARGET, NO_NOISE, NO_RECORD, Constants
 
@@ -35,9 +37,26 @@ def initial_state(cfg: Any, rng: np.random.Generator, target: float | None = Non
     """(start position [m], target [m]) of a new episode: the part ``start_offset`` upstream of
     actuator 1 (jittered by up to ``start_jitter``), the target drawn uniformly from
     ``target_range`` unless given (already checked)."""
-    jitter = rng.uniform(-1.0, 1.0) * cfg.start_jitter if cfg.start_jitter else 0.0
-    drawn = rng.uniform(*cfg.target_range)
+    jitter = uniform(rng, -1.0, 1.0) * cfg.start_jitter if cfg.start_jitter else 0.0
+    drawn = uniform(rng, *cfg.target_range)
     return -cfg.start_offset + jitter, drawn if target is None else target
+
+
+def initial_states(cfg: Any, rngs: Sequence[np.random.Generator]) -> tuple[np.ndarray, np.ndarray]:
+    """(start positions [m], targets [m]) of new episodes, part ``k`` drawing from ``rngs[k]``:
+    :func:`initial_state` for each part (the same numbers, bit for bit), the arithmetic done
+    once on arrays."""
+    if not AFFINE_UNIFORM:
+        rows = [initial_state(cfg, rng) for rng in rngs]
+        return (np.array([r[0] for r in rows], dtype=float),
+                np.array([r[1] for r in rows], dtype=float))
+    lo, hi = cfg.target_range
+    if cfg.start_jitter:  # the jitter's draw first, then the target's
+        u = np.array([(rng.random(), rng.random()) for rng in rngs], dtype=float).reshape(-1, 2)
+        jitter = (-1.0 + (1.0 - -1.0) * u[:, 0]) * cfg.start_jitter
+        return -cfg.start_offset + jitter, lo + (hi - lo) * u[:, 1]
+    u_t = np.array([rng.random() for rng in rngs], dtype=float)
+    return np.full(len(u_t), -cfg.start_offset + 0.0), lo + (hi - lo) * u_t
 
 
 def check_target(target: object) -> float:
