@@ -8,7 +8,8 @@ it writes meets the criterion on held-out targets.
         --compare-with runs/imitate-bench --json docs/figures/imitate_v1_code_paths.json
 
 Each seed runs ``microconveyor imitate --env ENV --seed S --out OUT/s<S>`` as its own process,
-pinned to one CPU (``--cpu``; its torch and numba threads set to 1), one seed after the other:
+pinned to one CPU (``--cpu``; its torch and numba threads set to 1), one seed after the other
+(``--parallel-cpus 0,1``: side by side, one per CPU, each pinned to its own):
 the wall time is the command's, from start to the written policy folder, imports and compilation
 included (the numba cache warm, as after an install's first run). Its CPU time (user + system,
 from the OS) is recorded beside it. Then each policy is evaluated on ``--targets`` held-out
@@ -36,7 +37,6 @@ import argparse
 import json
 import os
 import platform
-import resource
 import shlex
 import subprocess
 import sys
@@ -74,14 +74,16 @@ def train(env_id: str, seed: int, folder: Path, cpu: int | None, log: Path,
         if cpu is not None:
             os.sched_setaffinity(0, {cpu})
 
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t = time.perf_counter()
     with open(log, "w") as out:
-        subprocess.run(cmd, check=True, stdout=out, stderr=subprocess.STDOUT, env=env,
-                       preexec_fn=pin)
+        proc = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, env=env,
+                                preexec_fn=pin)
+        _, status, usage = os.wait4(proc.pid, 0)   # this child's own CPU time
+        proc.returncode = os.waitstatus_to_exitcode(status)
     wall = time.perf_counter() - t
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu_s = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    if proc.returncode:
+        raise subprocess.CalledProcessError(proc.returncode, cmd)
+    cpu_s = usage.ru_utime + usage.ru_stime
     return {"wall_time_s": wall, "cpu_time_s": cpu_s, "command": " ".join(cmd[1:])}
 
 
@@ -133,6 +135,9 @@ def main() -> None:
     ap.add_argument("--json", type=Path, default=None, help="write the JSON here too")
     ap.add_argument("--cpu", type=int, default=0, help="the CPU each training is pinned to "
                                                        "(-1: not pinned)")
+    ap.add_argument("--parallel-cpus", type=seed_list, default=None, metavar="LIST",
+                    help="train side by side instead, one training per CPU of LIST (e.g. 0,1), "
+                         "each pinned to its CPU; the policies are evaluated afterwards")
     ap.add_argument("--targets", type=int, default=1000)
     ap.add_argument("--eval-seed", type=int, default=1)
     ap.add_argument("--min-success", type=float, default=0.90)
@@ -148,10 +153,29 @@ def main() -> None:
     cpu = None if args.cpu < 0 else args.cpu
     load_before = os.getloadavg()
     rows = []
+    timings: dict[int, dict] = {}
+    if args.parallel_cpus:
+        import queue
+        from concurrent.futures import ThreadPoolExecutor
+
+        free: queue.Queue = queue.Queue()
+        for c in args.parallel_cpus:
+            free.put(c)
+
+        def side_by_side(seed: int) -> dict:
+            c = free.get()
+            try:
+                return {**train(args.env, seed, args.out / f"s{seed}", c,
+                                args.out / f"s{seed}.log", tuple(args.imitate_args)), "cpu": c}
+            finally:
+                free.put(c)
+
+        with ThreadPoolExecutor(len(args.parallel_cpus)) as pool:
+            timings = dict(zip(args.seeds, pool.map(side_by_side, args.seeds), strict=True))
     for seed in args.seeds:
         folder = args.out / f"s{seed}"
-        timing = train(args.env, seed, folder, cpu, args.out / f"s{seed}.log",
-                       tuple(args.imitate_args))
+        timing = timings.get(seed) or train(args.env, seed, folder, cpu,
+                                            args.out / f"s{seed}.log", tuple(args.imitate_args))
         r, errors = held_out(folder, args.targets, args.eval_seed)
         row = {"seed": seed, **timing, **criterion_row(r, args)}
         if args.compare_with is not None:
@@ -196,7 +220,8 @@ def main() -> None:
             "same_side_of_criterion": int(sum(r["same_side_of_criterion"] for r in rows)),
             "same_episodes": int(sum(r["other_path"]["same_episodes"] for r in rows))},
         "machine": {"cpu_count": os.cpu_count(), "processor": platform.processor(),
-                    "pinned_cpu": cpu, "load_average_before": load_before,
+                    "pinned_cpu": cpu, "parallel_cpus": args.parallel_cpus,
+                    "load_average_before": load_before,
                     "load_average_after": os.getloadavg(),
                     "torch_cpu_capability": torch_capability(),
                     "env": {k: os.environ[k] for k in ("ATEN_CPU_CAPABILITY", "MKL_CBWR",

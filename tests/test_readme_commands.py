@@ -27,6 +27,8 @@ SHORTER = {
     "microconveyor imitate --out runs/v1_dagger": ["--rounds", "1", "--episodes", "2"],
     "microconveyor imitate --env MicroPositioner-v0 --out runs/dagger": ["--rounds", "1",
                                                                          "--episodes", "2"],
+    "microconveyor imitate --env MicroConveyor2D-v1 --out runs/plane_dagger": ["--rounds", "1",
+                                                                               "--episodes", "2"],
     "microconveyor evaluate --targets 1000 --seed 1 --json": ["--targets", "10"],
     "microconveyor compare --mpc-prior shipped --plot out/c.png": [
         "--targets", "2", "--budgets", "20", "--mpc-budgets", "20,10", "--noise", "0.003",

@@ -159,6 +159,10 @@ RUNS: dict[str, list[str] | None] = {
     "python benchmarks/imitate_wall_time.py --seeds 0-9 --out runs/imitate-bench --json "
     "docs/figures/imitate_v1_seeds.json": [*IMITATE, "--json", "{out}/seeds.json"],
     "python benchmarks/imitate_wall_time.py --seeds 0-9": IMITATE,
+    "python benchmarks/imitate_wall_time.py --seeds 0-9 --parallel-cpus 0,1 --out "
+    "runs/imitate-nothing --json docs/figures/imitate_v1_nothing_seeds.json": [
+        "--seeds", "0-1", "--targets", "2", "--imitate-args", IMITATE_TINY, "--out",
+        "{out}/bench", "--json", "{out}/seeds.json"],
 }
 # the positional folders a quoted command names, replaced by ones that exist here
 # longest first: the ten-seed list is replaced whole, the three-seed list inside shorter commands

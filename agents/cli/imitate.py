@@ -16,8 +16,9 @@ def _imitate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="runs/dagger", help="policy folder to write")
     settings_options(p, DaggerSettings, ["seed", "rounds", "episodes", "seed_policy"],
                      unset=("rounds", "episodes", "seed_policy"))
-    add_env_args(p, what=" (MicroConveyor-v1: the expert is the seed policy's firings with its "
-                         "last re-aimed on the model; MicroPositioner-v0: the one-step "
+    add_env_args(p, what=" (MicroConveyor-v1: the staged expert built from the simulator alone, "
+                         "or with --seed-policy that policy's firings with its last re-aimed on "
+                         "the model; MicroPositioner-v0: the one-step "
                          "model-based search, trained under per-episode randomisation; "
                          "MicroConveyor2D-v1: the plane's one-step search on its firing map, "
                          "under v1's randomisation; other ids are refused; --env-kwargs are "
@@ -32,9 +33,8 @@ def cmd_imitate(args: argparse.Namespace) -> None:
 
     base = recipe(args.env)
     given = settings_given(DaggerSettings, args)   # the options given; the recipe's otherwise
-    if "seed_policy" in given and base.seed_policy is None:
-        raise ValueError(f"--seed-policy: {args.env}'s expert is not seeded by a policy")
     s = recipe(args.env, env_kwargs={**base.env_kwargs, **env_kwargs_of(args)}, **given)
+    s.config()   # before any work: refuses a seed policy where the scene's expert takes none
     say = (lambda line: print(line, file=sys.stderr)) if args.json else print
     from ..imitation.dagger import dagger
 

@@ -12,9 +12,14 @@ Three experts, one per scene, picked by :func:`agents.mpc.experts.expert_for` (t
 * MicroConveyor2D-v0/-v1 (the plane): the same one-step search around every actuator the aim
   can pick (:func:`agents.planning.plane.labeller`), ranked on the plane's firing map and
   confirmed on the full nominal model, each stroke started once the part has come to rest;
-* MicroConveyor-v1 (the 1-D conveyor): model-predictive control seeded by a policy
+* MicroConveyor-v1 (the 1-D conveyor), from the simulator alone (the recipe): the staged expert
+  (:class:`~agents.mpc.staged.StagedExpert`): each of the first firings has its stroke and delay
+  fixed and its frequency aimed on the nominal model so that the part rests on the target, or,
+  for a target beyond that firing's reach, its strongest frequency carrying the part on: one
+  family of plans, continuous in the target;
+* MicroConveyor-v1 with ``seed_policy``: model-predictive control seeded by a policy
   (:class:`~agents.mpc.experts.SeededExpert`): the seed policy's firing, its last firing re-aimed
-  on the nominal model so that the part rests on the target.
+  on the nominal model so that the part rests on the target (the recipe's ``seeded`` settings).
 
 Each round plays ``episodes`` episodes at once on the batched env (round 0 with the expert
 acting, later rounds with the policy), asks the expert what it would fire from every state
@@ -62,6 +67,7 @@ ENV_ID = "MicroPositioner-v0"   # the dataclass defaults are the positioner's re
 TRAIN_KWARGS = {"action_noise": 3e-3, "friction_factor_range": (0.95, 1.05),
                 "mass_factor_range": (0.95, 1.05)}
 FITS = ("adam", "lbfgs")
+KEEPS = ("last", "best")   # which round's fit the policy folder holds
 # an expert's answers for a batch: (actions (M, components) float32, whether each has one, whether each
 # was corrected by the model rather than taken from a seed; None: not that kind of expert)
 Labels = tuple[np.ndarray, np.ndarray, "np.ndarray | None"]
@@ -80,6 +86,12 @@ class DaggerSettings:
     in batches of ``batch_size`` [-], ``learning_rate`` [-] multiplied by ``lr_decay`` [-] after
     every round) or ``"lbfgs"`` (full batch in float64, ``fit_iterations`` [-]).
 
+    ``keep``: which fit the policy folder holds: ``"last"`` the last round's, or ``"best"`` the
+    one whose episodes went best (each fit is scored by the next round's episodes, which it
+    plays itself, and the last fit by one more round of ``episodes`` without labels; the highest
+    share within the tolerance, then the lower median error), as Ross, Gordon and Bagnell return
+    the best policy of the rounds on validation episodes.
+
     The positioner's expert (:class:`~agents.mpc.experts.BatchExpert`): ``frequencies``,
     ``strokes`` [-] its candidate grid, ``margin`` [-] grid cells from detachment, ``slack_m``
     [m] how much farther a gentler firing may land, ``heavier`` [-] the heavier part it checks,
@@ -92,8 +104,10 @@ class DaggerSettings:
     is scored by what one more firing could reach from it (off: by its own distance), for parts
     resting within ``lookahead_within_m`` [m] of their target (farther ones: by the landing's
     own distance; None: every part).
-    The conveyor's expert (:class:`~agents.mpc.experts.SeededExpert`): ``seed_policy``, a shipped
-    policy's name for ``env_id`` or a policy folder; ``newton_iterations`` [-] and ``accept_m``
+    The conveyor's experts: with no ``seed_policy`` the staged expert
+    (:class:`~agents.mpc.staged.StagedExpert`), else the seeded one
+    (:class:`~agents.mpc.experts.SeededExpert`) of ``seed_policy``, a shipped policy's name for
+    ``env_id`` or a policy folder; ``newton_iterations`` [-] and ``accept_m``
     [m] of the re-aimed last firing."""
 
     env_id: str = ENV_ID
@@ -121,9 +135,11 @@ class DaggerSettings:
     search: str = "map"
     lookahead: bool = False
     lookahead_within_m: float | None = None
+    keep: str = "last"
     seed_policy: str | None = field(default=None, metadata={
-        "help": "MicroConveyor-v1: the policy that seeds the expert, a shipped policy's name or a "
-                "policy folder (default: the recipe's, ppo_refined)", "metavar": "NAME|PATH"})
+        "help": "MicroConveyor-v1: a policy that seeds the expert, a shipped policy's name (e.g. "
+                "ppo_refined) or a policy folder, with the recipe's seeded settings (default: "
+                "none, the staged expert built from the simulator alone)", "metavar": "NAME|PATH"})
     newton_iterations: int = 6
     accept_m: float = 2e-6
 
@@ -140,14 +156,14 @@ class DaggerSettings:
                 raise ValueError(f"{name} = {v!r} is invalid: must be an integer >= {least}")
         if not self.net_arch or any(not isinstance(w, int) or w < 1 for w in self.net_arch):
             raise ValueError(f"net_arch = {self.net_arch!r} is invalid: positive widths")
-        if self.fit not in FITS:
-            raise ValueError(f"fit = {self.fit!r} is invalid: must be one of {FITS}")
+        for name, allowed in (("fit", FITS), ("keep", KEEPS), ("search", SEARCHES)):
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"{name} = {getattr(self, name)!r} is invalid: must be one of "
+                                 f"{allowed}")
         for name in ("learning_rate", "lr_decay"):
             v = getattr(self, name)
             if not (isinstance(v, float) and 0.0 < v <= 1.0) or v == 1.0 and name != "lr_decay":
                 raise ValueError(f"{name} = {v!r} is invalid: must be in (0, 1)")
-        if self.search not in SEARCHES:
-            raise ValueError(f"search = {self.search!r} is invalid: must be one of {SEARCHES}")
         if not isinstance(self.lookahead, bool):
             raise ValueError(f"lookahead = {self.lookahead!r} is invalid: true or false")
         within = self.lookahead_within_m
@@ -174,15 +190,14 @@ class DaggerSettings:
         if not isinstance(cfg, EnvConfig):
             raise ValueError(f"{self.env_id} is not a scene DAgger has an expert for "
                              "(MicroPositioner-v0, MicroConveyor-v1, MicroConveyor2D-v0/-v1)")
-        if self.seed_policy is None:
-            raise ValueError(f"{self.env_id}: the conveyor's expert is seeded by a policy; "
-                             "give seed_policy (a shipped policy's name or a policy folder)")
         return cfg
 
 
 def recipe(env_id: str, **overrides: Any) -> DaggerSettings:
     """The settings of ``env_id``'s recipe (``configs/dagger.yml``) with ``overrides`` (any
-    :class:`DaggerSettings` field; ``env_kwargs`` replaces the recipe's)."""
+    :class:`DaggerSettings` field; ``env_kwargs`` replaces the recipe's). A recipe's ``seeded``
+    entry holds the settings that replace its own when ``overrides`` name a ``seed_policy``
+    (the expert seeded by that policy)."""
     check_env_id(env_id)
     data = yaml.safe_load((resources.files("microconveyor_env.configs") / "dagger.yml")
                           .read_text()) or {}
@@ -191,8 +206,11 @@ def recipe(env_id: str, **overrides: Any) -> DaggerSettings:
                          f"{', '.join(map(str, data))}): DAgger's experts plan "
                          "MicroPositioner-v0, MicroConveyor-v1 and MicroConveyor2D-v1")
     entry = dict(data[env_id])
+    seeded = entry.pop("seeded", None) or {}
+    if overrides.get("seed_policy") is not None:
+        entry.update(seeded)
     names = {f.name for f in dataclasses.fields(DaggerSettings)}
-    unknown = sorted(set(entry) - names)
+    unknown = sorted((set(entry) | set(seeded)) - names)
     if unknown:
         raise ValueError(f"configs/dagger.yml, {env_id}: unknown keys {unknown}")
     if "net_arch" in entry:
@@ -233,6 +251,16 @@ def make_expert(s: DaggerSettings, cfg: Any) -> tuple[Labeller, dict[str, Any]]:
                     "slack of the nearest",
             "frequencies": s.frequencies, "strokes": s.strokes, "margin": s.margin,
             "slack_m": s.slack_m, "heavier": s.heavier, "search": s.search}
+    if s.seed_policy is None:
+        from ..mpc.staged import STAGES, StagedExpert
+
+        staged = StagedExpert(cfg, iterations=s.newton_iterations, accept_m=s.accept_m)
+        return staged.label, {
+            "kind": "staged family from the simulator alone: the first firings' strokes and "
+                    "delays fixed, each frequency aimed on the nominal model (Newton) or, for a "
+                    "target beyond that firing's reach, its strongest carrying the part on",
+            "stages": [list(st) for st in STAGES],
+            "newton_iterations": s.newton_iterations, "accept_m": s.accept_m}
     from ..rl.artefacts.checkpoint import sha256
     from ..rl.artefacts.policy_files import (PolicyError, load_policy, policy_scene,
                                             read_policy_meta)
@@ -314,6 +342,30 @@ def _play(venv: Any, label: Labeller, act: Any,
     return np.concatenate(X), np.concatenate(Y), fig
 
 
+def _keep_best(s: DaggerSettings, venv: Any, student: Student, fits: list[list[Any]],
+               rounds: list[dict]) -> dict[str, Any]:
+    """Put the best of the rounds' fits into ``student`` (``keep="best"``, :class:`DaggerSettings`)
+    and return which: fit ``r`` is scored by round ``r + 1``'s episodes, the last fit by one
+    more round without labels."""
+    import torch
+
+    def nothing(obs: np.ndarray, venv: Any, live: np.ndarray) -> Labels:
+        return (np.zeros((len(obs), len(venv.conveyor.components)), np.float32),
+                np.zeros(len(obs), bool), None)
+
+    _, _, last = _play(venv, nothing, student.act, seed=s.seed * 1_000_003 + s.rounds * s.episodes)
+    scores = [*(f for f in rounds[1:]), last]
+    best = max(range(len(fits)), key=lambda r: (scores[r]["success_rate"],
+                                                -scores[r]["median_abs_error_m"], r))
+    with torch.no_grad():
+        for p, v in zip(student.params, fits[best], strict=True):
+            p.copy_(v)
+    return {"round": best, "success_rate": scores[best]["success_rate"],
+            "median_abs_error_m": scores[best]["median_abs_error_m"],
+            "episodes": scores[best]["episodes"],
+            "last_fit_success_rate": last["success_rate"]}
+
+
 def dagger(out: str | Path, s: DaggerSettings | None = None, progress: Any = print,
            command: str | None = None) -> dict:
     """Train by DAgger (module docstring) into the new policy folder ``out``; returns its
@@ -343,6 +395,7 @@ def _train(s: DaggerSettings, progress: Any, command: str | None) -> tuple[Stude
     X = np.zeros((0, venv.conveyor.obs_dim), np.float32)
     Y = np.zeros((0, len(venv.conveyor.components)), np.float32)
     rounds, steps = [], 0
+    fits: list[list[Any]] = []   # each round's fitted parameters (keep="best")
     for r in range(s.rounds):
         xr, yr, fig = _play(venv, label, None if r == 0 else student.act,
                             seed=s.seed * 1_000_003 + r * s.episodes)
@@ -356,6 +409,8 @@ def _train(s: DaggerSettings, progress: Any, command: str | None) -> tuple[Stude
                                  "grid or a smaller margin")
             student.set_stats(X)   # the observation statistics of the expert's own states
         loss = student.fit(X, Y)
+        if s.keep == "best":
+            fits.append([p.detach().clone() for p in student.params])
         fig.update(round=r, acting="expert" if r == 0 else "policy", samples=int(len(X)),
                    loss=loss, wall_time_s=time.perf_counter() - t0)
         rounds.append(fig)
@@ -364,6 +419,12 @@ def _train(s: DaggerSettings, progress: Any, command: str | None) -> tuple[Stude
                  f"detached {fig['detach_rate']:.0%}; {len(X):,} samples, fit RMS "
                  f"{np.sqrt(loss):.4f} action units, "
                  f"{fig['wall_time_s']:.0f} s")
+    kept = None
+    if s.keep == "best":
+        kept = _keep_best(s, venv, student, fits, rounds)
+        progress(f"kept the fit of round {kept['round']}: {kept['success_rate']:.0%} within "
+                 f"±{cfg.tolerance * 1e6:.0f} µm, median "
+                 f"{kept['median_abs_error_m'] * 1e6:.1f} µm on the episodes it played")
     wall = time.perf_counter() - t0
     env_kwargs = {k: list(v) if isinstance(v, tuple) else v for k, v in s.env_kwargs.items()}
     # portable inference: an episode of many firings amplifies torch's CPU-specific float32
@@ -373,7 +434,7 @@ def _train(s: DaggerSettings, progress: Any, command: str | None) -> tuple[Stude
             "env_kwargs": env_kwargs, "seed": s.seed, "steps": int(steps),
             "wall_time_s": wall, "hyperparams": {**dataclasses.asdict(s), "env_kwargs":
                                                   env_kwargs},
-            "expert": expert_meta,
+            "expert": expert_meta, "kept_fit": kept,
             "command": command, "rounds": rounds, "machine": {"cpu_count": os.cpu_count(),
                                           "processor": platform.processor()},
             "note": "A policy network trained by DAgger to imitate a model-based expert on the "

@@ -408,7 +408,8 @@ def expert_for(config: Any, settings: Any,
     """The expert of ``config``'s scene (:func:`agents.planning.scene_of`) with DAgger's
     ``settings`` (:class:`agents.imitation.dagger.DaggerSettings`): on the positioner the batched
     one-step search; on the plane its one-step controller (:func:`agents.planning.plane.
-    labeller`); on the line the seeded expert of the policy ``seed`` (its ``act``)."""
+    labeller`); on the line the seeded expert of the policy ``seed`` (its ``act``; the line's
+    expert with no seed: :class:`.staged.StagedExpert`)."""
     if isinstance(config, PlaneEnvConfig):
         return labeller(config, dataclasses.replace(
             LABEL_SETTINGS, frequencies=settings.frequencies, strokes=settings.strokes,

@@ -53,7 +53,8 @@ def test_expert_refuses_when_nothing_gets_closer() -> None:
                                                                  "fit_iterations"),
                                        ({"newton_iterations": 0}, "newton_iterations"),
                                        ({"accept_m": -1e-6}, "accept_m"),
-                                       ({"seed_policy": ""}, "seed_policy")])
+                                       ({"seed_policy": ""}, "seed_policy"),
+                                       ({"keep": "first"}, "keep")])
 def test_settings_refused(bad: dict, word: str) -> None:
     with pytest.raises(ValueError, match=word):
         DaggerSettings(**bad)
@@ -63,13 +64,11 @@ def test_dagger_refuses_what_it_has_no_expert_for() -> None:
     # the plane has an expert (tests/agents/test_plane_dagger.py), seeded by no policy
     with pytest.raises(ValueError, match="not seeded"):
         DaggerSettings(env_id="MicroConveyor2D-v1", env_kwargs={}, seed_policy="ppo").config()
-    with pytest.raises(ValueError, match="seed_policy"):
-        DaggerSettings(env_id="MicroConveyor-v1", env_kwargs={}).config()
     with pytest.raises(ValueError, match="not seeded"):
         DaggerSettings(seed_policy="ppo").config()   # the positioner's expert has no seed
     with pytest.raises(ValueError, match="another scene"):   # a seed of another scene
         from agents.imitation.dagger import make_expert
-        s = recipe("MicroConveyor-v1", env_kwargs={"tolerance": 1e-5})
+        s = recipe("MicroConveyor-v1", env_kwargs={"tolerance": 1e-5}, seed_policy="ppo_refined")
         make_expert(s, s.config())
     with pytest.raises(ValueError, match="Dict observations"):
         DaggerSettings(env_id="MicroConveyorGoal-v1", env_kwargs={})
@@ -80,9 +79,12 @@ def test_dagger_refuses_what_it_has_no_expert_for() -> None:
 
 def test_recipes_are_the_settings_of_configs_dagger_yml() -> None:
     assert recipe("MicroPositioner-v0") == DaggerSettings()   # the dataclass holds its recipe
-    v1 = recipe("MicroConveyor-v1", seed=3)
-    assert (v1.env_kwargs, v1.seed_policy, v1.fit, v1.net_arch, v1.seed) == (
-        {}, "ppo_refined", "lbfgs", (64, 64), 3)
+    v1 = recipe("MicroConveyor-v1", seed=3)   # from the simulator alone: no seed policy
+    assert (v1.env_kwargs, v1.seed_policy, v1.fit, v1.net_arch, v1.rounds, v1.seed) == (
+        {}, None, "lbfgs", (64, 64, 64), 7, 3)
+    seeded = recipe("MicroConveyor-v1", seed_policy="ppo_refined")   # the recipe's seeded entry
+    assert (seeded.seed_policy, seeded.net_arch, seeded.rounds, seeded.fit_iterations) == (
+        "ppo_refined", (64, 64), 5, 1000)
     with pytest.raises(ValueError, match="fit"):
         recipe("MicroConveyor-v1", fit="sgd")
 
@@ -224,7 +226,8 @@ def test_seeded_expert_refuses_another_scene() -> None:
 def test_short_v1_dagger_run_writes_a_policy_that_loads_as_data(tmp_path) -> None:
     from agents.rl.evaluation.evaluate import fixed_targets, load_policy, rollout
 
-    s = recipe("MicroConveyor-v1", rounds=2, episodes=4, fit_iterations=3, seed=2)
+    s = recipe("MicroConveyor-v1", rounds=2, episodes=4, fit_iterations=3, seed=2,
+               seed_policy="ppo_refined")
     meta = dagger(tmp_path / "p", s, progress=lambda line: None)
     assert meta["trained_by"] == "dagger" and meta["env_id"] == "MicroConveyor-v1"
     assert meta["expert"]["seed_policy"] == "ppo_refined" and meta["env_kwargs"] == {}
@@ -239,7 +242,7 @@ def test_short_v1_dagger_run_writes_a_policy_that_loads_as_data(tmp_path) -> Non
 @pytest.mark.parametrize("argv, words", [
     (["--env", "MicroPositioner-v0", "--seed-policy", "ppo"], "not seeded by a policy"),
     (["--seed-policy", "no-such-policy"], "no policy at"),
-    (["--env-kwargs", "tolerance:1e-5"], "another scene"),
+    (["--env-kwargs", "tolerance:1e-5", "--seed-policy", "ppo_refined"], "another scene"),
     (["--env", "MicroConveyor-v0"], "no recipe")])
 def test_imitate_refuses_in_one_line(argv: list, words: str, tmp_path, capsys) -> None:
     from microconveyor_env.cli import main
@@ -249,3 +252,36 @@ def test_imitate_refuses_in_one_line(argv: list, words: str, tmp_path, capsys) -
     err = capsys.readouterr().err.strip().splitlines()
     assert status == 2 and len(err) == 1 and words in err[0] and "Traceback" not in err[0]
     assert not (tmp_path / "p").exists()
+
+
+def test_keep_best_puts_the_fit_whose_episodes_went_best_into_the_policy() -> None:
+    """keep="best": fit r is scored by round r + 1's episodes and the last fit by one more round;
+    the best (share within the tolerance, then the median) is the one the student holds."""
+    import dataclasses
+
+    import torch
+
+    from agents.imitation.dagger import _keep_best
+    from agents.imitation.student import Student
+    from microconveyor_env.envs.core.versions import vector_class
+
+    s = recipe("MicroConveyor-v1", rounds=3, episodes=4, keep="best")
+    cfg = s.config()
+    venv = vector_class(s.env_id)(s.episodes, config=dataclasses.replace(cfg, num_threads=1))
+    student = Student(s, cfg)
+    student.set_stats(np.zeros((2, venv.conveyor.obs_dim), np.float32))
+    fits = [[p.detach().clone() + k for p in student.params] for k in range(3)]
+
+    def score(success: float, median: float) -> dict:
+        return {"success_rate": success, "median_abs_error_m": median, "episodes": 4}
+
+    # fit 0 scored perfect by round 1's episodes: nothing the last fit plays can beat it
+    rounds = [score(1.0, 0.0), score(1.0, 0.0), score(0.5, 1e-4)]
+    kept = _keep_best(s, venv, student, fits, rounds)
+    assert kept["round"] == 0 and kept["success_rate"] == 1.0
+    assert all(torch.equal(p, v) for p, v in zip(student.params, fits[0], strict=True))
+    # fit 1 scored perfect, fit 0 less so: fit 1 is kept
+    rounds = [score(1.0, 0.0), score(0.9, 1e-5), score(1.0, 0.0)]
+    kept = _keep_best(s, venv, student, fits, rounds)
+    assert kept["round"] == 1
+    assert all(torch.equal(p, v) for p, v in zip(student.params, fits[1], strict=True))
