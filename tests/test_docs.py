@@ -87,8 +87,11 @@ def test_examples_are_there():
 
 # env.md's SAC + HER block trains for ~10 s: it runs with the slow tests;
 # tests/envs/test_goal_env.py::test_her_trains_a_few_hundred_steps trains the same model (SAC with
-# a HerReplayBuffer on MicroConveyorGoal-v1) in the default suite
-SLOW_BLOCKS = ("HerReplayBuffer",)
+# a HerReplayBuffer on MicroConveyorGoal-v1) in the default suite. env.md's two video blocks
+# (rendering a whole episode frame by frame and encoding it, 10-50 s in a loaded session) run
+# with the slow tests too; tests/envs/test_render.py (RecordStrokeVideo) and tests/cli/
+# test_video.py (write_video through the video command) cover both in the default suite
+SLOW_BLOCKS = ("HerReplayBuffer", "write_video(frames", "RecordStrokeVideo(")
 
 
 @pytest.mark.parametrize("page, code", [

@@ -53,6 +53,7 @@ def _kill_when_stalled(marker: Path, killed: list, timeout: float = 120.0) -> No
         killed.append(pid)
 
 
+@pytest.mark.slow   # a Dask cluster started, a worker killed and its task re-run: ~40 s
 def test_study_survives_a_killed_worker(tmp_path):
     """A worker process SIGKILLed while it runs a task: the study finishes on the other worker
     (and the restarted one) with the serial run's rows, bit for bit."""
