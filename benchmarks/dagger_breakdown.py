@@ -4,8 +4,8 @@ it (the recipe of ``configs/dagger.yml``), by part (a benchmark script, not a te
     taskset -c 1 python benchmarks/dagger_breakdown.py [--env MicroPositioner-v0] [--seed 0]
         [--rounds R] [--episodes N] [--json docs/figures/dagger_breakdown_positioner.json]
 
-One training with the recipe's settings (``--rounds``/``--episodes`` shorten it), no folder
-written. The time is split by wrapping methods of the live objects, each part counting its own
+One training with the recipe's settings (``--rounds``/``--episodes`` shorten it), its policy
+folder written to a temporary folder (counted in "setup and other") and removed. The time is split by wrapping methods of the live objects, each part counting its own
 time without the parts nested in it (``Clock`` of ``train_time_breakdown.py``; wall and this
 process's CPU time):
 
@@ -30,17 +30,28 @@ import os
 import platform
 import shlex
 import sys
+import tempfile
 import time
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from train_time_breakdown import Clock  # noqa: E402  (the same exclusive-time accounting)
+from agents.imitation import dagger as D
+from agents.imitation.student import Student
+from microconveyor_env.envs.core.versions import vector_class
 
-from agents.imitation import dagger as D  # noqa: E402
-from agents.imitation.student import Student  # noqa: E402
-from microconveyor_env.envs.core.versions import vector_class  # noqa: E402
+
+def _clock_class() -> Any:
+    """``Clock`` of ``train_time_breakdown.py`` beside this file: the same exclusive-time
+    accounting."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        "train_time_breakdown", Path(__file__).with_name("train_time_breakdown.py"))
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.Clock
 
 PARTS = [("expert_setup", "expert construction"), ("expert", "expert labelling"), ("env", "env stepping (batched env)"),
          ("student_act", "student acting (forward passes)"), ("fit", "fitting the network"),
@@ -48,7 +59,7 @@ PARTS = [("expert_setup", "expert construction"), ("expert", "expert labelling")
 DAGGER_ENV_IDS = ("MicroPositioner-v0", "MicroConveyor-v1", "MicroConveyor2D-v1")
 
 
-def instrument(env_id: str, clock: Clock) -> None:
+def instrument(env_id: str, clock: Any) -> None:
     """Wrap the batched env's class, the student's class and the expert ``make_expert``
     returns (before the training builds them)."""
     venv_cls = vector_class(env_id)
@@ -85,12 +96,13 @@ def main(argv: list[str] | None = None) -> dict:
     if a.episodes is not None:
         over["episodes"] = a.episodes
     s = D.recipe(a.env, **over)
-    clock = Clock()
+    clock = _clock_class()()
     instrument(a.env, clock)
     load_before = os.getloadavg()
-    t0, c0 = time.perf_counter(), time.process_time()
-    _, meta = D._train(s, lambda line: print(line, flush=True), None)
-    total, total_cpu = time.perf_counter() - t0, time.process_time() - c0
+    with tempfile.TemporaryDirectory() as tmp:
+        t0, c0 = time.perf_counter(), time.process_time()
+        meta = D.dagger(Path(tmp) / "policy", s, lambda line: print(line, flush=True))
+        total, total_cpu = time.perf_counter() - t0, time.process_time() - c0
     load_after = os.getloadavg()
     named = [k for k, _ in PARTS if k != "other"]
     parts = {k: {"wall_s": clock.s[k], "cpu_s": clock.cpu_s[k], "calls": clock.calls[k]}

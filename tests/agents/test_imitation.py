@@ -81,7 +81,7 @@ def test_recipes_are_the_settings_of_configs_dagger_yml() -> None:
     assert recipe("MicroPositioner-v0") == DaggerSettings()   # the dataclass holds its recipe
     v1 = recipe("MicroConveyor-v1", seed=3)   # from the simulator alone: no seed policy
     assert (v1.env_kwargs, v1.seed_policy, v1.fit, v1.net_arch, v1.rounds, v1.seed) == (
-        {}, None, "lbfgs", (64, 64, 64), 7, 3)
+        {}, None, "lbfgs", (64, 64, 64), 8, 3)
     seeded = recipe("MicroConveyor-v1", seed_policy="ppo_refined")   # the recipe's seeded entry
     assert (seeded.seed_policy, seeded.net_arch, seeded.rounds, seeded.fit_iterations) == (
         "ppo_refined", (64, 64), 5, 1000)

@@ -105,12 +105,7 @@ class Conveyor(RailParts):
         them."""
         x0, tgt = initial_state(self.config, rng, target)
         self._draw_randomisation(i, rng)
-        p = self.parts
-        p.x[i], p.v[i], p.t[i] = x0, 0.0, 0.0
-        p.fired[i] = 0
-        p.target[i] = tgt
-        if self.history_len:
-            self.obs[i, task.OBS_DIM:] = 0.0  # a new episode remembers no firing
+        self._write_start(i, x0, tgt)
         if state is not None:
             self._set_state(i, state)
 
@@ -120,6 +115,11 @@ class Conveyor(RailParts):
         whole-array writes."""
         x0, tgt = initial_states(self.config, rngs)
         self._draw_randomisation_many(rows, rngs)
+        self._write_start(rows, x0, tgt)
+
+    def _write_start(self, rows: Any, x0: Any, tgt: Any) -> None:
+        """Write a new episode's start into the parts ``rows`` (an index or an index array):
+        at ``x0`` [m], still, nothing fired, aiming at ``tgt`` [m], no history."""
         p = self.parts
         p.x[rows], p.v[rows], p.t[rows] = x0, 0.0, 0.0
         p.fired[rows] = 0
