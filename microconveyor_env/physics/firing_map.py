@@ -33,7 +33,7 @@ import tempfile
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 from numba import njit, prange
@@ -221,14 +221,19 @@ def _code_hash() -> str:
     return h.hexdigest()[:16]
 
 
-def map_key(sim: Simulator, grid: MapGrid) -> str:
-    """Hash of everything a map's numbers depend on (see :meth:`FiringMap.cached`)."""
+def hash_key(head: str, sim: Any, grid: MapGrid) -> str:
+    """Hash of ``head`` (a map kind's format and source hash), ``sim``'s step settings,
+    constants and tables, and ``grid``: a map's cache key."""
     h = hashlib.sha256()
-    h.update(f"{MAP_FORMAT}|{_code_hash()}|{sim.dt!r}|{sim.min_steps!r}|{sim.max_time!r}|"
-             f"{grid!r}".encode())
+    h.update(f"{head}|{sim.dt!r}|{sim.min_steps!r}|{sim.max_time!r}|{grid!r}".encode())
     for a in (sim.params, *sim.tables):
         h.update(np.ascontiguousarray(a, float).tobytes())
     return h.hexdigest()[:32]
+
+
+def map_key(sim: Simulator, grid: MapGrid) -> str:
+    """Hash of everything a map's numbers depend on (see :meth:`FiringMap.cached`)."""
+    return hash_key(f"{MAP_FORMAT}|{_code_hash()}", sim, grid)
 
 
 @dataclass
@@ -302,19 +307,31 @@ class FiringMap:
         return cls(sim, grid, dx.reshape(grid.shape), ve.reshape(grid.shape),
                    ok.reshape(grid.shape), time.perf_counter() - t0)
 
+    CACHE_NAME = "firing-map"   # the cache file's name: <CACHE_NAME>-<key>.npz
+
     @classmethod
-    def cached(cls, sim: Simulator, grid: MapGrid) -> FiringMap:
+    def _memo(cls) -> dict[str, Any]:
+        """This process's maps of this kind, by key."""
+        return _MEMO
+
+    @classmethod
+    def _key(cls, sim: Any, grid: MapGrid) -> str:
+        return map_key(sim, grid)
+
+    @classmethod
+    def cached(cls, sim: Any, grid: MapGrid) -> Self:
         """The map of ``sim`` on ``grid``: from this process's memory, else from the cache folder
-        (``firing-map-<key>.npz`` in :func:`.table_cache.cache_dir`, keyed by the simulator's
-        constants and tables, its step settings, the grid and the source of the kernel and of this
-        module), else built and stored there (atomically; an unwritable folder is not an
-        error)."""
-        key = map_key(sim, grid)
-        hit = _MEMO.get(key)
+        (``<CACHE_NAME>-<key>.npz`` in :func:`.table_cache.cache_dir`, keyed by the simulator's
+        constants and tables, its step settings, the grid and the source of the kernel and of
+        the map's module), else built and stored there (atomically; an unwritable folder is not
+        an error)."""
+        key = cls._key(sim, grid)
+        memo = cls._memo()
+        hit = memo.get(key)
         if hit is not None:
             return hit
-        path = cache_dir() / f"firing-map-{key}.npz"
-        made = None
+        path = cache_dir() / f"{cls.CACHE_NAME}-{key}.npz"
+        made: Any = None   # this class's map (build is each kind's own)
         try:
             with np.load(path, allow_pickle=False) as z:
                 if str(z["key"]) == key:
@@ -332,7 +349,7 @@ class FiringMap:
                 os.replace(tmp, path)
             except OSError:
                 pass
-        _MEMO[key] = made
+        memo[key] = made
         return made
 
     @property

@@ -28,8 +28,6 @@ from __future__ import annotations
 import functools
 import hashlib
 import math
-import os
-import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,9 +38,8 @@ from numba import njit, prange
 
 from ...jit_cache import refresh as refresh_jit_cache
 from .. import dynamics_kernel as kernel1d
-from ..firing_map import FiringMap, MapError, MapGrid, lookup
+from ..firing_map import FiringMap, MapError, MapGrid, hash_key, lookup
 from ..materials import ParameterError
-from ..table_cache import cache_dir
 from . import kernel
 from .simulator import PlaneSimulator
 
@@ -156,12 +153,7 @@ def _code_hash() -> str:
 
 def map_key(sim: PlaneSimulator, grid: MapGrid) -> str:
     """Hash of everything a plane map's numbers depend on (see :meth:`PlaneFiringMap.cached`)."""
-    h = hashlib.sha256()
-    h.update(f"plane|{PLANE_MAP_FORMAT}|{_code_hash()}|{sim.dt!r}|{sim.min_steps!r}|"
-             f"{sim.max_time!r}|{grid!r}".encode())
-    for a in (sim.params, *sim.tables):
-        h.update(np.ascontiguousarray(a, float).tobytes())
-    return h.hexdigest()[:32]
+    return hash_key(f"plane|{PLANE_MAP_FORMAT}|{_code_hash()}", sim, grid)
 
 
 def check_radial(grid: MapGrid) -> None:
@@ -197,38 +189,15 @@ class PlaneFiringMap(FiringMap):
         return cls(sim, grid, dr.reshape(grid.shape), vr.reshape(grid.shape),
                    ok.reshape(grid.shape), time.perf_counter() - t0)
 
+    CACHE_NAME = "plane-firing-map"
+
     @classmethod
-    def cached(cls, sim: Any, grid: MapGrid) -> PlaneFiringMap:
-        """The map of ``sim`` on ``grid``: from this process's memory, else from the cache
-        folder (``plane-firing-map-<key>.npz`` in :func:`..table_cache.cache_dir`, keyed by the
-        simulator's constants and tables, its step settings, the grid and the source of the
-        kernel and of the maps), else built and stored there (atomically; an unwritable folder
-        is not an error)."""
-        key = map_key(sim, grid)
-        hit = _MEMO.get(key)
-        if hit is not None:
-            return hit
-        path = cache_dir() / f"plane-firing-map-{key}.npz"
-        made = None
-        try:
-            with np.load(path, allow_pickle=False) as z:
-                if str(z["key"]) == key:
-                    made = cls(sim, grid, z["dx"], z["v_end"], z["ok"], float(z["build_s"]))
-        except (OSError, KeyError, ValueError, ParameterError):
-            made = None
-        if made is None:
-            made = cls.build(sim, grid)
-            try:
-                path.parent.mkdir(parents=True, exist_ok=True)
-                fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz.tmp")
-                with os.fdopen(fd, "wb") as fh:
-                    np.savez(fh, key=key, dx=made.dx, v_end=made.v_end, ok=made.ok,
-                             build_s=made.build_s)
-                os.replace(tmp, path)
-            except OSError:
-                pass
-        _MEMO[key] = made
-        return made
+    def _memo(cls) -> dict[str, Any]:
+        return _MEMO
+
+    @classmethod
+    def _key(cls, sim: Any, grid: MapGrid) -> str:
+        return map_key(sim, grid)
 
     def rest_at(self, part: Any, actuator: Any, f: Any, h: Any
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
