@@ -1,5 +1,6 @@
-"""Measure the README's answer table: how precisely a part is placed at 1, 3, 5, 7 and 9 mm on
-MicroConveyor-v1, by which method, nominally and under execution noise.
+"""Measure the README's answer table: how precisely and how fast a part is placed at 1, 3, 5, 7
+and 9 mm on MicroConveyor-v1, by which method, nominally and under execution noise (every
+episode's final error, outcome and placement time: the simulated time until the part rests).
 
 Methods: the shipped policy ``MicroConveyor-v1/ppo_refined`` (closed loop), MPC seeded by that
 policy's plan (``agents.mpc``, the settings of ``microconveyor compare``) and differential
@@ -16,6 +17,7 @@ import argparse
 import datetime
 import json
 import math
+import os
 import platform
 import time
 from pathlib import Path
@@ -48,8 +50,19 @@ def noise_in_si(sigma: float, cfg) -> dict:
 
 
 def _episodes(run, cfg, targets, sigma: float, repeats: int, seed: int) -> list[dict]:
-    return perturbation_table(run, cfg, targets, [Level(action_noise=sigma)], seed=seed,
+    """One row per episode (``perturbation_table``'s), each with its placement time ``time_s``
+    [s]: the simulated time until the part rested (or detached)."""
+    times: list[float] = []
+
+    def timed(config, tg, s):
+        res = run(config, tg, s)
+        times.extend(np.asarray(res["time_s"], float).tolist())
+        return res
+
+    rows = perturbation_table(timed, cfg, targets, [Level(action_noise=sigma)], seed=seed,
                               repeats=repeats, tolerance=cfg.tolerance, per_episode=True)
+    # perturbation_table writes each rollout's rows right after it, in target order
+    return [{**row, "time_s": t} for row, t in zip(rows, times, strict=True)]
 
 
 def main() -> None:
@@ -63,6 +76,7 @@ def main() -> None:
     ap.add_argument("--de-budget", type=int, default=DE_BUDGET,
                     help=f"DE's episodes per target (default {DE_BUDGET})")
     args = ap.parse_args()
+    load_before = os.getloadavg()[0]
 
     cfg = env_config(ENV_ID)
     targets = distance_targets(cfg, DISTANCES_M, args.per_distance).reshape(-1)
@@ -110,7 +124,9 @@ def main() -> None:
            "distances_m": list(DISTANCES_M), "targets_m": targets.tolist(),
            "targets_per_distance": args.per_distance, "noise_seeds": args.noise_seeds,
            "seed": args.seed, "noise": noise_in_si(args.sigma, cfg), "methods": methods,
-           "provenance": {"machine": f"{platform.machine()}, {__import__('os').cpu_count()} cores",
+           "provenance": {"machine": f"{platform.machine()}, {os.cpu_count()} cores",
+                          # 1-min load average before and after: the compute column's context
+                          "load_average": [load_before, os.getloadavg()[0]],
                           "python": platform.python_version(),
                           "recorded_utc": datetime.datetime.now(datetime.UTC)
                           .isoformat(timespec="seconds"),

@@ -59,15 +59,21 @@ def test_record_leaves_a_folder_that_loads(env_id, name, root, capsys):
     meta = _loads_whole(folder)
     assert meta["evaluation"]["n_targets"] == 2 and meta["format"] == 2
     assert meta["evaluation_provenance"]["command"] == f"microconveyor record {env_id}/{name}"
-    assert set(json.loads((folder / "episodes.json").read_text())) == \
+    episodes = json.loads((folder / "episodes.json").read_text())
+    assert set(episodes) == \
         {k for k in meta if k.startswith("evaluation") and k != "evaluation_provenance"}
+    # a new record carries the placement times and the tight radii, its episodes their times
+    assert {"median_placement_time_s", "p90_placement_time_s", "success_rate_5um",
+            "success_rate_10um", "success_rate_20um"} <= set(meta["evaluation"])
+    assert len(episodes["evaluation"]["time_s"]) == 2
     assert _snapshot(env_id, name) == before   # the shipped folder itself untouched
 
 
 def test_plane_records_leave_folders_that_load(root):
     before = {e: _snapshot(e, "ppo") for e in ("MicroConveyor2D-v0", "MicroConveyor2D-v1")}
     v0 = _copy("MicroConveyor2D-v0", "ppo", root)
-    assert shipping.record("MicroConveyor2D-v0", "ppo", root)["evaluation"]["n_targets"] == 2
+    v0_record = shipping.record("MicroConveyor2D-v0", "ppo", root)["evaluation"]
+    assert v0_record["n_targets"] == 2 and "median_placement_time_s" in v0_record
     _loads_whole(v0)
     v1 = _copy("MicroConveyor2D-v1", "ppo", root)
     out = shipping.record("MicroConveyor2D-v1", "ppo", root)

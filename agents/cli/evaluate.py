@@ -72,19 +72,28 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
     emit(args, res, "" if args.at is None else _per_distance_text(res))
 
 
+def _ms(t_s: float | None) -> str:
+    """A placement time [s] in ms; a dash where no part came to rest."""
+    return "–" if t_s is None else f"{t_s * 1e3:.1f} ms"
+
+
 def _per_distance_text(res: dict[str, Any]) -> str:
     """The per-distance rows of :func:`~agents.rl.evaluation.evaluate.evaluate_at` as a table in
-    mm, µm and %, then every target together."""
+    mm, µm, ms and %, then every target together: success, the error and the placement time
+    (the simulated time until the part rests, over the parts that rested), median and 90th
+    percentile."""
     within = f"within ±{res['tolerance_m'] * 1e6:g} µm"
     lines = [f"{res['env_id']}, policy {res['policy']}; {res['targets_per_distance']} targets "
              f"per distance over d ± 0.1 mm, seed {res['seed']}",
              f"{'distance':>9}  {within:>14}  {'median |error|':>14}  "
-             f"{'p90 |error|':>11}  {'detached':>8}"]
+             f"{'p90 |error|':>11}  {'median time':>11}  {'p90 time':>9}  {'detached':>8}"]
     for r in [*res["per_distance"], {**res, "distance_m": None}]:
         d = "all" if r["distance_m"] is None else f"{r['distance_m'] * 1e3:g} mm"
         lines.append(f"{d:>9}  {r['success_rate']:>14.0%}  "
                      f"{r['median_abs_error_m'] * 1e6:>11.1f} µm  "
-                     f"{r['p90_abs_error_m'] * 1e6:>8.1f} µm  {r['detach_rate']:>8.0%}")
+                     f"{r['p90_abs_error_m'] * 1e6:>8.1f} µm  "
+                     f"{_ms(r['median_placement_time_s']):>11}  "
+                     f"{_ms(r['p90_placement_time_s']):>9}  {r['detach_rate']:>8.0%}")
     return "\n".join(lines)
 
 

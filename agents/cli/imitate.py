@@ -14,8 +14,9 @@ def _imitate_args(p: argparse.ArgumentParser) -> None:
     from ..imitation.dagger import DaggerSettings
 
     p.add_argument("--out", default="runs/dagger", help="policy folder to write")
-    settings_options(p, DaggerSettings, ["seed", "rounds", "episodes", "seed_policy"],
-                     unset=("rounds", "episodes", "seed_policy"))
+    settings_options(p, DaggerSettings, ["seed", "rounds", "episodes", "seed_policy", "requests"],
+                     unset=("rounds", "episodes", "seed_policy", "requests"),
+                     parse={"requests": float})
     add_env_args(p, what=" (MicroConveyor-v1: the staged expert built from the simulator alone, "
                          "or with --seed-policy that policy's firings with its last re-aimed on "
                          "the model; MicroPositioner-v0: the one-step "

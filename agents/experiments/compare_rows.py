@@ -14,7 +14,7 @@ import numpy as np
 from microconveyor_env.envs import EnvConfig
 
 from ..mpc.harness import LOST
-from ..rl.evaluation.evaluate import rollout
+from ..rl.evaluation.evaluate import placement_times, rollout
 from .perturb import Level
 
 # success against tolerance is read off the final errors at these tolerances [m]
@@ -47,8 +47,11 @@ def seeded_mpc_name(prior: str | Path, taken: Collection[str] = ()) -> str:
 
 
 def result_row(name: str, res: dict, targets: np.ndarray, tol: float, **extra: Any) -> dict:
-    """A method's row: success within ``tol`` [m] at rest, median |error|, detach rate, median
-    travel time of the parts at rest, every |error| and rest flag, and ``extra`` (SI units)."""
+    """A method's row: success within ``tol`` [m] at rest, median |error|, detach rate, the
+    placement time of the parts at rest (the simulated time until they rested, ``time_s`` of
+    ``res``): its median ``median_placement_time_s`` (also ``median_travel_time_s``, the name of
+    the stored comparisons) and 90th percentile ``p90_placement_time_s`` [s], every |error| and
+    rest flag, and ``extra`` (SI units)."""
     err = np.asarray(res["error_m"], float)
     outcome = np.asarray(res["outcome"])
     rest = outcome == "rest"
@@ -62,6 +65,7 @@ def result_row(name: str, res: dict, targets: np.ndarray, tol: float, **extra: A
             else None,
             "detach_rate": float(np.mean(np.asarray(res["outcome"]) == "detached")),
             "median_travel_time_s": float(np.median(t[rest])) if rest.any() else None,
+            **placement_times(t, outcome),
             "abs_error_m": np.abs(err).tolist(), "rest": rest.tolist(), **extra}
 
 

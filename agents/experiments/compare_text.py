@@ -1,26 +1,35 @@
 """The comparison's result (:func:`.compare.compare`) as plain text: one line per method and
-budget, the MPCs' compute, and success under every perturbation level (the full grid as a matrix
-per method). Units people read: µm, ms, %.
+budget (success, error, placement time, compute), the MPCs' compute, and success under every
+perturbation level (the full grid as a matrix per method). Units people read: µm, ms, %.
 """
 from __future__ import annotations
 
 from pathlib import Path
 
 
+def placement_cells(row: dict) -> str:
+    """A row's placement time (median, 90th percentile) as two 9-wide cells in ms, blank where
+    no part rested or the row holds no such figure (a comparison stored before it had the 90th
+    percentile gives its median alone)."""
+    med = row.get("median_placement_time_s", row.get("median_travel_time_s"))
+    p90 = row.get("p90_placement_time_s")
+    return "".join(f"{'' if t is None else f'{1e3 * t:.1f} ms':>9}" for t in (med, p90))
+
+
 def summary_table(result: dict) -> str:
-    """The comparison as a plain-text table (one line per method and budget)."""
+    """The comparison as a plain-text table (one line per method and budget): success, median
+    |error|, the placement time of the parts that rested (median ``time`` and 90th percentile),
+    compute per target."""
     if "plan_firings" in result:
         return positioner_table(result)
-    head = (f"{'method':<16}{'budget':>7}{'success':>9}{'median |err|':>14}{'travel':>9}"
-            f"{'wall/target':>13}{'episodes':>10}{'crossover N':>13}")
+    head = (f"{'method':<16}{'budget':>7}{'success':>9}{'median |err|':>14}{'time':>9}"
+            f"{'p90 time':>9}{'wall/target':>13}{'episodes':>10}{'crossover N':>13}")
     lines = [head, "-" * len(head)]
     for r in result["rows"]:
-        tt = r.get("median_travel_time_s")
         cross = r.get("crossover_targets")
         lines.append(
             f"{r['method']:<16}{r.get('budget', ''):>7}{100 * r['success_rate']:>8.0f}%"
-            f"{1e6 * r['median_abs_error_m']:>11.1f} µm"
-            f"{'' if tt is None else f'{1e3 * tt:.0f} ms':>9}"
+            f"{1e6 * r['median_abs_error_m']:>11.1f} µm{placement_cells(r)}"
             f"{1e3 * r['wall_s_per_target']:>10.2f} ms{r['episodes_per_target']:>10.0f}"
             f"{'' if cross is None else f'{cross:.0f}':>13}")
     ppo = result["rows"][0]
@@ -104,16 +113,19 @@ def positioner_table(result: dict) -> str:
     """The positioner's comparison (:func:`.compare.compare` on a positioner id) as text: one line per method
     (success with its 95 % Wilson interval, median |error|, detach rate, compute per target),
     then per method and perturbation level success, median |error| and detach rate; the
-    reference row is named as such."""
+    reference row is named as such. The placement time (``time``: median, ``p90 time``) is that
+    of the parts that rested."""
     refs = result.get("reference_methods", {})
     head = (f"{'method':<22}{'budget':>7}{'success [95% CI]':>19}{'median |err|':>14}"
+            f"{'time':>9}{'p90 time':>9}"
             f"{'detached':>10}{'compute/target':>16}{'model firings':>15}")
     lines = [head, "-" * len(head)]
     for r in result["rows"]:
         ep = r.get("episodes_per_target")
         lines.append(
             f"{r['method']:<22}{r.get('budget', ''):>7}{_wilson_text(r):>19}"
-            f"{1e6 * r['median_abs_error_m']:>11.1f} µm{100 * r['detach_rate']:>9.0f}%"
+            f"{1e6 * r['median_abs_error_m']:>11.1f} µm{placement_cells(r)}"
+            f"{100 * r['detach_rate']:>9.0f}%"
             f"{1e3 * r['wall_s_per_target']:>13.1f} ms"
             f"{'' if ep is None or 'budget' in r else f'{ep:.0f}':>15}")
     for r in result["rows"]:

@@ -21,6 +21,14 @@ Three experts, one per scene, picked by :func:`agents.mpc.experts.expert_for` (t
   (:class:`~agents.mpc.experts.SeededExpert`): the seed policy's firing, its last firing re-aimed
   on the nominal model so that the part rests on the target (the recipe's ``seeded`` settings).
 
+With ``requests`` (a list of tolerances [m]) the policy is **request-conditioned**: each round's
+episodes are spread over batched envs, one per requested tolerance (the env ends an episode when
+the part rests within it), the student reads the observation and the request's feature
+(:func:`agents.rl.artefacts.policy_files.request_feature`), and the labels are the scene's
+expert's (``request_slack``: its slack at most that fraction of the request). The folder's
+metadata names the range trained over (``request``), and the loaded policy acts for the
+tolerance of the env it is evaluated in.
+
 Each round plays ``episodes`` episodes at once on the batched env (round 0 with the expert
 acting, later rounds with the policy), asks the expert what it would fire from every state
 visited, adds those pairs to the data set, and fits the policy network to the whole set (mean
@@ -108,7 +116,12 @@ class DaggerSettings:
     (:class:`~agents.mpc.staged.StagedExpert`), else the seeded one
     (:class:`~agents.mpc.experts.SeededExpert`) of ``seed_policy``, a shipped policy's name for
     ``env_id`` or a policy folder; ``newton_iterations`` [-] and ``accept_m``
-    [m] of the re-aimed last firing."""
+    [m] of the re-aimed last firing.
+
+    ``requests`` [m]: the requested tolerances a request-conditioned policy is trained over
+    (module docstring; each round's ``episodes`` split evenly among them; None: the env's own
+    tolerance, no request input); ``request_slack`` [-]: the expert's ``slack_m`` at most this
+    fraction of each request (None: ``slack_m`` for every request)."""
 
     env_id: str = ENV_ID
     env_kwargs: dict[str, Any] = field(default_factory=lambda: dict(TRAIN_KWARGS))
@@ -142,9 +155,16 @@ class DaggerSettings:
                 "none, the staged expert built from the simulator alone)", "metavar": "NAME|PATH"})
     newton_iterations: int = 6
     accept_m: float = 2e-6
+    requests: tuple[float, ...] | None = field(default=None, metadata={
+        "help": "train a request-conditioned policy over these requested tolerances [m] (e.g. "
+                "5e-6 10e-6 20e-6 50e-6): each round's episodes spread over them, the request "
+                "an input of the policy (default: none, the env's own tolerance)",
+        "nargs": "+", "metavar": "M"})
+    request_slack: float | None = 0.5
 
     def __post_init__(self) -> None:
         check_env_id(self.env_id)
+        self._check_requests()
         if self.env_id in GOAL_ENV_IDS:
             raise ValueError(f"{self.env_id} has Dict observations; DAgger trains on the Box "
                              "env of the same scene (MicroConveyor-v1)")
@@ -181,6 +201,22 @@ class DaggerSettings:
             raise ValueError(f"seed_policy = {self.seed_policy!r} is invalid: a shipped "
                              "policy's name or a policy folder")
 
+    def _check_requests(self) -> None:
+        if self.requests is not None:
+            req = tuple(self.requests)
+            if (not req or any(isinstance(t, bool) or not isinstance(t, (int, float))
+                               or not 0.0 < t < 1e-3 for t in req)
+                    or list(req) != sorted(set(req))):
+                raise ValueError(f"requests = {self.requests!r} is invalid: increasing "
+                                 "tolerances in (0, 1e-3) m")
+            if len(req) > self.episodes:
+                raise ValueError(f"requests: {len(req)} tolerances for {self.episodes} episodes "
+                                 "a round: at least one episode each")
+            object.__setattr__(self, "requests", tuple(float(t) for t in req))
+        rs = self.request_slack
+        if rs is not None and not (isinstance(rs, float) and 0.0 < rs <= 1.0):
+            raise ValueError(f"request_slack = {rs!r} is invalid: must be in (0, 1]")
+
     def config(self) -> PositionerConfig | EnvConfig | PlaneEnvConfig:
         cfg = scene_config(self.env_id, **self.env_kwargs)
         if isinstance(cfg, (PositionerConfig, PlaneEnvConfig)):
@@ -213,8 +249,9 @@ def recipe(env_id: str, **overrides: Any) -> DaggerSettings:
     unknown = sorted((set(entry) | set(seeded)) - names)
     if unknown:
         raise ValueError(f"configs/dagger.yml, {env_id}: unknown keys {unknown}")
-    if "net_arch" in entry:
-        entry["net_arch"] = tuple(entry["net_arch"])
+    for key in ("net_arch", "requests"):
+        if entry.get(key) is not None:
+            entry[key] = tuple(entry[key])
     if "env_kwargs" in entry:
         entry["env_kwargs"] = {k: tuple(v) if isinstance(v, list) else v
                                for k, v in (entry["env_kwargs"] or {}).items()}
@@ -301,11 +338,17 @@ def _distance(info: dict[str, Any]) -> np.ndarray:
     return np.abs(np.asarray(info["position_error_m"], float))
 
 
-def _play(venv: Any, label: Labeller, act: Any,
-          seed: int) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+def _play(venv: Any, label: Labeller, act: Any, seed: int,
+          feature: float | None = None) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
     """One episode per sub-env: ``act(obs)`` fires (None: the expert); every state visited
     before a firing is labelled with the expert's action. Returns (observations, labels,
-    figures of the episodes)."""
+    figures of the episodes). ``feature``: a request's, appended to each observation the
+    policy reads and the data set holds (None: the observation alone)."""
+    def aug(o: np.ndarray) -> np.ndarray:
+        if feature is None:
+            return o
+        return np.concatenate([o, np.full((len(o), 1), feature, o.dtype)], axis=1)
+
     n = venv.num_envs
     none = no_firing(venv)
     obs, _ = venv.reset(seed=seed)
@@ -319,12 +362,12 @@ def _play(venv: Any, label: Labeller, act: Any,
         live = ~done
         lab, ok, fixed = label(obs, venv, live)
         keep = live & ok
-        X.append(obs[keep].copy())
+        X.append(aug(obs[keep].copy()))
         Y.append(lab[keep])
         if fixed is not None:
             seeded = True
             corrected += int((fixed & live).sum())
-        a = lab.copy() if act is None else np.asarray(act(obs), np.float32)
+        a = lab.copy() if act is None else np.asarray(act(aug(obs)), np.float32)
         if act is None:
             a[~ok] = none
         obs, _, term, trunc, info = venv.step(a)
@@ -336,13 +379,70 @@ def _play(venv: Any, label: Labeller, act: Any,
     hit = (outcome == "rest") & (err <= venv.config.tolerance)
     fig = {"episodes": n, "firings": firings, "success_rate": float(hit.mean()),
            "median_abs_error_m": float(np.median(err)),
-           "detach_rate": float(np.mean(outcome == "detached"))}
+           "detach_rate": float(np.mean(outcome == "detached")), "_err": err}
     if seeded:   # how many labels the model re-aimed rather than took from the seed
         fig["labels_corrected"] = corrected
     return np.concatenate(X), np.concatenate(Y), fig
 
 
-def _keep_best(s: DaggerSettings, venv: Any, student: Student, fits: list[list[Any]],
+@dataclass
+class _Requests:
+    """The batched envs a round plays (one per requested tolerance, or the env's own), each with
+    its expert and the feature the student reads (None: no request input)."""
+
+    venvs: list[Any]
+    labels: list[Labeller]
+    features: list[float | None]
+
+    def play(self, act: Any, seed: int,
+             label: Labeller | None = None) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+        """:func:`_play` on every env (``label``: instead of each env's expert), their data
+        together and their figures pooled (with ``requests``: also each request's)."""
+        out = [_play(v, label or lab, act, seed + k * 100_003, f)
+               for k, (v, lab, f) in enumerate(zip(self.venvs, self.labels, self.features,
+                                                   strict=True))]
+        figs = [o[2] for o in out]
+        errs = [f.pop("_err") for f in figs]
+        if len(figs) == 1 and self.features[0] is None:   # the env's own tolerance
+            return out[0][0], out[0][1], figs[0]
+        n = sum(f["episodes"] for f in figs)
+        fig = {"episodes": n, "firings": sum(f["firings"] for f in figs),
+               "success_rate": sum(f["success_rate"] * f["episodes"] for f in figs) / n,
+               "median_abs_error_m": float(np.median(np.concatenate(errs))),
+               "detach_rate": sum(f["detach_rate"] * f["episodes"] for f in figs) / n}
+        if any("labels_corrected" in f for f in figs):
+            fig["labels_corrected"] = sum(f.get("labels_corrected", 0) for f in figs)
+        if self.features[0] is not None:
+            fig["per_request"] = [{"tolerance_m": float(v.config.tolerance),
+                                   **{k: f[k] for k in ("episodes", "success_rate",
+                                                        "median_abs_error_m", "detach_rate")}}
+                                  for v, f in zip(self.venvs, figs, strict=True)]
+        return (np.concatenate([o[0] for o in out]), np.concatenate([o[1] for o in out]), fig)
+
+
+def _requests(s: DaggerSettings, cfg: Any) -> tuple[_Requests, list[dict[str, Any]]]:
+    """The envs and experts of a run (:class:`_Requests`) and the experts' descriptions."""
+    from ..rl.artefacts.policy_files import request_feature
+
+    single = dataclasses.replace(cfg, num_threads=1)
+    if s.requests is None:
+        label, meta = make_expert(s, cfg)
+        return _Requests([vector_class(s.env_id)(s.episodes, config=single)], [label],
+                         [None]), [meta]
+    k = len(s.requests)
+    counts = [s.episodes // k + (i < s.episodes % k) for i in range(k)]
+    venvs, labels, metas = [], [], []
+    for t, n in zip(s.requests, counts, strict=True):
+        sk = s if s.request_slack is None else dataclasses.replace(
+            s, slack_m=min(s.slack_m, s.request_slack * t))
+        label, meta = make_expert(sk, dataclasses.replace(cfg, tolerance=t))
+        venvs.append(vector_class(s.env_id)(n, config=dataclasses.replace(single, tolerance=t)))
+        labels.append(label)
+        metas.append({"tolerance_m": t, **meta})
+    return _Requests(venvs, labels, [request_feature(t) for t in s.requests]), metas
+
+
+def _keep_best(s: DaggerSettings, envs: Any, student: Student, fits: list[list[Any]],
                rounds: list[dict]) -> dict[str, Any]:
     """Put the best of the rounds' fits into ``student`` (``keep="best"``, :class:`DaggerSettings`)
     and return which: fit ``r`` is scored by round ``r + 1``'s episodes, the last fit by one
@@ -353,7 +453,9 @@ def _keep_best(s: DaggerSettings, venv: Any, student: Student, fits: list[list[A
         return (np.zeros((len(obs), len(venv.conveyor.components)), np.float32),
                 np.zeros(len(obs), bool), None)
 
-    _, _, last = _play(venv, nothing, student.act, seed=s.seed * 1_000_003 + s.rounds * s.episodes)
+    if not isinstance(envs, _Requests):   # one batched env, the env's own tolerance
+        envs = _Requests([envs], [nothing], [None])
+    _, _, last = envs.play(student.act, s.seed * 1_000_003 + s.rounds * s.episodes, nothing)
     scores = [*(f for f in rounds[1:]), last]
     best = max(range(len(fits)), key=lambda r: (scores[r]["success_rate"],
                                                 -scores[r]["median_abs_error_m"], r))
@@ -389,16 +491,21 @@ def _train(s: DaggerSettings, progress: Any, command: str | None) -> tuple[Stude
     cfg = s.config()
     torch.set_num_threads(1)
     t0 = time.perf_counter()
-    venv = vector_class(s.env_id)(s.episodes, config=dataclasses.replace(cfg, num_threads=1))
-    label, expert_meta = make_expert(s, cfg)
+    envs, expert_metas = _requests(s, cfg)
+    venv = envs.venvs[0]
+    expert_meta = expert_metas[0] if s.requests is None else {
+        **{k: v for k, v in expert_metas[0].items() if k not in ("tolerance_m", "slack_m")},
+        "slack_m": {str(m["tolerance_m"]): m["slack_m"] for m in expert_metas}}
     student = Student(s, cfg)
-    X = np.zeros((0, venv.conveyor.obs_dim), np.float32)
+    X = np.zeros((0, venv.conveyor.obs_dim + (s.requests is not None)), np.float32)
     Y = np.zeros((0, len(venv.conveyor.components)), np.float32)
     rounds, steps = [], 0
+    within = (f"±{cfg.tolerance * 1e6:.0f} µm" if s.requests is None else
+              "each request (" + "/".join(f"{t * 1e6:g}" for t in s.requests) + " µm)")
     fits: list[list[Any]] = []   # each round's fitted parameters (keep="best")
     for r in range(s.rounds):
-        xr, yr, fig = _play(venv, label, None if r == 0 else student.act,
-                            seed=s.seed * 1_000_003 + r * s.episodes)
+        xr, yr, fig = envs.play(None if r == 0 else student.act,
+                                s.seed * 1_000_003 + r * s.episodes)
         steps += fig["firings"]
         X, Y = np.concatenate([X, xr]), np.concatenate([Y, yr])
         if r == 0:
@@ -415,21 +522,21 @@ def _train(s: DaggerSettings, progress: Any, command: str | None) -> tuple[Stude
                    loss=loss, wall_time_s=time.perf_counter() - t0)
         rounds.append(fig)
         progress(f"round {r} ({fig['acting']} acting): {fig['success_rate']:.0%} within "
-                 f"±{cfg.tolerance * 1e6:.0f} µm, median {fig['median_abs_error_m'] * 1e6:.1f} µm, "
+                 f"{within}, median {fig['median_abs_error_m'] * 1e6:.1f} µm, "
                  f"detached {fig['detach_rate']:.0%}; {len(X):,} samples, fit RMS "
                  f"{np.sqrt(loss):.4f} action units, "
                  f"{fig['wall_time_s']:.0f} s")
     kept = None
     if s.keep == "best":
-        kept = _keep_best(s, venv, student, fits, rounds)
+        kept = _keep_best(s, envs, student, fits, rounds)
         progress(f"kept the fit of round {kept['round']}: {kept['success_rate']:.0%} within "
-                 f"±{cfg.tolerance * 1e6:.0f} µm, median "
+                 f"{within}, median "
                  f"{kept['median_abs_error_m'] * 1e6:.1f} µm on the episodes it played")
     wall = time.perf_counter() - t0
     env_kwargs = {k: list(v) if isinstance(v, tuple) else v for k, v in s.env_kwargs.items()}
     # portable inference: an episode of many firings amplifies torch's CPU-specific float32
     # rounding into other trajectories, so the policy is evaluated with the same bits everywhere
-    meta = {"format": 2, "env_id": s.env_id, "algo": "ppo", "trained_by": "dagger",
+    meta: dict[str, Any] = {"format": 2, "env_id": s.env_id, "algo": "ppo", "trained_by": "dagger",
             "inference": "portable",
             "env_kwargs": env_kwargs, "seed": s.seed, "steps": int(steps),
             "wall_time_s": wall, "hyperparams": {**dataclasses.asdict(s), "env_kwargs":
@@ -440,4 +547,12 @@ def _train(s: DaggerSettings, progress: Any, command: str | None) -> tuple[Stude
             "note": "A policy network trained by DAgger to imitate a model-based expert on the "
                     "nominal model (it never sees an episode's friction, mass or noise), in "
                     "the scene of env_id with env_kwargs; one forward pass per firing."}
+    if s.requests is not None:
+        from ..rl.artefacts.policy_files import REQUEST_REFERENCE_M
+
+        meta["request"] = {"tolerance_m": [min(s.requests), max(s.requests)],
+                           "feature": "log_ratio", "reference_m": REQUEST_REFERENCE_M}
+        meta["hyperparams"]["requests"] = list(s.requests)
+        meta["note"] += (" Request-conditioned: it reads the requested tolerance (the env's "
+                         "tolerance) as one more input, within request.tolerance_m.")
     return student, meta

@@ -33,6 +33,24 @@ class _MeanOf:
         return self.student.forward(x)
 
 
+def _WithRequest(venv: Any) -> Any:
+    """``venv`` seen with one more observation entry (a request-conditioned student's input:
+    :func:`agents.rl.artefacts.policy_files.with_request`); it only gives the model its spaces,
+    and is never stepped."""
+    from stable_baselines3.common.vec_env import VecEnvWrapper
+
+    from ..rl.artefacts.policy_files import with_request
+
+    class WithRequest(VecEnvWrapper):
+        def reset(self) -> Any:
+            raise NotImplementedError("the student's env only gives the model its spaces")
+
+        def step_wait(self) -> Any:
+            raise NotImplementedError("the student's env only gives the model its spaces")
+
+    return WithRequest(venv, observation_space=with_request(venv.observation_space))
+
+
 class Student:
     """SB3 PPO's actor inside a PPO model, fitted by regression (module docstring). ``s``: the
     run's :class:`~.dagger.DaggerSettings` (its seed, network and fit fields); ``cfg``: the
@@ -46,8 +64,10 @@ class Student:
         from microconveyor_env.envs.core.sb3 import MicroConveyorSB3VecEnv
 
         torch.manual_seed(s.seed)
-        self.venv = VecNormalize(MicroConveyorSB3VecEnv(1, config=cfg), norm_obs=True,
-                                 norm_reward=False, training=False)
+        inner: Any = MicroConveyorSB3VecEnv(1, config=cfg)
+        if getattr(s, "requests", None) is not None:   # the observation, then the request's
+            inner = _WithRequest(inner)
+        self.venv = VecNormalize(inner, norm_obs=True, norm_reward=False, training=False)
         arch = list(s.net_arch)
         self.model = PPO("MlpPolicy", self.venv, seed=s.seed, device="cpu", verbose=0,
                          policy_kwargs={"net_arch": {"pi": arch, "vf": [64, 64]},

@@ -56,7 +56,7 @@ SUFFIXES: tuple[tuple[str, Callable[[float], str]], ...] = (
     ("_s", lambda v: _scaled(v, _TIME)),
     ("_rate", lambda v: f"{100 * v:.1f} %"),
 )
-for _tol in ("50um", "100um", "250um"):  # success_rate_50um, ... are rates too
+for _tol in ("5um", "10um", "20um", "50um", "100um", "250um"):  # success_rate_5um, ... are rates
     SUFFIXES += ((f"_rate_{_tol}", lambda v: f"{100 * v:.1f} %"),)
 
 

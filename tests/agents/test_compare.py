@@ -36,6 +36,7 @@ def test_compare_tiny_budget_writes_its_charts(tmp_path):
     for row in res["rows"]:
         assert row["n_targets"] == 2 and 0 <= row["success_rate"] <= 1
         assert row["wall_s_per_target"] > 0
+        assert {"median_placement_time_s", "p90_placement_time_s"} <= set(row)
         if "budget" in row:
             assert row["episodes_per_target"] <= row["budget"]
             reached = [e for e in row["episodes_to_tolerance"] if e is not None]
@@ -169,6 +170,23 @@ def test_the_shipped_policy_is_the_ids_default_one():
     table = tables.compare_table(res)
     assert "| the shipped `ppo_refined` |" in table
     assert "| MPC seeded by `ppo_refined` |" in table
+
+
+def test_a_rows_placement_time_is_of_the_parts_that_rested():
+    """Each method's row carries the median and 90th percentile of its parts' time to rest [s]
+    (a detached part never arrives), and the text tables show them in ms."""
+    import numpy as np
+
+    from agents.experiments.compare_rows import result_row
+    from agents.experiments.compare_text import positioner_table
+
+    res = {"error_m": [1e-6, -2e-6, 3e-3, 4e-6], "outcome": ["rest", "rest", "detached", "rest"],
+           "time_s": [0.04, 0.05, 0.01, 0.06]}
+    row = result_row("de", res, np.zeros(4), 50e-6, wall_s_per_target=0.1)
+    assert row["median_placement_time_s"] == pytest.approx(0.05)
+    assert row["p90_placement_time_s"] == pytest.approx(0.058)
+    text = positioner_table({"rows": [row], "perturbation": {}, "plan_firings": 5})
+    assert "p90 time" in text.splitlines()[0] and "50.0 ms" in text and "58.0 ms" in text
 
 
 def test_a_policy_row_is_named_after_its_folder():

@@ -28,7 +28,22 @@ def test_evaluate_has_the_same_keys_on_the_line_and_in_the_plane(capsys):
                 "detach_rate", "rest_rate", "mean_firings", "tolerance_m", "n_targets"} <= set(res)
         assert res["median_abs_error_m"] <= res["p90_abs_error_m"]
         assert 0 <= res["success_rate_50um"] <= 1 and 1 <= res["mean_firings"]
+        # the time to rest beside the error [s], and success at the tight radii
+        assert {"median_placement_time_s", "p90_placement_time_s", "success_rate_5um",
+                "success_rate_10um", "success_rate_20um"} <= set(res)
+        if res["rest_rate"] > 0:
+            assert 0 < res["median_placement_time_s"] <= res["p90_placement_time_s"] < 1
     assert "median_error_m" not in plane and "target_box_m" in plane
+
+
+@pytest.mark.parametrize("env_id", ["MicroConveyor-v1", "MicroConveyor2D-v0"])
+def test_evaluates_human_output_shows_the_placement_time_in_ms(capsys, env_id):
+    capsys.readouterr()
+    assert main(["evaluate", "--env", env_id, "--targets", "2"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    for key in ("median_placement_time", "p90_placement_time"):
+        shown = [line.split() for line in lines if line.split()[:1] == [key]]
+        assert len(shown) == 1 and shown[0][-1] == "ms", lines
 
 
 def test_the_stored_plane_record_maps_onto_the_contract():
@@ -78,11 +93,13 @@ def test_evaluate_at_distances_gives_a_row_per_distance(capsys, env_id):
         assert r["targets_m"] == pytest.approx(
             [r["distance_m"] - 1e-4, r["distance_m"], r["distance_m"] + 1e-4], abs=1e-12)
         assert 0 <= r["success_rate"] <= 1 and r["median_abs_error_m"] <= r["p90_abs_error_m"]
+        assert r["median_placement_time_s"] <= r["p90_placement_time_s"]   # its own episodes'
     assert res["success_rate"] == pytest.approx(
         sum(r["success_rate"] for r in res["per_distance"]) / 2)
     assert main(["evaluate", "--env", env_id, "--at", "1e-3,9e-3", "--per-distance", "3"]) == 0
     text = capsys.readouterr().out
     assert "1 mm" in text and "9 mm" in text and "µm" in text and "all" in text
+    assert "median time" in text and "p90 time" in text and " ms " in text
 
 
 def test_distance_targets_stay_in_the_range():

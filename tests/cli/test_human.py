@@ -13,6 +13,9 @@ def test_units_by_key_suffix():
         ("slip_acceleration_flat", "8.772 m/s²")
     assert format_value("asperity_density_per_m2", 2.6e11) == ("asperity_density", "2.6e+11 /m²")
     assert format_value("success_rate_50um", 0.97) == ("success_rate_50um", "97.0 %")
+    for radius in ("5um", "10um", "20um"):   # every radius an evaluation reports
+        assert format_value(f"success_rate_{radius}", 0.3) == (f"success_rate_{radius}", "30.0 %")
+    assert format_value("p90_placement_time_s", 0.0565) == ("p90_placement_time", "56.5 ms")
     assert format_value("window_hz", [225.0, 1250.0]) == ("window", "[225 Hz, 1250 Hz]")
     assert format_value("x0_m", 5.4e-20)[1].endswith("nm")     # no bare 5.4e-20
     assert format_value("flag", True) == ("flag", "True")

@@ -37,12 +37,22 @@ The keys of ``metadata.json`` the loader reads:
   ``"portable"``, the fixed-order float64 one (:meth:`~.actor_net.ActorNet.predict_portable`).
   Any other value is refused (:data:`INFERENCE`).
 
+* ``request``: present, the policy is **request-conditioned**: it takes the placement's requested
+  tolerance (the env config's ``tolerance`` [m], where the env ends an episode once the part
+  rests within it) as one more input. ``{"tolerance_m": [lo, hi], "feature": "log_ratio",
+  "reference_m": r}``: the range of requests it was trained over [m], and its input
+  ``log(tolerance / r)``, appended to each observation (and normalised with it). Loaded for a
+  config, such a policy acts for that config's tolerance (:func:`bind_request`); a tolerance
+  outside the trained range is refused, and within it the tolerance is not part of the scene
+  :func:`check_scene` compares. A policy without the key acts on the observation alone.
+
 A policy of the plane (``MicroConveyor2D-v0``) is loaded the same way: its scene is a
 :class:`~microconveyor_env.envs.plane.config.PlaneEnvConfig` made from its env kwargs, and the
 model's shapes are checked against the plane env's spaces.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -63,11 +73,14 @@ from .actor_net import ActorFileError, ActorNet, check_net_arch, load_actor
 from .sb3_files import ALGOS, ModelFileError, algo_of, check_spaces, open_model, read_data
 
 AnyConfig = EnvConfig | PlaneEnvConfig
-__all__ = ["PLANE_ENV_IDS", "INFERENCE", "Policy", "PolicyError", "load_policy",
+__all__ = ["PLANE_ENV_IDS", "INFERENCE", "Policy", "PolicyError", "load_policy", "bind_request",
+           "request_meta", "request_feature", "request_range", "REQUEST_REFERENCE_M",
            "policy_scene", "policy_env_id", "policy_env_kwargs", "read_policy_meta",
-           "check_scene", "reads_raw_observations", "required_files"]
+           "check_scene", "reads_raw_observations", "required_files", "with_request"]
 
 INFERENCE = ("portable",)   # the values of the metadata's ``inference`` (absent: float32)
+REQUEST_FEATURES = ("log_ratio",)   # the values of the metadata's ``request.feature``
+REQUEST_REFERENCE_M = 50e-6   # [m] the request whose feature is 0 (the scenes' default tolerance)
 
 
 class PolicyError(ValueError):
@@ -91,6 +104,8 @@ class Policy:
     trained_config: AnyConfig | None = None
     # the env id the caller named for a policy whose metadata names none
     named_env_id: str | None = None
+    # a request-conditioned policy's request: the tolerance [m] it acts for (bind_request)
+    request_m: float | None = None
 
     @property
     def env_id(self) -> str:
@@ -121,6 +136,12 @@ class Policy:
         return np.concatenate([self._act_rows(obs[i:i + 1]) for i in range(len(obs))])
 
     def _act_rows(self, obs: np.ndarray) -> np.ndarray:
+        if self.metadata.get("request") is not None:
+            if self.request_m is None:
+                raise PolicyError(f"{str(self.path)!r} is request-conditioned and was given no "
+                                  "request: bind it to a config (bind_request)")
+            feature = request_feature(self.request_m, self.metadata["request"])
+            obs = np.concatenate([obs, np.full((len(obs), 1), feature, obs.dtype)], axis=1)
         if self.actor.obs_keys is not None:
             from microconveyor_env.envs.line.goal import goal_observations
 
@@ -133,6 +154,61 @@ class Policy:
             return self.actor.predict(obs)
         except ActorFileError as exc:
             raise PolicyError(f"{str(self.path)!r}: {exc}") from None
+
+
+def request_meta(meta: dict[str, Any], where: str = "metadata") -> dict[str, Any] | None:
+    """The metadata's ``request`` checked (module docstring; None: not request-conditioned)."""
+    req = meta.get("request")
+    if req is None:
+        return None
+    rng = req.get("tolerance_m") if isinstance(req, dict) else None
+    ok = (isinstance(rng, list) and len(rng) == 2
+          and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in rng)
+          and 0.0 < rng[0] <= rng[1] < 1.0)
+    if not ok or req.get("feature") not in REQUEST_FEATURES or not (
+            isinstance(req.get("reference_m"), (int, float)) and 0.0 < req["reference_m"] < 1.0):
+        raise PolicyError(f"{where}: request must be {{\"tolerance_m\": [lo, hi] (0 < lo <= hi "
+                          f"< 1 m), \"feature\": one of {list(REQUEST_FEATURES)}, "
+                          f"\"reference_m\": r (0 < r < 1 m)}}, got {req!r}")
+    return req
+
+
+def request_range(meta: dict[str, Any]) -> tuple[float, float] | None:
+    """The requested tolerances [m] a request-conditioned policy was trained over (None: the
+    policy takes no request)."""
+    req = request_meta(meta)
+    return None if req is None else (float(req["tolerance_m"][0]), float(req["tolerance_m"][1]))
+
+
+def request_feature(tolerance_m: float, request: dict[str, Any] | None = None) -> float:
+    """The input a request-conditioned policy reads for the requested ``tolerance_m`` [m]:
+    ``log(tolerance_m / reference_m)`` (``request``: the metadata's ``request``; default
+    reference :data:`REQUEST_REFERENCE_M`)."""
+    ref = REQUEST_REFERENCE_M if request is None else float(request["reference_m"])
+    return float(np.log(float(tolerance_m) / ref))
+
+
+def _check_request(meta: dict[str, Any], tolerance_m: float, where: str) -> None:
+    lohi = request_range(meta)
+    if lohi is None:
+        return
+    lo, hi = lohi
+    if not lo * (1 - 1e-9) <= tolerance_m <= hi * (1 + 1e-9):
+        raise PolicyError(f"{where}: the policy was trained for requested tolerances in "
+                          f"[{lo * 1e6:g}, {hi * 1e6:g}] µm; the env asks for "
+                          f"{tolerance_m * 1e6:g} µm (its tolerance). Give a tolerance in that "
+                          "range")
+
+
+def bind_request(policy: Any, config: Any) -> Any:
+    """``policy`` acting for ``config``'s requested tolerance (its ``tolerance`` [m]): a
+    request-conditioned :class:`Policy` (module docstring) bound to it, PolicyError when it is
+    outside the range the policy was trained over; any other actor as it is."""
+    if not isinstance(policy, Policy) or policy.metadata.get("request") is None:
+        return policy
+    tol = float(config.tolerance)
+    _check_request(policy.metadata, tol, repr(str(policy.path / META)))
+    return policy if policy.request_m == tol else dataclasses.replace(policy, request_m=tol)
 
 
 def _locate(path: Path) -> tuple[Path, Path]:
@@ -379,8 +455,10 @@ def load_policy(path: str | Path, config: AnyConfig | None = None,
         env_id = _env_id_of(config, f"{str(folder)!r} has no {META}" if not meta else
                             f"{where} names no env_id")
     trained = policy_scene({**meta, "env_id": env_id}, where) if meta else None
+    request = request_meta(meta, where)
     if trained is not None and config is not None:
-        check_scene(trained, config, {**meta, "env_id": env_id}, where)
+        check_scene(trained, _as_scene(config, trained, meta, where),
+                    {**meta, "env_id": env_id}, where)
     if named is not None and base_id(named) != base_id(env_id):
         raise PolicyError(f"{where}: the policy was trained on {env_id}, not {named}; "
                           "evaluating a policy on another env is refused")
@@ -391,6 +469,8 @@ def load_policy(path: str | Path, config: AnyConfig | None = None,
         raise PolicyError(f"{where}: the env the policy was trained on cannot be "
                           f"made ({exc})") from None
     try:
+        if request is not None:
+            obs_space = with_request(obs_space)
         check_spaces(model_file, data, obs_space, act_space, env_id)
         normalizer = _normalizer(folder, model_file, meta, obs_space.shape)
         actor = load_actor(model_file, algo, obs_space, act_space, zf)
@@ -398,8 +478,32 @@ def load_policy(path: str | Path, config: AnyConfig | None = None,
         raise PolicyError(str(exc)) from None
     _check_actor(actor, meta, where)
     trained_full = trained if trained is not None else cfg
-    return Policy(actor, normalizer, meta, folder, nominal(trained_full), trained_full,
-                  None if meta.get("env_id") else env_id)
+    policy = Policy(actor, normalizer, meta, folder, nominal(trained_full), trained_full,
+                    None if meta.get("env_id") else env_id)
+    return bind_request(policy, cfg)
+
+
+def with_request(observation_space: Any) -> Any:
+    """A Box observation space with one more entry, unbounded: a request-conditioned policy's
+    input (the observation, then the request's feature)."""
+    from gymnasium import spaces
+
+    if not isinstance(observation_space, spaces.Box) or len(observation_space.shape) != 1:
+        raise PolicyError("a request-conditioned policy reads Box observations (a vector)")
+    low = np.append(observation_space.low, -np.inf).astype(observation_space.dtype)
+    high = np.append(observation_space.high, np.inf).astype(observation_space.dtype)
+    return spaces.Box(low, high, dtype=observation_space.dtype)
+
+
+def _as_scene(config: AnyConfig, trained: AnyConfig, meta: dict[str, Any],
+              where: str) -> AnyConfig:
+    """``config`` as the scene :func:`check_scene` compares with ``trained``: for a
+    request-conditioned policy, a request within its trained range is not the scene (its
+    tolerance taken as trained); PolicyError outside the range."""
+    if request_meta(meta, where) is None:
+        return config
+    _check_request(meta, float(config.tolerance), where)
+    return dataclasses.replace(config, tolerance=trained.tolerance)
 
 
 def _scene(env_id: str, where: str) -> AnyConfig:

@@ -3,10 +3,10 @@
 A shipped policy is a folder ``<root>/<env id>/<name>/`` (``root``: ``agents/policies`` of the
 package, :func:`~.shipped.shipped_path`) holding ``model.zip``, ``normalization.json``,
 ``metadata.json`` and ``episodes.json``. :func:`record` evaluates it on its fixed targets and
-writes the summaries into ``metadata.json`` and every episode into ``episodes.json``, with how
-they were produced (:func:`~.shipped.provenance`); :func:`ship` copies a training run folder's
-policy there and names the records to make. The commands: ``microconveyor ship`` and
-``microconveyor record`` (:mod:`agents.cli.ship`).
+writes the summaries (errors, success and placement times) into ``metadata.json`` and every
+episode into ``episodes.json``, with how they were produced (:func:`~.shipped.provenance`);
+:func:`ship` copies a training run folder's policy there and names the records to make. The
+commands: ``microconveyor ship`` and ``microconveyor record`` (:mod:`agents.cli.ship`).
 
 What each folder records:
 
@@ -45,6 +45,7 @@ from ..evaluation.evaluate import (
     PLANE_TARGET_SEED,
     figures,
     fixed_targets,
+    placement_times,
     plane_record,
     rollout,
     summarize,
@@ -181,10 +182,12 @@ def ship(run: str | Path, env_id: str, name: str, root: str | Path | None = None
 
 
 def _episodes(res: dict[str, Any], which: str, seed: int, **extra: Any) -> dict[str, Any]:
-    """The record of every episode of ``res`` (:func:`~..evaluation.evaluate.rollout`)."""
+    """The record of every episode of ``res`` (:func:`~..evaluation.evaluate.rollout`): its
+    target, error, outcome, firings and placement time ``time_s`` [s] (the simulated time until
+    the part rested or detached)."""
     return {"config": which, "seed": seed, **extra, "target_m": res["targets_m"].tolist(),
             "error_m": res["error_m"].tolist(), "outcome": res["outcome"].tolist(),
-            "firings": res["firings"].tolist()}
+            "firings": res["firings"].tolist(), "time_s": res["time_s"].tolist()}
 
 
 def record_line(folder: Path, command: str) -> dict[str, Any]:
@@ -201,7 +204,8 @@ def record_line(folder: Path, command: str) -> dict[str, Any]:
             raise ValueError(f"{folder} holds no policy of the line or the positioner")
         targets = fixed_targets(cfg, old["n_targets"], old["seed"])
         res = rollout(pol, targets, cfg, seed=old["seed"])
-        summary = summarize(res, cfg.tolerance)
+        summary = {**summarize(res, cfg.tolerance),
+                   **placement_times(res["time_s"], res["outcome"])}
         summary.update(seed=old["seed"], target_range_m=list(cfg.target_range), config=which)
         meta[key] = {**{k: v for k, v in old.items() if k in ("steps", "wall_time_s")}, **summary}
         episodes[key] = _episodes(res, which, old["seed"])
