@@ -12,8 +12,19 @@ the part came to rest and what it cost, on every scene: the line, the positioner
   actuator in turn; the positioner's is :data:`~agents.planning.scene.PLAN_FIRINGS` firings of
   any actuator.
 
-The plane (MicroConveyor2D-v0, -v1) has a policy only (:func:`methods_of`): no model-based
-planner is defined on it.
+On the plane (MicroConveyor2D-v0, -v1) ``mpc`` is the plane's one-step controller
+(:class:`agents.planning.plane.PlaneController`: before every firing, the candidates ranked on
+the plane's firing map, the best few confirmed on the full nominal model, the landing nearest
+the target, or staged for a next firing, fires); no open-loop search is defined there
+(:func:`methods_of`).
+
+The *request* is the precision asked for, the env config's ``tolerance`` [m] (``place(...,
+tolerance=)``; :func:`with_request`): the env ends the episode once the part rests within it,
+so every method serves it; a request-conditioned policy reads it, and DE can trade time for
+precision on it (``time_weight`` [1/s]: the dissertation's time-weighted cost,
+:func:`agents.planning.cost.time_weighted_cost`, with the request as its ``T_d``). Every
+placement reports its placement time ``placement_time_s`` [s]: the simulated time until the
+part rests (or the episode ends), the env's ``sim_time_s``.
 
 The part is placed in the env ``config`` as given: with per-episode randomisation on (execution
 noise, friction and mass spread: :class:`.perturb.Level`) the planners still plan on the nominal
@@ -27,6 +38,7 @@ positioner and the plane each firing also says where its actuator is (``actuator
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -37,12 +49,15 @@ import numpy as np
 from microconveyor_env.envs import EnvConfig, MicroConveyorEnv
 from microconveyor_env.envs.plane.config import PlaneEnvConfig
 from microconveyor_env.envs.positioner.config import PositionerConfig
+from microconveyor_env.envs.core.config import MIN_LENGTH
 from microconveyor_env.envs.core.versions import nominal, scene_differences
 
 from ..mpc import MPC, MPCSettings
 from ..openloop.search import TARGET_BUDGET
 from ..openloop.target import solve_target
+from ..planning.cost import EXPONENT
 from ..planning.scene import PLAN_FIRINGS
+from ..rl.artefacts.policy_files import bind_request
 
 METHODS = ("policy", "mpc", "de")
 DE_BUDGET = TARGET_BUDGET   # DE episodes of the model (optimize's default for one target)
@@ -58,8 +73,9 @@ def geometry_of(config: Any) -> str:
 
 def methods_of(config: Any) -> tuple[str, ...]:
     """The methods that place a part in ``config``'s scene: all of :data:`METHODS` on the line
-    and the positioner; the plane's policy only (no model-based planner is defined there)."""
-    return ("policy",) if geometry_of(config) == "plane" else METHODS
+    and the positioner; the plane's policy and its one-step controller (no open-loop search is
+    defined there)."""
+    return ("policy", "mpc") if geometry_of(config) == "plane" else METHODS
 
 
 def check_method(method: str, config: Any, env_id: str) -> str:
@@ -69,8 +85,40 @@ def check_method(method: str, config: Any, env_id: str) -> str:
     if method not in have:
         raise ValueError(f"--method {method}: {env_id} (the {geometry_of(config)}) has no "
                          f"{'model-based planner' if method == 'mpc' else 'open-loop search'}; "
-                         f"its method is {', '.join(have)}")
+                         f"its method{'s are' if len(have) > 1 else ' is'} "
+                         f"{', '.join(have)}")
     return method
+
+
+MAX_REQUEST = 1e-3   # m: the largest tolerance a placement may ask for
+
+
+def check_request(tolerance: Any) -> float:
+    """``tolerance`` [m] as a float if it is a precision a placement may ask for, in
+    [1 nm, :data:`MAX_REQUEST`], else a one-line ValueError."""
+    try:
+        t = float(tolerance)
+    except (TypeError, ValueError):
+        t = float("nan")
+    if not MIN_LENGTH <= t <= MAX_REQUEST:
+        raise ValueError(f"--tolerance {tolerance!r} is invalid: the precision asked for is a "
+                         f"distance in m from 1e-09 to {MAX_REQUEST:g} (1 nm to "
+                         f"{MAX_REQUEST * 1e3:g} mm), e.g. 1e-5 for ±10 µm")
+    return t
+
+
+def with_request(config: Any, tolerance: float | None) -> Any:
+    """``config`` asking for ``tolerance`` [m] (:func:`check_request`; None: ``config`` as it
+    is): its ``tolerance`` replaced, and its ``progress_scale`` with it where it followed the
+    tolerance (the env's default), as ``gym.make(id, tolerance=...)`` builds it."""
+    if tolerance is None:
+        return config
+    t = check_request(tolerance)
+    follows = config.progress_scale == config.tolerance
+    changes: dict[str, Any] = {"tolerance": t}
+    if follows:
+        changes["progress_scale"] = None
+    return dataclasses.replace(config, **changes)
 
 
 def de_budget(config: Any) -> int:
@@ -247,11 +295,14 @@ def actor_for(method: str, policy: Any, config: Any, env_id: str) -> tuple[Any, 
             from .demo import load_demo_policy
 
             policy = load_demo_policy(policy, config, env_id)   # another scene is refused
-        return policy, f"policy {policy.path}"
+        # a request-conditioned policy acts for this placement's tolerance (the others as given)
+        return bind_request(policy, config), f"policy {policy.path}"
     if method == "mpc" and geometry_of(config) == "line":
         if loaded:
             return policy, f"policy {policy.path}, seeding the MPC"
         return mpc_seed(policy, config, env_id)
+    if method == "mpc" and geometry_of(config) == "plane":
+        return None, "the one-step controller on the firing map and the nominal model"
     if method == "mpc":
         return None, "the one-step controller on its model, friction identified online"
     return None, "differential evolution on the nominal model"
@@ -260,43 +311,67 @@ def actor_for(method: str, policy: Any, config: Any, env_id: str) -> tuple[Any, 
 def place(target_m: Any, method: str, config: Any, policy: Any = None, seed: int = 0,
           budget: int | None = None, mpc: MPCSettings | None = None,
           env_id: str = "this scene",
-          checked: Callable[[], None] | None = None) -> dict[str, Any]:
+          checked: Callable[[], None] | None = None, tolerance: float | None = None,
+          time_weight: float | None = None) -> dict[str, Any]:
     """Place one part at ``target_m`` [m: beyond actuator 1 on the line and the positioner, an
     (x, y) point on the plane] in ``config`` with ``method`` (:func:`methods_of`): ``policy``
     (a loaded policy, a policy folder, or None: the default shipped one; :func:`actor_for`)
     acts (``policy``) or seeds the line's MPC (``mpc``; settings ``mpc``, default
     :class:`MPCSettings` with ``seed``); ``budget`` [episodes]: DE's search
-    (default :func:`de_budget`); ``seed`` [-]: the episode's and the searches'. The result (SI
-    units): the firings (actuator, frequency, stroke, delay), the rest position and the error
-    (signed on a line, the distance on the plane), the outcome, success (at rest within the
-    config's tolerance), the simulated time and the compute (``wall_time_s``, ``episodes``:
-    every simulator episode, the placement's included). ``target_m`` and ``method`` are
-    checked here, once (:func:`check_target`, :func:`check_method`; ``env_id`` names the scene
-    in their messages), then the policy is loaded; ``checked()`` is called once they pass,
-    before any work. The result also names the ``actor`` (in words) and the ``policy`` folder."""
+    (default :func:`de_budget`); ``seed`` [-]: the episode's and the searches'.
+    ``tolerance`` [m]: the request, the precision asked for (None: the config's tolerance;
+    :func:`with_request`); ``time_weight`` A [1/s]: DE minimises the time-weighted cost with
+    the request as ``T_d`` (None: the error alone; :func:`agents.openloop.target.solve_target`).
+    The result (SI units): the firings (actuator, frequency, stroke, delay), the rest position
+    and the error (signed on a line, the distance on the plane), the outcome, success (at rest
+    within the request), the placement time ``placement_time_s`` [s] (until the part rests or
+    the episode ends; ``sim_time_s``, the env's name, holds the same) and the compute
+    (``wall_time_s``, ``episodes``: every simulator episode, the placement's included).
+    ``target_m``, ``method``, ``tolerance`` and ``time_weight`` are checked here, once
+    (:func:`check_target`, :func:`check_method`, :func:`check_request`; ``env_id`` names the
+    scene in their messages), then the policy is loaded (in the config of the request);
+    ``checked()`` is called once they pass, before any work. The result also names the
+    ``actor`` (in words) and the ``policy`` folder."""
     check_method(method, config, env_id)
     target = check_target(target_m, config, env_id)
+    config = with_request(config, tolerance)
+    if time_weight is not None:
+        if method != "de":
+            raise ValueError(f"--time-weight is DE's cost: give it with --method de, not "
+                             f"{method}")
+        if not (isinstance(time_weight, (int, float)) and 0.0 <= time_weight < np.inf):
+            raise ValueError(f"--time-weight {time_weight!r} is invalid: must be a number >= 0 "
+                             "[1/s]")
     policy, actor = actor_for(method, policy, config, env_id)
     if checked is not None:
         checked()
     budget = de_budget(config) if budget is None else int(budget)
     t0 = time.perf_counter()
     if geometry_of(config) == "line":
-        res, episodes, extra = _place_line(target, method, config, policy, seed, budget, mpc)
+        res, episodes, extra = _place_line(target, method, config, policy, seed, budget, mpc,
+                                           time_weight)
     else:
-        res, episodes, extra = _place_scene(target, method, config, policy, seed, budget)
+        res, episodes, extra = _place_scene(target, method, config, policy, seed, budget,
+                                            time_weight)
+    if method == "de":
+        extra["time_weight"] = time_weight
+        if time_weight:
+            actor += (f", minimising {time_weight:g} 1/s × placement time + (error / "
+                      f"{config.tolerance * 1e6:g} µm)^{EXPONENT:g}")
     final = res.pop("final_position_m", None)
     if final is None:
         final = target + res["error_m"]
     return {"target_m": list(target) if isinstance(target, tuple) else target,
             "method": method, "seed": int(seed), **res,
             "final_position_m": final, "tolerance_m": config.tolerance,
+            "placement_time_s": res["sim_time_s"],
             "wall_time_s": time.perf_counter() - t0, "episodes": int(episodes), **extra,
             "actor": actor, "policy": None if policy is None else str(policy.path)}
 
 
 def _place_line(target_m: float, method: str, config: EnvConfig, policy: Any, seed: int,
-                budget: int, mpc: MPCSettings | None) -> tuple[dict, int, dict]:
+                budget: int, mpc: MPCSettings | None,
+                time_weight: float | None) -> tuple[dict, int, dict]:
     model = nominal(config)
     extra: dict[str, Any] = {}
     if method == "policy":
@@ -315,7 +390,7 @@ def _place_line(target_m: float, method: str, config: EnvConfig, policy: Any, se
         extra = {"mpc_first_budget": settings.first_budget,
                  "mpc_replan_budget": settings.replan_budget, "mpc_seeded": policy is not None}
     else:
-        plan = solve_target(target_m, "de", budget, seed, config=model)
+        plan = solve_target(target_m, "de", budget, seed, config=model, time_weight=time_weight)
         res = _episode(config, target_m, seed, lambda _obs, k: plan.plan[k])
         episodes = plan.episodes + 1
         extra = {"budget": int(budget), "model_error_m": plan.error_m}
@@ -323,7 +398,7 @@ def _place_line(target_m: float, method: str, config: EnvConfig, policy: Any, se
 
 
 def _place_scene(target: Any, method: str, config: Any, policy: Any, seed: int,
-                 budget: int) -> tuple[dict, int, dict]:
+                 budget: int, time_weight: float | None) -> tuple[dict, int, dict]:
     """A placement on the positioner or the plane: the result, the episodes, the extra keys."""
     env = _Recorder(_scene_env(config))
     tg = target
@@ -332,6 +407,9 @@ def _place_scene(target: Any, method: str, config: Any, policy: Any, seed: int,
         if method == "policy":
             res = _played(env, tg, seed, lambda obs, _k: np.asarray(policy.act(obs[None]))[0])
             episodes = 1
+        elif method == "mpc" and geometry_of(config) == "plane":
+            res, episodes = _plane_mpc(env, tg, seed, config)
+            extra = {"mpc_model": "nominal"}
         elif method == "mpc":
             ctl = MPC(nominal(config))
             ep = ctl.run(env, tg, seed)   # the env, recording
@@ -342,7 +420,7 @@ def _place_scene(target: Any, method: str, config: Any, policy: Any, seed: int,
                      "estimated_friction_factor": float(ep.estimated_factors[0])}
         else:
             found = solve_target(tg, "de", budget, seed, config=nominal(config),
-                                 firings=PLAN_FIRINGS)
+                                 firings=PLAN_FIRINGS, time_weight=time_weight)
             plan = found.plan
             res = _played(env, tg, seed,
                           lambda _obs, k: plan[k] if k < len(plan) else None)
@@ -352,6 +430,23 @@ def _place_scene(target: Any, method: str, config: Any, policy: Any, seed: int,
     finally:
         env.env.close()
     return res, episodes, extra
+
+
+def _plane_mpc(env: _Recorder, target: Any, seed: int, config: Any) -> tuple[dict, int]:
+    """One episode of the plane's one-step controller on the nominal model (it sees the part's
+    position, velocity, time and firings, never its factors or noise) until the episode ends
+    or no firing brings the part closer: the result and the episodes (the controller's firings
+    on its model and the placement)."""
+    from ..planning.plane import PartStates, PlaneController
+
+    ctl = PlaneController(nominal(config))
+
+    def act(_obs: np.ndarray, _k: int) -> np.ndarray | None:
+        a, ok, _ = ctl.choose(PartStates.of(env.env.conveyor.parts, [0]))
+        return a[0] if ok[0] else None
+
+    res = _played(env, target, seed, act)
+    return res, ctl.scene.full_firings + 1
 
 
 def place_text(r: dict[str, Any]) -> str:
@@ -377,9 +472,15 @@ def place_text(r: dict[str, Any]) -> str:
     ok = "success" if r["success"] else "miss"
     lines.append(f"rest position {r['final_position_m'] * 1e3:.4f} mm, error "
                  f"{r['error_m'] * 1e6:+.1f} µm, {r['outcome']}: {ok} (±"
-                 f"{r['tolerance_m'] * 1e6:.0f} µm)")
+                 f"{r['tolerance_m'] * 1e6:g} µm), {_time_text(r)}")
     lines.append(_compute_text(r))
     return "\n".join(lines)
+
+
+def _time_text(r: dict[str, Any]) -> str:
+    """The placement time in ms, in words: until the part rests, or until the episode ended."""
+    when = "placed in" if r["outcome"] == "rest" else "ended after"
+    return f"{when} {r['placement_time_s'] * 1e3:.1f} ms"
 
 
 def _compute_text(r: dict[str, Any]) -> str:
@@ -404,6 +505,6 @@ def _plane_text(r: dict[str, Any]) -> str:
     ok = "success" if r["success"] else "miss"
     lines.append(f"rest position {_mm2(r['final_position_m'])} mm, distance "
                  f"{r['error_m'] * 1e6:.1f} µm, {r['outcome']}: {ok} (±"
-                 f"{r['tolerance_m'] * 1e6:.0f} µm)")
+                 f"{r['tolerance_m'] * 1e6:g} µm), {_time_text(r)}")
     lines.append(_compute_text(r))
     return "\n".join(lines)

@@ -43,6 +43,7 @@ from microconveyor_env.physics.materials import ContactParams
 from microconveyor_env.physics.schedule import ActuatorArray, Schedule
 from microconveyor_env.physics.simulator import Simulator
 
+from ..planning.cost import EXPONENT, PENALTY, TIME_WEIGHT, time_weighted_cost
 from .search import minimize
 
 VARIABLES = ("frequency_hz", "spacing_m", "delay_s", "stroke_m")
@@ -66,10 +67,10 @@ class DissertationProblem:
     actuator 1)."""
 
     target_m: float = 10e-3
-    time_weight: float = 1e3
+    time_weight: float = TIME_WEIGHT
     scale_m: float = 50e-6
-    exponent: float = 10.0
-    penalty: float = 1e5
+    exponent: float = EXPONENT
+    penalty: float = PENALTY
     config: EnvConfig = field(default_factory=lambda: EnvConfig.from_yaml(preset=PRESET))
     contact: ContactParams | None = None
     start_m: float | None = None
@@ -101,15 +102,13 @@ class DissertationProblem:
 
 def dissertation_cost(final_position_m: Any, travel_time_s: Any, rest: Any,
                       problem: DissertationProblem) -> np.ndarray:
-    """The cost (module docstring) of runs ending at ``final_position_m`` [m] after
-    ``travel_time_s`` [s]; ``rest`` [bool]: the part came to rest (False: detached or out of
-    time). Arrays or scalars; returns an array."""
-    x = np.asarray(final_position_m, dtype=float)
-    t = np.asarray(travel_time_s, dtype=float)
+    """The cost (module docstring; :func:`agents.planning.cost.time_weighted_cost`) of runs
+    ending at ``final_position_m`` [m] after ``travel_time_s`` [s]; ``rest`` [bool]: the part
+    came to rest (False: detached or out of time). Arrays or scalars; returns an array."""
     p = problem
-    miss = np.abs((x - p.target_m) / p.scale_m) ** p.exponent
-    failed = p.penalty + abs((p.x0_m - p.target_m) / p.scale_m) ** p.exponent
-    return np.where(np.asarray(rest, dtype=bool), p.time_weight * t + miss, failed)
+    error = np.asarray(final_position_m, dtype=float) - p.target_m
+    return time_weighted_cost(error, travel_time_s, rest, p.time_weight, p.scale_m,
+                              p.x0_m - p.target_m, p.exponent, p.penalty)
 
 
 class Evaluator:

@@ -11,7 +11,10 @@ whole batch of plans per call.
 
 * :func:`solve_target` searches the plan for one target (DE or CMA-ES, :mod:`.search`) with a
   budget of episodes: cost :func:`agents.planning.cost.plan_cost` (|final error| [m] for a part
-  at rest, ``MISS + min(|error|, MISS)`` otherwise: detached, out of time).
+  at rest, ``MISS + min(|error|, MISS)`` otherwise: detached, out of time), or with a
+  ``time_weight`` the dissertation's time-weighted cost
+  :func:`agents.planning.cost.time_weighted_cost` (placement time against precision, the
+  config's tolerance as the precision asked for).
 * :func:`replay` plays a fixed line plan (or a batch of plans) in any env config, e.g. a
   perturbed one; :func:`plans_rollout` replays fixed plans, one per target, as a rollout
   function (:mod:`agents.experiments.perturb`).
@@ -27,7 +30,7 @@ import numpy as np
 from microconveyor_env.envs import EnvConfig, PartState
 
 from ..planning import PositionerScene, Replay, Rollouts, plan_cost, scene_of
-from ..planning.cost import MISS
+from ..planning.cost import time_weighted_cost
 from .search import METHODS, TARGET_BUDGET, SearchResult, minimize
 
 
@@ -51,8 +54,11 @@ class TargetResult:
     ``plan``: ``(K, 3)`` actions in [-1, 1] (float32 values, exactly as played);
     ``firings``: the same in SI units (:meth:`agents.planning.Scene.decode_plan`);
     ``error_m``: signed final x - target [m];
+    ``sim_time_s``: the placement time on the model [s] (until the part rests, or the episode
+    ends); ``time_weight``: the cost's A [1/s] (None: precision only);
     ``history_episodes`` / ``history_best_abs_error_m``: after each generation, the episodes
-    used so far and the best |error| [m] of a part at rest so far (None: none at rest yet)."""
+    used so far and the |error| [m] of the best plan so far if it rests (None: none at rest
+    yet; with precision only it is the best |error| so far)."""
 
     target_m: float
     method: str
@@ -71,6 +77,7 @@ class TargetResult:
     tolerance_m: float
     history_episodes: list[int] = field(default_factory=list)
     history_best_abs_error_m: list[float | None] = field(default_factory=list)
+    time_weight: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -81,7 +88,8 @@ class TargetResult:
 def solve_target(target_m: float, method: str = "de", budget: int = TARGET_BUDGET, seed: int = 0,
                  config: Any = None, rollouts: Rollouts | None = None,
                  episode_seed: int = 0, start: PartState | None = None,
-                 firings: int | None = None, **search_kw: Any) -> TargetResult:
+                 firings: int | None = None, time_weight: float | None = None,
+                 **search_kw: Any) -> TargetResult:
     """Search the open-loop plan that brings the part to rest closest to ``target_m`` [m,
     measured from actuator 1] within ``budget`` episodes (used <= budget: see :mod:`.search`).
 
@@ -96,7 +104,15 @@ def solve_target(target_m: float, method: str = "de", budget: int = TARGET_BUDGE
     (:meth:`~agents.planning.Scene.plan_firings`: on the line every actuator left; on the
     positioner :data:`~agents.planning.scene.PLAN_FIRINGS` unless told). ``start``: plan only
     the remaining firings of a line's episode from this part state (model-predictive control,
-    :mod:`agents.mpc`); the target is then the state's."""
+    :mod:`agents.mpc`); the target is then the state's.
+
+    ``time_weight`` A [1/s] (None: precision only): minimise the dissertation's time-weighted
+    cost (:func:`agents.planning.cost.time_weighted_cost`) instead, ``A T_f + |e / T_d|^10``
+    for a part that rests after ``T_f`` [s] with error ``e``, ``T_d`` the config's
+    ``tolerance`` (the precision asked for: inside it time decides, outside it precision
+    does), and a penalty for a part that does not rest. The dissertation's A is
+    :data:`agents.planning.cost.TIME_WEIGHT` (1e3 1/s: 1 ms weighs as much as an error of
+    T_d)."""
     if method not in METHODS:
         raise ValueError(f"method = {method!r} is invalid: must be one of {METHODS}")
     roll = rollouts or scene_of(config or EnvConfig.from_yaml()).rollouts()
@@ -105,25 +121,36 @@ def solve_target(target_m: float, method: str = "de", budget: int = TARGET_BUDGE
     if isinstance(scene, PositionerScene) and cfg.randomised:
         raise ValueError("plans are searched on the nominal model: give a config with "
                          "randomisation off")
+    if time_weight is not None and not (isinstance(time_weight, (int, float))
+                                        and 0.0 <= time_weight < np.inf):
+        raise ValueError(f"time_weight = {time_weight!r} is invalid: must be a number >= 0 "
+                         "[1/s], or None (precision only)")
     n = scene.plan_firings(start, firings)
     target = float(target_m if start is None else start.target_m)
+    # the error of a part that never moves: where the episode starts
+    start_error = -target - cfg.start_offset if start is None else start.position_m - target
     best: dict[str, Any] = {"cost": np.inf}
+    hist: list[float | None] = []
 
     def cost(X: np.ndarray) -> np.ndarray:
         plans = X.reshape(-1, n, 3).astype(np.float32).astype(float)
         r = roll.run(plans, target, seed=episode_seed, start=start)
-        c = plan_cost(r.abs_error_m, r.rest)
+        if time_weight is None:
+            c = plan_cost(r.abs_error_m, r.rest)
+        else:
+            c = time_weighted_cost(r.error_m, r.time_s, r.rest, float(time_weight),
+                                   cfg.tolerance, start_error)
         i = int(np.argmin(c))
         if c[i] < best["cost"] or "plan" not in best:  # the same rule as search._Counter
             best.update(cost=float(c[i]), plan=plans[i], error=float(r.error_m[i]),
                         outcome=str(r.outcome[i]), success=bool(r.success[i]),
                         time=float(r.time_s[i]))
+        hist.append(abs(best["error"]) if best["outcome"] == "rest" else None)
         return c
 
     t0 = time.perf_counter()
     res: SearchResult = minimize(method, cost, [(-1.0, 1.0)] * (3 * n), int(budget), int(seed),
                                  **search_kw)
-    hist = [c if c < MISS else None for c in res.history_best_cost]
     plan = best["plan"].reshape(n, 3)
     return TargetResult(
         target_m=target, method=method, seed=int(seed), budget=int(budget),
@@ -132,7 +159,8 @@ def solve_target(target_m: float, method: str = "de", budget: int = TARGET_BUDGE
         abs_error_m=abs(best["error"]), outcome=best["outcome"], success=best["success"],
         sim_time_s=best["time"], wall_time_s=time.perf_counter() - t0,
         tolerance_m=cfg.tolerance, history_episodes=res.history_episodes,
-        history_best_abs_error_m=hist)
+        history_best_abs_error_m=hist, time_weight=None if time_weight is None
+        else float(time_weight))
 
 
 def plans_rollout(plans: np.ndarray) -> Any:

@@ -1,6 +1,6 @@
 """Every registered env id through ``place`` and ``demo``: the positioner and the plane are
-placed with their default shipped policies (and, where a model-based method is defined, with
-it), a target outside the env's range or a negative seed is refused in one line, and the
+placed with their default shipped policies and with the model-based methods defined there, a
+target outside the env's range or a negative seed is refused in one line, and the
 model-based methods run on a user's own preset, where a policy of another scene is refused."""
 import json
 from pathlib import Path
@@ -51,18 +51,23 @@ def test_place_on_the_positioner_with_its_policy_its_controller_and_de(capsys):
     assert f"error {pol['error_m'] * 1e6:+.1f} µm" in text
 
 
-def test_place_on_the_plane_with_its_policy_and_only_that(capsys):
+def test_place_on_the_plane_with_its_policy_and_its_controller_only(capsys):
     r = place_json(capsys, "--env", "MicroConveyor2D-v1", "--target", "1.5e-3,0.5e-3")
     assert r["policy"].endswith("MicroConveyor2D-v1/ppo") and r["target_m"] == [1.5e-3, 0.5e-3]
     assert r["outcome"] == "rest" and r["success"] and 0 <= r["error_m"] <= 50e-6
     x, y = r["final_position_m"]
     assert r["error_m"] == pytest.approx(((x - 1.5e-3) ** 2 + (y - 0.5e-3) ** 2) ** 0.5)
     assert all(len(f["actuator_position_m"]) == 2 for f in r["firings"])
-    for args, msg in ((["--method", "mpc"], "its method is policy"),
-                      (["--method", "de"], "its method is policy")):
-        status, _, err = run(capsys, "place", "--env", "MicroConveyor2D-v1", "--target",
-                             "1.5e-3,0.5e-3", *args)
-        assert status == 2 and len(err.strip().splitlines()) == 1 and msg in err, err
+    # the plane's one-step controller, asked for ±10 µm: the env's tolerance is the request
+    mpc = place_json(capsys, "--env", "MicroConveyor2D-v1", "--target", "1.5e-3,0.5e-3",
+                     "--method", "mpc", "--tolerance", "1e-5")
+    assert mpc["policy"] is None and mpc["tolerance_m"] == 1e-5
+    assert mpc["outcome"] == "rest" and mpc["success"] and mpc["error_m"] <= 10e-6
+    assert mpc["placement_time_s"] == mpc["sim_time_s"] > 0 and mpc["episodes"] > 1
+    status, _, err = run(capsys, "place", "--env", "MicroConveyor2D-v1", "--target",
+                         "1.5e-3,0.5e-3", "--method", "de")
+    assert status == 2 and len(err.strip().splitlines()) == 1, err
+    assert "its methods are policy, mpc" in err, err
 
 
 @pytest.mark.parametrize("args, msg", [

@@ -70,7 +70,30 @@ def test_place_under_perturbation_plays_the_perturbed_episode(capsys):
     (["--target", "1e-3", "--mpc-budgets", "30,10"], "--mpc-budgets"),
     (["--target", "1e-3", "--noise", "-1"], "--noise"),
     (["--target", "1e-3", "--env", "MicroConveyor2D-v0"], "X,Y"),   # a point of the plane
+    (["--target", "1e-3", "--tolerance", "2e-3"], "--tolerance"),   # beyond 1 mm
+    (["--target", "1e-3", "--tolerance", "0"], "--tolerance"),
+    (["--target", "1e-3", "--method", "de", "--time-weight", "-1"], "--time-weight"),
+    (["--target", "1e-3", "--time-weight", "1e3"], "--time-weight"),   # DE's cost only
 ])
 def test_place_refuses_in_one_line(capsys, args, msg):
     status, out, err = place(capsys, *args)
     assert status == 2 and len(err.strip().splitlines()) == 1 and msg in err, err
+
+
+@pytest.mark.parametrize("env_id", ["MicroConveyor-v1", "MicroPositioner-v0"])
+def test_place_serves_the_precision_asked_for(capsys, env_id):
+    # --tolerance is the env's tolerance (success within it) and DE's T_d, with the
+    # dissertation's time weight by default on the line (the positioner's DE: precision only);
+    # the placement time is reported in s and ms
+    status, out, err = place(capsys, "--target", "2e-3", "--method", "de", "--budget", "20",
+                             "--tolerance", "1e-5", "--env", env_id, "--json")
+    assert status == 0, err
+    r = json.loads(out)
+    assert r["tolerance_m"] == 1e-5
+    assert r["time_weight"] == (1e3 if env_id == "MicroConveyor-v1" else None)
+    assert r["placement_time_s"] == r["sim_time_s"] > 0
+    assert r["success"] == (r["outcome"] == "rest" and abs(r["error_m"]) <= 1e-5)
+    status, text, _ = place(capsys, "--target", "2e-3", "--method", "de", "--budget", "20",
+                            "--tolerance", "1e-5", "--time-weight", "0", "--env", env_id)
+    assert status == 0 and "(±10 µm)" in text and " ms" in text.splitlines()[-2]
+    assert "placement time" not in text.splitlines()[0]   # precision only: no time weight
