@@ -3,8 +3,9 @@
 A generated table sits between two markers, ``<!-- results:NAME -->`` and
 ``<!-- /results:NAME -->``; this script rewrites what is between them from the stored JSON:
 
-* ``answer``: the answer table (target distance → method → error, nominal and under execution
-  noise) from ``docs/figures/answer_table.json`` (``scripts/answer_table.py`` measures it);
+* ``answer``: the answer table (target distance → method → error and placement time, nominal
+  and under execution noise) from ``docs/figures/answer_table.json``
+  (``scripts/answer_table.py`` measures it);
 * ``noise``: that table's noise level in action units and as frequency, stroke and delay jitter;
 * ``shipped``: every shipped policy's recorded evaluations, from its ``metadata.json``
   (``microconveyor record`` records them);
@@ -27,6 +28,13 @@ A generated table sits between two markers, ``<!-- results:NAME -->`` and
   ``docs/figures/firing_maps.json`` (``microconveyor firing-map --json``);
 * ``planner_speed``: MPC per target before and after the fast planners, from
   ``docs/figures/planner_speed.json`` (``scripts/planner_speed.py``);
+* ``frontier_line``, ``frontier_positioner``, ``frontier_plane``: precision against placement
+  time per method and request, from ``docs/figures/frontier_*.json`` (``scripts/frontier.py``);
+  ``frontier_answer``: the fastest method holding each request, from the same;
+* ``v1_fast``: MicroConveyor-v1's recipe per training seed with placement times and the lower
+  bound, from ``docs/figures/v1_fast.json``;
+* ``request_seeds``: the policies that take the requested tolerance as an input, per scene,
+  level and request, from ``docs/figures/request_seeds.json``;
 * ``dagger_breakdown``: where each DAgger recipe's time goes, from
   ``docs/figures/dagger_breakdown_*.json`` (``benchmarks/dagger_breakdown.py``).
 
@@ -94,24 +102,60 @@ def _cell(episodes: list[dict], tol: float) -> str:
     return f"{_um(float(np.median(err)))} ({100 * ok / len(episodes):.0f} %)"
 
 
+def _times(median_s: float | None, p90_s: float | None = None) -> str:
+    """A placement time's median and 90th percentile [s] as ``median / p90 ms``: the median alone
+    where no percentile is stored, a dash where no part rested (or no time is stored)."""
+    if median_s is None:
+        return "–"
+    if p90_s is None:
+        return f"{median_s * 1e3:.1f} ms"
+    return f"{median_s * 1e3:.1f} / {p90_s * 1e3:.1f} ms"
+
+
+def _episode_times(time_s: list | None, outcome: list) -> str:
+    """:func:`_times` of episodes' placement times [s] over those that ended at rest
+    (:func:`agents.rl.evaluation.evaluate.placement_times`); a dash where none is stored."""
+    from agents.rl.evaluation.evaluate import placement_times
+
+    if time_s is None:
+        return "–"
+    t = placement_times(time_s, outcome)
+    return _times(t["median_placement_time_s"], t["p90_placement_time_s"])
+
+
+def _time_cell(episodes: list[dict]) -> str:
+    times = [e.get("time_s") for e in episodes]
+    return _episode_times(None if None in times else times, [e["outcome"] for e in episodes])
+
+
+def _load(provenance: dict) -> str:
+    """The load average a stored measurement ran under, where it was recorded."""
+    load = provenance.get("load_average")
+    return "" if load is None else f" (load average {min(load):.1f}–{max(load):.1f} while measured)"
+
+
 def answer_table(data: dict) -> str:
     tol = data["tolerance_m"]
     n_t, n_s = data["targets_per_distance"], data["noise_seeds"]
     sigma = data["noise"]["sigma_action_units"]
     lines = [f"| target | method | nominal: median \\|error\\| (within ±{tol * 1e6:.0f} µm) | "
-             f"under noise σ = {sigma:g} | compute per target |", "|---|---|---|---|---|"]
+             f"nominal: placement time | under noise σ = {sigma:g} | under noise: placement "
+             "time | compute per target |", "|---|---|---|---|---|---|---|"]
     for d in data["distances_m"]:
         for name, m in data["methods"].items():
             def near(rows: list[dict], d: float = d) -> list[dict]:
                 return [r for r in rows if abs(r["target_m"] - d) <= 0.2e-3]
             lines.append(f"| {d * 1e3:g} mm | {METHOD_NAMES[name]} | {_cell(near(m['nominal']), tol)} | "
-                         f"{_cell(near(m['noise']), tol)} | {_ms(m['wall_s_per_target'])} |")
+                         f"{_time_cell(near(m['nominal']))} | {_cell(near(m['noise']), tol)} | "
+                         f"{_time_cell(near(m['noise']))} | {_ms(m['wall_s_per_target'])} |")
     lines.append("")
     lines.append(f"{data['env_id']}; per distance d, {n_t} targets over d ± 0.1 mm; nominal: one "
                  f"episode per target; under noise: {n_s} noise seeds per target "
                  f"({n_t * n_s} episodes per cell). Median absolute final error, in brackets the "
-                 f"share at rest within ±{tol * 1e6:.0f} µm; compute: wall time on the machine "
-                 f"of docs/results.md. Reproduce: `{data['provenance']['command']}`.")
+                 f"share at rest within ±{tol * 1e6:.0f} µm; placement time: the simulated time "
+                 "until the part rests, median / 90th percentile over the parts at rest; compute: "
+                 f"wall time on the machine of docs/results.md{_load(data['provenance'])}. "
+                 f"Reproduce: `{data['provenance']['command']}`.")
     return "\n".join(lines)
 
 
@@ -235,12 +279,14 @@ def compare_label(data: dict, row: dict) -> str:
 
 
 def compare_table(data: dict, level: tuple[float, float] = (3e-3, 0.05)) -> str:
-    """Rows of a stored ``microconveyor compare --json``: nominal success and error, success at
-    one perturbation ``level`` (σ, r) of the ``combined`` axis, compute per target."""
+    """Rows of a stored ``microconveyor compare --json``: nominal success, error and placement
+    time, success at one perturbation ``level`` (σ, r) of the ``combined`` axis, compute per
+    target."""
     tol = data["tolerance_m"]
     lines = [f"| method | nominal: within ±{tol * 1e6:.0f} µm [95 % Wilson] | median \\|error\\| | "
+             "placement time | "
              f"σ = {level[0]:g}, r = {100 * level[1]:g} %: within ±{tol * 1e6:.0f} µm (detached) "
-             "| compute per target |", "|---|---|---|---|---|"]
+             "| compute per target |", "|---|---|---|---|---|---|"]
     for row in data["rows"]:
         name = row["method"]
         key = f"{name}_{row['budget']}_plan" if "budget" in row else name
@@ -253,13 +299,19 @@ def compare_table(data: dict, level: tuple[float, float] = (3e-3, 0.05)) -> str:
         at = (f"{100 * pert[0]['success_rate']:.0f} % ({100 * pert[0]['detach_rate']:.0f} %)"
               if pert else "–")
         med = row.get("median_abs_error_m")
+        times = _times(row.get("median_placement_time_s", row.get("median_travel_time_s")),
+                       row.get("p90_placement_time_s"))
         lines.append(f"| {label} | {100 * row['success_rate']:.0f} % [{100 * lo:.0f}, {100 * hi:.0f}] "
-                     f"| {_um(med) if med is not None else '–'} | {at} | "
+                     f"| {_um(med) if med is not None else '–'} | {times} | {at} | "
                      f"{_ms(row['wall_s_per_target'])} |")
+    percentile = all("p90_placement_time_s" in row for row in data["rows"])
     lines.append("")
     lines.append(f"{data['env_id']}, {len(data['targets_m'])} targets drawn with seed "
                  f"{data['seed']} over the env's range; r: friction and mass factors uniform in "
-                 "[1 − r, 1 + r] per episode; one episode per target and level.")
+                 "[1 − r, 1 + r] per episode; one episode per target and level; placement time: "
+                 "the simulated time until the part rests, "
+                 + ("median / 90th percentile" if percentile else "median")
+                 + " over the parts at rest.")
     return "\n".join(lines)
 
 
@@ -480,11 +532,18 @@ PLANNER_NAMES = {"v1_mpc_de": "MicroConveyor-v1: MPC seeded by `ppo_refined`, DE
                                    "on the firing map"}
 
 
+def _detail_times(level: dict) -> str:
+    """:func:`_episode_times` of a stored level's ``episodes_detail``."""
+    detail = level.get("episodes_detail", {})
+    return _episode_times(detail.get("sim_time_s"), detail.get("outcome", []))
+
+
 def planner_speed_table(data: dict) -> str:
     """MPC per target before and after the fast planners (``scripts/planner_speed.py``)."""
     lines = ["| method | code | nominal: success, median \\|error\\| | perturbed: success, "
-             "median \\|error\\| (detached) | compute per target: nominal / perturbed | "
-             "model episodes per target |", "|---|---|---|---|---|---|"]
+             "median \\|error\\| (detached) | placement time: nominal; perturbed | compute per "
+             "target: nominal / perturbed | model episodes per target |",
+             "|---|---|---|---|---|---|---|"]
     for key, levels in data["methods"].items():
         code, method = key.split("/")
         nom = levels["nominal"]
@@ -493,7 +552,8 @@ def planner_speed_table(data: dict) -> str:
             f"| {PLANNER_NAMES[method]} | {code} ({data['revisions'][code]}) "
             f"| {100 * nom['success_rate']:.0f} %, {_um(nom['median_abs_error_m'])} "
             f"| {100 * per['success_rate']:.0f} %, {_um(per['median_abs_error_m'])} "
-            f"({100 * per['detach_rate']:.0f} %) | {_ms(nom['wall_s_per_target_mean'])} / "
+            f"({100 * per['detach_rate']:.0f} %) | {_detail_times(nom)}; {_detail_times(per)} "
+            f"| {_ms(nom['wall_s_per_target_mean'])} / "
             f"{_ms(per['wall_s_per_target_mean'])} | {nom['model_episodes_mean']:,.0f} |")
     loads = data["load_average_1_5_15"]
     lines.append("")
@@ -502,7 +562,9 @@ def planner_speed_table(data: dict) -> str:
         f"{', '.join(f'{d * 1e3:.0f}' for d in data['v1_distances_m'])} mm (the answer "
         f"table's), nominal and under execution noise σ = 3e-3 ({data['noise_seeds']} noise "
         f"seeds per target); MicroPositioner-v0: {data['positioner_targets']} targets (seed 0), "
-        "nominal and at σ = 3e-3, r = 5 %. The same episodes for every method; each method in a "
+        "nominal and at σ = 3e-3, r = 5 %. Placement time: the simulated time until the part "
+        "rests, median / 90th percentile over the parts at rest. "
+        "The same episodes for every method; each method in a "
         f"process of its own on one thread, alternating; load average "
         f"{min(v[0] for v in loads):.1f}-{max(v[0] for v in loads):.1f} during the run. "
         f"`{data['command']}` ({data['date']}, stored in `docs/figures/planner_speed.json`).")
@@ -536,6 +598,123 @@ def dagger_breakdown_table(runs: list[dict]) -> str:
     return "\n".join(lines)
 
 
+FRONTIER_SCENES = {"line": "MicroConveyor-v1", "positioner": "MicroPositioner-v0",
+                   "plane": "MicroConveyor2D-v1"}
+FRONTIER_HOLDS = 0.9   # the share within the request a method must hold to answer it
+
+
+def frontier_caption(data: dict, scene: str) -> str:
+    """Where a stored frontier's rows come from: targets, levels, the time bound, the command."""
+    levels = "; ".join(f"{name}: σ = {lv['action_noise']:g}, r = {100 * lv['spread']:g} %"
+                       for name, lv in data.get("levels", {}).items())
+    bound = data.get("time_bound_s")
+    told = (f" The physical lower bound on the placement time of the median target "
+            f"(`agents/planning/bounds.py`): {_ms(bound)}." if bound else "")
+    return (f"{data['env_id']}; held-out targets drawn with seed {data.get('target_seed')} (the "
+            f"number per row in its column); {levels}. A request is the env's `tolerance` (the "
+            "episode ends once the part rests within it); placement time: the simulated time "
+            "until the part rests, median and 90th percentile over the parts at rest; wall per "
+            f"target on the machine of [Provenance](#provenance).{told} Reproduce: "
+            f"`nice python scripts/frontier.py --env {data['env_id']} --out "
+            f"docs/figures/frontier_{scene}.json --plot docs/figures/frontier_{scene}.png`.")
+
+
+def frontier_scene_table(data: dict, scene: str) -> str:
+    """A stored frontier (``scripts/frontier.py``) as a table, then its caption."""
+    from agents.experiments.frontier import frontier_table
+
+    return frontier_table(data) + "\n" + frontier_caption(data, scene)
+
+
+def frontier_answer(datas: dict[str, dict]) -> str:
+    """Per scene, level and request (±50 and ±10 µm): the fastest method (least median
+    placement time) that holds at least :data:`FRONTIER_HOLDS` of its parts within the request,
+    from the stored frontiers."""
+    lines = ["| env id | level | request | fastest method holding ≥ 90 % | within the request | "
+             "placement time (median / p90) | detached |", "|---|---|---|---|---|---|---|"]
+    for scene, data in datas.items():
+        for level in data.get("levels", {}):
+            for um in (50, 10):
+                rows = [r for r in data["rows"] if r["level"] == level
+                        and round(r["request_tolerance_m"] * 1e6) == um
+                        and r.get("median_placement_time_s") is not None]
+                held = [r for r in rows if r[f"success_rate_{um}um"] >= FRONTIER_HOLDS]
+                if held:
+                    r = min(held, key=lambda r: r["median_placement_time_s"])
+                    cells = (f"`{r['method']}`", f"{100 * r[f'success_rate_{um}um']:.0f} %",
+                             _times(r["median_placement_time_s"], r["p90_placement_time_s"]),
+                             f"{100 * r['detach_rate']:.0f} %")
+                elif rows:
+                    r = max(rows, key=lambda r: r[f"success_rate_{um}um"])
+                    cells = (f"none (best: `{r['method']}`)",
+                             f"{100 * r[f'success_rate_{um}um']:.0f} %",
+                             _times(r["median_placement_time_s"], r["p90_placement_time_s"]),
+                             f"{100 * r['detach_rate']:.0f} %")
+                else:
+                    continue
+                lines.append(f"| {data['env_id']} | {level} | ±{um} µm | " + " | ".join(cells)
+                             + " |")
+    return "\n".join(lines) + ("\n\nFrom the stored frontiers `docs/figures/frontier_*.json` "
+                               "(`scripts/frontier.py`); every row, method and chart: "
+                               "docs/results.md, \"Placement time against precision\".")
+
+
+def v1_fast_table(data: dict) -> str:
+    """MicroConveyor-v1's recipe from the simulator alone, per training seed, with placement
+    times and the time over the lower bound (``docs/figures/v1_fast.json``)."""
+    lines = ["| seed | level | within ±50 / 20 / 10 / 5 µm | detached | placement time "
+             "(median / p90) | time over the bound, targets beyond 8 mm (max) | training wall "
+             "(CPU) |", "|---|---|---|---|---|---|---|"]
+    levels = {"nominal": "nominal", "noise_3e-3_factors_5pct": "σ = 3e-3, r = 5 %"}
+    seeds = data["dagger_seeds"]["seeds"]
+    for seed, run in seeds.items():
+        for key, name in levels.items():
+            f = run[key]
+            within = " / ".join(f"{100 * f[f'success_rate_{k}um']:.1f}" for k in (50, 20, 10, 5))
+            lines.append(f"| {seed} | {name} | {within} % | {100 * f['detach_rate']:.1f} % | "
+                         f"{_times(f['median_placement_time_s'], f['p90_placement_time_s'])} | "
+                         f"{f['time_over_bound_max_targets_over_8mm']:.2f} | "
+                         f"{run['wall_time_s']:.0f} s ({run['user_cpu_time_s']:.0f} s) |")
+    summ = data["dagger_seeds"]["summary"]["nominal"]
+    b = data["bound"]
+    return "\n".join(lines) + (
+        f"\n\nIQM over the seeds, nominal: {100 * summ['success_rate_50um']['iqm']:.1f} % within "
+        f"±50 µm, median placement time {_ms(summ['median_placement_time_s']['iqm'])}. "
+        f"1,000 held-out targets (seed 1) per row. The bound: a_f = {b['a_f_m_s2']:.2f} m/s², "
+        f"X = {b['X_m'] * 1e3:.1f} mm, {_ms(b['bound_s_at_m']['10 mm'])} at 10 mm; "
+        f"{b['check']['episodes_played_total']:,} nominal episodes played, none faster than it "
+        f"(smallest time over bound {b['check']['smallest_time_over_bound_seen']:.3f}). "
+        f"Measured {data['date']} ({data['machine']['cpu_count']} cores, shared). Train: "
+        "`microconveyor imitate --env MicroConveyor-v1 --seed S` (S = 0, 1, 2, one at a time).")
+
+
+def request_table(data: dict) -> str:
+    """The request-conditioned DAgger policies per scene, level and request: IQM over the
+    training seeds with each seed's share within the request (``docs/figures/request_seeds.json``)."""
+    lines = ["| env id | level | request | within the request: IQM (per seed) | within ±50 / 20 / "
+             "10 / 5 µm (IQM) | detached | placement time (median / p90, IQM) | training wall "
+             "per seed |", "|---|---|---|---|---|---|---|---|"]
+    for env_id, scene in data["scenes"].items():
+        walls = ", ".join(f"{run['train_wall_time_s']:.0f} s" for run in scene["seeds"].values())
+        for key, f in scene["iqm"].items():
+            level, um = key.split("/")
+            own = f[f"success_rate_{um}um"]
+            per_seed = ", ".join(f"{100 * v:.1f}" for v in own["per_seed"])
+            within = " / ".join(f"{100 * f[f'success_rate_{k}um']['iqm']:.1f}"
+                                for k in (50, 20, 10, 5))
+            lines.append(f"| {env_id} | {level} | ±{um} µm | {100 * own['iqm']:.1f} % "
+                         f"({per_seed}) | {within} % | {100 * f['detach_rate']['iqm']:.1f} % | "
+                         f"{_times(f['median_placement_time_s']['iqm'], f['p90_placement_time_s']['iqm'])}"
+                         f" | {walls} |")
+    commands = "; ".join(f"`{next(iter(sc['seeds'].values()))['train_command'].split(' --out')[0]}`"
+                         for sc in data["scenes"].values())
+    return "\n".join(lines) + (
+        "\n\nOne network per training seed (0, 1, 2) serves every request; 1,000 held-out targets "
+        "(seed 1) per row, `randomised`: the recipe's σ = 3e-3 with ±5 % friction and mass. "
+        f"Measured {data['date_utc']} UTC ({data['machine']['cpu_count']} shared cores; each "
+        f"training beside other jobs). Train (seed 0 shown): {commands}.")
+
+
 def generators() -> dict:
     """Region name -> a function returning its text."""
     def load(name: str) -> dict:
@@ -558,6 +737,14 @@ def generators() -> dict:
             "imitate_v1_paths": lambda: code_paths_table(load("imitate_v1_code_paths.json")),
             "firing_maps": lambda: firing_maps_table(load("firing_maps.json")),
             "planner_speed": lambda: planner_speed_table(load("planner_speed.json")),
+            "frontier_line": lambda: frontier_scene_table(load("frontier_line.json"), "line"),
+            "frontier_positioner": lambda: frontier_scene_table(load("frontier_positioner.json"),
+                                                                "positioner"),
+            "frontier_plane": lambda: frontier_scene_table(load("frontier_plane.json"), "plane"),
+            "frontier_answer": lambda: frontier_answer(
+                {k: load(f"frontier_{k}.json") for k in FRONTIER_SCENES}),
+            "v1_fast": lambda: v1_fast_table(load("v1_fast.json")),
+            "request_seeds": lambda: request_table(load("request_seeds.json")),
             "dagger_breakdown": lambda: dagger_breakdown_table(
                 [json.loads(f.read_text())
                  for f in sorted(RESULTS.glob("dagger_breakdown_*.json"))])}

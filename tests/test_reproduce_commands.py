@@ -139,6 +139,23 @@ RUNS: dict[str, list[str] | None] = {
                                                       "--json", "{out}/breakdown.json"],
     "python scripts/optimize_budget.py": ["--targets", "1", "--budgets", "20", "--out",
                                           "{out}/budget.json", "--plot", "{out}/budget.png"],
+    "python scripts/frontier.py --env MicroConveyor-v1 --out docs/figures/frontier_line.json "
+    "--plot docs/figures/frontier_line.png": [
+        "--targets", "2", "--methods", "ppo_refined", "staged_expert", "--levels", "nominal",
+        "--requests-um", "50", "10", "--out", "{out}/frontier.json", "--plot",
+        "{out}/frontier.png"],
+    "python scripts/frontier.py --env MicroPositioner-v0 --out "
+    "docs/figures/frontier_positioner.json --plot docs/figures/frontier_positioner.png": [
+        "--targets", "2", "--methods", "dagger_request", "--levels", "nominal",
+        "--requests-um", "50", "10", "--out", "{out}/frontier.json", "--plot",
+        "{out}/frontier.png"],
+    "python scripts/frontier.py --env MicroConveyor2D-v1 --out docs/figures/frontier_plane.json "
+    "--plot docs/figures/frontier_plane.png": [
+        "--targets", "2", "--methods", "plane_controller", "--levels", "nominal",
+        "--requests-um", "50", "--out", "{out}/frontier.json", "--plot", "{out}/frontier.png"],
+    "python scripts/frontier.py --plot-only --out docs/figures/frontier_line.json --plot "
+    "docs/figures/frontier_line.png": [
+        "--out", str(ROOT / "docs/figures/frontier_line.json"), "--plot", "{out}/frontier.png"],
     "python scripts/fork_outcomes.py --out docs/figures/ppo_v1_forks \"the "
     "recipe=runs/rec_s0_f21,runs/rec_s1_f21\" \"target KL 0.03=runs/kl_s0_f21\"": [
         "--out", "{out}/forks"],

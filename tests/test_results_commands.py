@@ -71,6 +71,7 @@ COMPARE_V1 = ("--targets", "2", "--budgets", "40", "--mpc-budgets", "40,40", "--
 COMPARE_POSITIONER = ("--targets", "2", "--budgets", "20", "--repeats", "1", "--plot",
                       "{tmp}/compare_positioner.png")
 IMITATE = ("--rounds", "1", "--episodes", "2")
+REQUESTS = ("--rounds", "1", "--episodes", "4")   # one episode per request
 # the options of the stored v1 comparison that the provenance table's `...` stands for (above it)
 COMPARE_REST = ("--budgets 1000 --methods de --mpc-budgets 1000,300 --noise 0 --spread 0 "
                 "--diagonal 3e-3:0.05")
@@ -110,6 +111,13 @@ RUNS: dict[str, Run] = {
     "microconveyor imitate --env MicroPositioner-v0 --seed S": Run(IMITATE, {"S": "0"}),
     "microconveyor imitate --env MicroPositioner-v0 --seed S --out runs/dagger-sS":
         Run(IMITATE, {"S": "0"}),
+    # one network for every request (the requested tolerance an input)
+    "microconveyor imitate --env ID --requests 5e-6 10e-6 20e-6 50e-6":
+        Run(REQUESTS, {"ID": "MicroPositioner-v0"}),
+    "microconveyor imitate --env MicroPositioner-v0 --seed 0 --requests 5e-6 10e-6 20e-6 "
+    "50e-6": Run(REQUESTS),
+    "microconveyor imitate --env MicroConveyor2D-v1 --seed 0 --requests 5e-6 10e-6 20e-6 "
+    "50e-6 --episodes 512": Run(REQUESTS),
     # training time (the refinement's settings cut in the test: `--refine` takes refine's
     # defaults)
     "microconveyor train --env MicroConveyor-v1 --refine": Run(TRAIN),

@@ -48,6 +48,10 @@ def test_a_changed_result_changes_the_table(tables):
     before = tables.answer_table(data)
     data["methods"]["de"]["nominal"][0]["error_m"] += 1e-3
     assert tables.answer_table(data) != before
+    before = tables.answer_table(data)
+    for e in data["methods"]["de"]["nominal"]:   # the placement times are tabled too
+        e["time_s"] += 1e-3
+    assert tables.answer_table(data) != before
     text = "<!-- results:answer -->\nstale\n<!-- /results:answer -->\n"
     out = tables.render(text, {"answer": lambda: "fresh"}, {})
     assert out == "<!-- results:answer -->\nfresh\n<!-- /results:answer -->\n"
@@ -62,6 +66,8 @@ def test_answer_table_holds_every_episode():
         assert len(m["noise"]) == n * data["noise_seeds"], name
         assert {e["action_noise"] for e in m["noise"]} == {data["noise"]["sigma_action_units"]}
         assert {e["action_noise"] for e in m["nominal"]} == {0.0}
+        for e in m["nominal"] + m["noise"]:   # every episode's placement time [s]
+            assert 0 < e["time_s"] < 1, name
 
 
 def _recorded_percentages() -> dict[str, set[str]]:
