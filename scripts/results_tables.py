@@ -632,7 +632,7 @@ def frontier_answer(datas: dict[str, dict]) -> str:
     from the stored frontiers."""
     lines = ["| env id | level | request | fastest method holding ≥ 90 % | within the request | "
              "placement time (median / p90) | detached |", "|---|---|---|---|---|---|---|"]
-    for scene, data in datas.items():
+    for data in datas.values():
         for level in data.get("levels", {}):
             for um in (50, 10):
                 rows = [r for r in data["rows"] if r["level"] == level

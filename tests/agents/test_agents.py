@@ -32,6 +32,8 @@ def test_ppo_config_is_rl_zoo_format():
         assert kw["learning_rate"](1.0) == float(hp["learning_rate"][4:]) and kw["learning_rate"](0.0) == 0
 
 
+@pytest.mark.slow   # ~17 s; PPO trained, saved, resumed and loaded in the default tier:
+# test_recipe_options.py::test_raw_observations_train_save_resume_and_load, test_checkpoints.py
 def test_ppo_trains_saves_loads_and_resumes(tmp_path):
     from agents.rl.artefacts.checkpoint import generations
 

@@ -24,6 +24,7 @@ TINY = {"n_envs": 8, "n_steps": 32, "batch_size": 64, "n_epochs": 2}
 BUDGET = {"eval_freq": 1024, "eval_targets": 5}
 
 
+@pytest.mark.slow   # ~17 s; one storage opened by several commands at once: test_tune_workers.py
 def test_two_workers_share_one_sqlite_study_and_the_best_is_a_config_entry(tmp_path):
     out = tmp_path / "tune"
     res = tune(TuneSettings(out=out, n_trials=4, workers=2, env_id=ENV, trial_steps=2048,
@@ -113,6 +114,7 @@ def test_a_trial_below_the_median_is_pruned_at_its_periodic_evaluation(tmp_path)
     assert trial.attrs["worker"] == "here" and trial.attrs["run"] == str(run)
 
 
+@pytest.mark.slow   # ~10 s of two worker processes training
 def test_train_seeds_in_two_workers_aggregate_and_finished_seeds_are_reused(tmp_path):
     kw = {"env_id": ENV, "steps": 2048, "overrides": TINY, "tensorboard": False, **BUDGET}
     res = train_seeds(tmp_path, [0, 1], TrainSettings(**kw), workers=2)

@@ -12,7 +12,8 @@ import microconveyor_env  # noqa: F401
 from microconveyor_env.envs import MicroConveyor2DEnv, MicroConveyor2DVectorEnv, PartState
 from microconveyor_env.envs.plane.part_state import PlaneState
 
-SEEDS = (0, 3, 7)
+# seed 7 plays the longest episode (about 16 s): with the slow tier; 0 and 3 check the same
+SEEDS = (0, 3, pytest.param(7, marks=pytest.mark.slow))
 
 
 def _actions(seed, n=8, shape=(5,)):
