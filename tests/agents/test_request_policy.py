@@ -48,7 +48,8 @@ def test_a_request_outside_the_trained_range_is_refused(tolerance):
 def test_a_policy_without_a_request_acts_as_before_and_keeps_its_tolerance():
     plain = load_policy(shipped_path("dagger", ENV_ID))
     assert plain.request_m is None and bind_request(plain, _config(10e-6)) is plain
-    with pytest.raises(PolicyError, match="tolerance"):   # another tolerance: another scene
+    # another tolerance: refused, naming what does take a request
+    with pytest.raises(PolicyError, match="does not take the requested tolerance as an input"):
         load_policy(shipped_path("dagger", ENV_ID), _config(10e-6))
 
 

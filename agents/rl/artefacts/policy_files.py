@@ -393,6 +393,14 @@ def policy_scene(meta: dict[str, Any], where: str = "metadata") -> AnyConfig:
 def check_scene(trained: AnyConfig, asked: AnyConfig, meta: dict[str, Any], where: str) -> None:
     """PolicyError when ``asked`` is another scene than the one the policy was trained in."""
     diff = scene_differences(trained, asked)
+    if set(diff) == {"tolerance"}:
+        a, b = diff["tolerance"]
+        raise PolicyError(f"{where}: the policy was trained for a tolerance of ±{a * 1e6:g} µm "
+                          f"and does not take the requested tolerance as an input (asked "
+                          f"±{b * 1e6:g} µm); use a request-conditioned policy (its metadata "
+                          "names a 'request', e.g. the shipped dagger_request of "
+                          "MicroPositioner-v0 and MicroConveyor2D-v1), or a model-based method "
+                          "(--method mpc or de)")
     if diff:
         fields = "; ".join(f"{k}: trained {a!r}, asked {b!r}" for k, (a, b) in diff.items())
         raise PolicyError(f"{where}: the policy was trained on {meta.get('env_id', '?')}"
